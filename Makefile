@@ -1,0 +1,37 @@
+# Motion Studio — two commands do all set-up on a fresh machine:
+#   make studio   install if needed, then serve http://127.0.0.1:8080 with the default robot
+#   make test     install if needed (and Debian's chromium for the browser tests), run every test
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+PYTEST_ARGS ?=
+
+.PHONY: setup studio test chromium bench clean-cache
+
+setup: $(STAMP)
+
+# torch first, pinned to the CPU wheel on this disk, so nothing pulls a multi-GB CUDA build.
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -e '.[test]'
+	@touch $(STAMP)
+
+studio: setup
+	$(VENV)/bin/studio serve
+
+chromium:
+	@command -v chromium >/dev/null 2>&1 || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq chromium; }
+
+test: setup chromium
+	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+bench: setup
+	$(VENV)/bin/studio bench
+
+clean-cache:
+	rm -rf "$${XDG_CACHE_HOME:-$$HOME/.cache}/motion-studio"

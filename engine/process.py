@@ -1,0 +1,154 @@
+"""The engine process: EngineCore paced to wall-clock real time, talking over a socket pair.
+
+``EngineProcess`` is the parent's handle (start, send, receive, watch); ``engine_main`` is
+the child's entry point (``python -m engine``). The child exits by itself when the parent
+goes away (EOF on the socket, or re-parenting).
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from multiprocessing.connection import Connection
+from pathlib import Path
+
+from engine import protocol as msg
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+PUBLISH_HZ = 60.0
+MAX_CATCH_UP_TICKS = 25  # never run more than 50 ms of simulation in one go; drop time instead
+
+
+def engine_main(conn: Connection, robot: str) -> None:
+    """Child process entry point."""
+    from engine.core import CONTROL_RATE_HZ, EngineCore  # heavy imports happen in the child
+
+    def emit(event: msg.Event) -> None:
+        conn.send(event)
+
+    try:
+        core = EngineCore(robot, emit)
+    except Exception as exc:  # a broken robot must not leave the studio without an engine
+        conn.send(msg.Notice("error", f"engine could not load {robot!r}: {exc}"))
+        from engine.robot.config import DEFAULT_ROBOT
+
+        core = EngineCore(DEFAULT_ROBOT, emit)
+
+    period = 1.0 / CONTROL_RATE_HZ
+    publish_period = 1.0 / PUBLISH_HZ
+    wall0 = time.perf_counter()
+    ticks = 0
+    next_publish = wall0
+    rtf_wall, rtf_ticks = wall0, 0
+    parent = os.getppid()
+    try:
+        while True:
+            while conn.poll():
+                command = conn.recv()
+                if isinstance(command, msg.Shutdown):
+                    return
+                robot_before = core.robot.name
+                core.handle(command)
+                if core.robot.name != robot_before:
+                    wall0, ticks = time.perf_counter(), 0
+            now = time.perf_counter()
+            if core.running:
+                due = int((now - wall0) / period) - ticks
+                if due > MAX_CATCH_UP_TICKS:  # too slow: let simulated time fall behind
+                    wall0 += (due - MAX_CATCH_UP_TICKS) * period
+                    due = MAX_CATCH_UP_TICKS
+                for _ in range(max(due, 0)):
+                    core.tick()
+                    ticks += 1
+            else:
+                wall0 = now - ticks * period
+            now = time.perf_counter()
+            if now - rtf_wall >= 1.0:
+                core.real_time_factor = (ticks - rtf_ticks) * period / (now - rtf_wall)
+                rtf_wall, rtf_ticks = now, ticks
+            if now >= next_publish:
+                conn.send(core.frame())
+                next_publish = max(next_publish + publish_period, now)
+                if os.getppid() != parent:
+                    return  # orphaned
+            next_tick = wall0 + (ticks + 1) * period if core.running else now + publish_period
+            sleep = min(next_tick, next_publish) - time.perf_counter()
+            if sleep > 0:
+                conn.poll(min(sleep, 0.05))
+    except (EOFError, BrokenPipeError, ConnectionResetError, KeyboardInterrupt):
+        return
+
+
+class EngineProcess:
+    """Parent-side handle on one engine process (``python -m engine`` over a socket pair)."""
+
+    def __init__(self, robot: str):
+        self.robot = robot
+        self.process: subprocess.Popen | None = None
+        self.conn: Connection | None = None
+
+    def start(self) -> None:
+        parent_sock, child_sock = socket.socketpair()
+        child_fd = child_sock.fileno()
+        env = dict(os.environ)
+        env.setdefault("PYTHONUNBUFFERED", "1")
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "engine", "--robot", self.robot, "--fd", str(child_fd)],
+            pass_fds=(child_fd,), env=env, cwd=str(REPO_ROOT),
+        )
+        child_sock.close()
+        self.conn = Connection(parent_sock.detach())
+
+    @property
+    def pid(self) -> int | None:
+        return self.process.pid if self.process else None
+
+    def alive(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def send(self, command: msg.Command) -> bool:
+        if isinstance(command, msg.SwitchRobot):
+            self.robot = command.robot
+        if self.conn is None:
+            return False
+        try:
+            self.conn.send(command)
+            return True
+        except OSError:
+            return False
+
+    def recv(self, timeout_s: float) -> msg.Event | None:
+        """Next event, or None after ``timeout_s``; raises EOFError when the engine is gone."""
+        if self.conn is None:
+            raise EOFError("engine not started")
+        if self.conn.poll(timeout_s):
+            return self.conn.recv()
+        return None
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        if self.process is None:
+            return
+        self.send(msg.Shutdown())
+        try:
+            self.process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(2.0)
+        if self.conn is not None:
+            self.conn.close()
+        self.process = None
+        self.conn = None
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m engine", description="motion-studio engine process")
+    parser.add_argument("--robot", required=True)
+    parser.add_argument("--fd", type=int, required=True, help="inherited socket of the studio")
+    args = parser.parse_args(argv)
+    engine_main(Connection(args.fd), args.robot)
+    return 0

@@ -1,0 +1,122 @@
+"""MuJoCo simulation of one robot: stepping, joint servos, pushes, fall detection, poses."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from engine.control.controller import Controller, JointCommand, RobotState, StandingPdController
+from engine.control.static_balance import static_contact_torques
+from engine.robot.model import RobotModel
+
+CONTROL_PERIOD_S = 0.002  # 500 Hz, one physics step per control tick
+FALL_HEIGHT_FRACTION = 0.55  # base below this fraction of its standing height → fallen
+FALL_TILT_RAD = 1.0  # base tilted more than this from upright → fallen
+
+
+@dataclass
+class Push:
+    """An external force on a body for a while (world frame, N)."""
+
+    force_n: np.ndarray
+    start_s: float
+    duration_s: float
+    body_id: int
+
+
+def standing_controller(robot: RobotModel) -> StandingPdController:
+    """Joint PD on the standing pose with static-balance feed-forward torques."""
+    tau = static_contact_torques(robot, robot.q_standing)
+    return StandingPdController(robot.q_standing[7:], robot.kp, robot.kd, tau)
+
+
+class Simulation:
+    """Steps the MuJoCo model of ``robot`` under a :class:`Controller`."""
+
+    def __init__(self, robot: RobotModel, controller: Controller | None = None):
+        if not robot.config.simulated:
+            raise ValueError(f"{robot.name} is a {robot.kind}: it is not simulated")
+        self.robot = robot
+        self.model = robot.mj_model
+        self.data = mujoco.MjData(self.model)
+        self.controller: Controller = controller or standing_controller(robot)
+        self.pushes: list[Push] = []
+        self.command: JointCommand | None = None
+        self.root_body_id = self.model.body(robot.config.root_link).id
+        self.standing_base_z = float(robot.q_standing[2])
+        self.fallen = False
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    def state(self) -> RobotState:
+        q = self.robot.pin_q_from_mj(self.data.qpos)
+        v = self.robot.pin_v_from_mj(self.data.qvel, self.data.qpos)
+        return RobotState(self.time_s, q, v)
+
+    def joint_positions(self) -> np.ndarray:
+        return self.data.qpos[self.robot.mj_qpos_index].copy()
+
+    def joint_velocities(self) -> np.ndarray:
+        return self.data.qvel[self.robot.mj_dof_index].copy()
+
+    def body_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """World positions (B,3) and wxyz quaternions (B,4) of every body but the world."""
+        return self.data.xpos[1:].copy(), self.data.xquat[1:].copy()
+
+    # ------------------------------------------------------------------ control
+    def reset(self, qpos: np.ndarray | None = None) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = self.robot.mj_standing_qpos() if qpos is None else qpos
+        self.data.qvel[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        self.pushes.clear()
+        self.fallen = False
+        self.controller.reset(self.state())
+        self.command = None
+
+    def set_controller(self, controller: Controller) -> None:
+        self.controller = controller
+        controller.reset(self.state())
+
+    def push(self, force_n: np.ndarray, duration_s: float, body: str | None = None) -> None:
+        body_id = self.root_body_id if body is None else self.model.body(body).id
+        self.pushes.append(Push(np.asarray(force_n, dtype=float), self.time_s, float(duration_s), body_id))
+
+    def step(self) -> None:
+        """One control tick: controller → joint servos → one physics step."""
+        self.command = self.controller.compute(self.state())
+        self._apply_servos(self.command)
+        self._apply_pushes()
+        mujoco.mj_step(self.model, self.data)
+        if not self.fallen:
+            self.fallen = self.detect_fall()
+
+    def _apply_servos(self, cmd: JointCommand) -> None:
+        tau = cmd.torque(self.joint_positions(), self.joint_velocities(), self.robot.effort_limits)
+        if not np.all(np.isfinite(tau)):
+            tau = np.zeros_like(tau)
+        self.data.ctrl[self.robot.mj_actuator_index] = tau
+
+    def _apply_pushes(self) -> None:
+        self.data.xfrc_applied[:] = 0.0
+        t = self.time_s
+        self.pushes = [p for p in self.pushes if t < p.start_s + p.duration_s]
+        for p in self.pushes:
+            self.data.xfrc_applied[p.body_id, 0:3] += p.force_n
+
+    def detect_fall(self) -> bool:
+        z = float(self.data.qpos[2])
+        w = float(np.clip(abs(self.data.qpos[3]), 0.0, 1.0))
+        qz = self.data.qpos[4:7]
+        # Tilt: angle between the base z axis and world z.
+        up_z = 1.0 - 2.0 * (qz[0] ** 2 + qz[1] ** 2)
+        tilt = float(np.arccos(np.clip(up_z, -1.0, 1.0)))
+        del w
+        return bool(z < FALL_HEIGHT_FRACTION * self.standing_base_z or tilt > FALL_TILT_RAD
+                    or not np.all(np.isfinite(self.data.qpos)))

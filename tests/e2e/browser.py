@@ -1,0 +1,51 @@
+"""Headless Chromium (Debian's /usr/bin/chromium) driven by Playwright, for e2e tests."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import shutil
+
+import numpy as np
+import pytest
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+ARGS = [
+    "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic",
+]
+
+
+@contextlib.contextmanager
+def open_page(url: str, width: int = 900, height: int = 640):
+    playwright = pytest.importorskip("playwright.sync_api")
+    import os
+
+    if not os.path.exists(CHROMIUM):
+        pytest.fail("chromium is not installed: `make test` installs Debian's chromium")
+    with playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        page = browser.new_page(viewport={"width": width, "height": height})
+        page.set_default_timeout(60_000)
+        page.goto(url)
+        try:
+            yield page
+        finally:
+            browser.close()
+
+
+def wait_for_text(page, text: str, timeout_ms: int = 60_000) -> None:
+    page.wait_for_function("t => document.body.innerText.includes(t)", arg=text, timeout=timeout_ms)
+
+
+def canvas_pixels(page) -> np.ndarray:
+    """RGB pixels of the 3D canvas as seen on screen."""
+    from PIL import Image
+
+    png = page.locator("canvas").first.screenshot()
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+
+
+def robot_pixel_count(rgb: np.ndarray) -> int:
+    """Pixels dark enough to be robot (G1/TALOS dark parts), not the light grid or background."""
+    return int(np.sum(rgb.max(axis=2) < 90))

@@ -1,0 +1,57 @@
+"""The command line, as a user types it."""
+
+from __future__ import annotations
+
+import json
+
+from tests.conftest import REPO, run_studio
+
+
+def test_robots_table_lists_the_library_with_figures():
+    out = run_studio("robots")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.strip().splitlines()
+    assert lines[0].split()[:2] == ["name", "kind"]
+    rows = {line.split()[0]: line.split() for line in lines[1:]}
+    assert set(rows) == {"g1", "talos", "go1", "go2", "a1", "b1", "anymal_c", "human"}
+    g1 = rows["g1"]
+    assert g1[1] == "biped" and g1[2] == "29" and abs(float(g1[3]) - 33.3) < 0.2 and abs(float(g1[4]) - 1.32) < 0.03
+    assert rows["go1"][1] == "quadruped" and rows["go1"][2] == "12"
+    assert rows["human"][1] == "source-skeleton"
+
+
+def test_unknown_robot_exits_2_with_one_line():
+    out = run_studio("serve", "--robot", "nosuch", timeout=60)
+    assert out.returncode == 2
+    assert out.stdout == ""
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "unknown robot 'nosuch'" in lines[0] and "g1" in lines[0] and "talos" in lines[0]
+    assert "Traceback" not in out.stderr
+
+
+def test_config_with_a_missing_field_exits_2_naming_it(tmp_path):
+    for src in (REPO / "robots").glob("*.toml"):
+        (tmp_path / src.name).write_text(src.read_text())
+    broken = (REPO / "robots" / "go2.toml").read_text().replace('root_link = "base"\n', "")
+    (tmp_path / "go2.toml").write_text(broken)
+    env = {"MOTION_STUDIO_ROBOTS": str(tmp_path)}
+    out = run_studio("serve", "--robot", "go2", env=env, timeout=60)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.strip() == "studio: error: go2.toml: model.root_link: missing required field (expected a string)"
+    listing = run_studio("robots", env=env)
+    assert listing.returncode == 2 and "go2.toml: model.root_link" in listing.stderr
+    assert "g1" in listing.stdout  # the good robots are still listed
+
+
+def test_bench_sim_json():
+    out = run_studio("bench", "sim", "--json")
+    assert out.returncode == 0, out.stderr
+    rows = {r["robot"]: r for r in json.loads(out.stdout)["rows"] if r["section"] == "sim"}
+    for name in ("g1", "talos", "go1"):
+        assert rows[name]["mj_steps_per_s"] > 500
+        assert rows[name]["rtf_ceiling"] > 1.0
+
+
+def test_bench_rejects_unknown_section():
+    out = run_studio("bench", "nosuch")
+    assert out.returncode == 2 and "unknown bench section 'nosuch'" in out.stderr
