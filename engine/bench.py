@@ -55,7 +55,36 @@ def bench_sim(robots: tuple[str, ...] = SIM_BENCH_ROBOTS, seconds_per_robot: flo
     return rows
 
 
-SECTIONS: dict[str, Callable[[], list[dict]]] = {"sim": bench_sim}
+def bench_reference(robot: str = "g1", style_name: str = "neutral", seconds: float = 50.0) -> list[dict]:
+    """Sampler + planner per 125 Hz tick over the sweep preset (joystick-like, changing command).
+
+    Two rows: r(t) alone, and r(t) plus the 2 s contact preview the MPC consumes.
+    """
+    from engine.gait.command_schedule import preset
+    from engine.gait.offline_plan import planner_for
+    from engine.gait.planner import PLANNER_RATE_HZ
+    from engine.gait.style import load_style, styles_dir
+
+    model = load_robot(robot)
+    style = load_style(styles_dir(robot) / f"{style_name}.json")
+    schedule = preset("sweep", style.velocities)
+    rows = []
+    dt = 1.0 / PLANNER_RATE_HZ
+    for with_preview in (False, True):
+        planner = planner_for(model, style)
+        times = []
+        for _ in range(int(seconds * PLANNER_RATE_HZ)):
+            command = schedule(planner.t_s + dt)
+            t0 = time.perf_counter()
+            planner.step(dt, command, with_preview=with_preview)
+            times.append(time.perf_counter() - t0)
+        rows.append({"section": "reference", "robot": robot, "style": style_name,
+                     "what": "sampler+planner+preview" if with_preview else "sampler+planner",
+                     **percentiles_us(times), "goal_median_us": 100, "ticks": len(times)})
+    return rows
+
+
+SECTIONS: dict[str, Callable[[], list[dict]]] = {"sim": bench_sim, "reference": bench_reference}
 
 
 def percentiles_us(samples_s: list[float] | np.ndarray) -> dict[str, float]:

@@ -19,7 +19,7 @@ class CliError(Exception):
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="studio", description="Motion Studio: author stylized walking gaits for robots.")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="subcommand", required=True)
 
     serve = sub.add_parser("serve", help="serve the studio in the browser")
     serve.add_argument("--robot", default=None, help="robot to open (default: g1)")
@@ -27,6 +27,16 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=int, default=8080)
 
     sub.add_parser("robots", help="list the robot library")
+
+    check = sub.add_parser("check", help="validate style files")
+    check.add_argument("files", nargs="+", help="style files (JSON)")
+
+    plan = sub.add_parser("plan", help="run the gait planner headless and record the reference (npz)")
+    plan.add_argument("--robot", default="g1")
+    plan.add_argument("--style", default="neutral", help="a style name of the robot or a path to a style file")
+    plan.add_argument("--command", default="forward", help="vx,vy,wz | stand | forward | sweep | keyframes.json")
+    plan.add_argument("--duration", type=float, default=10.0, help="seconds to plan")
+    plan.add_argument("--out", required=True, help="output .npz")
 
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
@@ -37,12 +47,16 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        if args.command == "serve":
+        if args.subcommand == "serve":
             return cmd_serve(args)
-        if args.command == "robots":
+        if args.subcommand == "robots":
             return cmd_robots(args)
-        if args.command == "bench":
+        if args.subcommand == "bench":
             return cmd_bench(args)
+        if args.subcommand == "check":
+            return cmd_check(args)
+        if args.subcommand == "plan":
+            return cmd_plan(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -94,6 +108,77 @@ def cmd_robots(args: argparse.Namespace) -> int:
     for err in errors:
         print(f"studio: error: {err}", file=sys.stderr)
     return EXIT_USAGE if errors else 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from engine.gait.style import StyleError, load_style
+
+    status = 0
+    for f in args.files:
+        try:
+            load_style(f)
+            print(f"{f}: ok")
+        except StyleError as exc:
+            print(f"studio: error: {exc}", file=sys.stderr)
+            status = EXIT_USAGE
+    return status
+
+
+def resolve_style(robot: str, style: str):
+    """Load ``style`` (a name in styles/<robot>/ or a file path) for ``robot``; one-line errors."""
+    from pathlib import Path
+
+    from engine.gait.style import StyleError, load_style, styles_dir
+
+    path = Path(style)
+    if path.suffix != ".json":
+        folder = styles_dir(robot)
+        path = folder / f"{style}.json"
+        if not path.is_file():
+            known = sorted(p.stem for p in folder.glob("*.json"))
+            raise CliError(f"unknown style {style!r} for {robot}; styles: {', '.join(known) or 'none'}")
+    try:
+        return load_style(path, expected_robot=robot)
+    except StyleError as exc:
+        raise CliError(str(exc)) from None
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from engine.gait.command_schedule import CommandError, parse_command
+    from engine.gait.offline_plan import run_plan
+    from engine.robot.config import RobotConfigError, load_robot_config
+    from engine.robot.model import load_robot
+
+    try:
+        cfg = load_robot_config(args.robot)
+    except RobotConfigError as exc:
+        raise CliError(str(exc)) from None
+    if cfg.kind != "biped":
+        raise CliError(f"--robot: expected a biped (the gait planner walks bipeds), {args.robot} is a {cfg.kind}")
+    if not (args.duration > 0 and args.duration <= 3600):
+        raise CliError(f"--duration: expected 0 < T ≤ 3600 s, got {args.duration}")
+    style = resolve_style(args.robot, args.style)
+    try:
+        schedule = parse_command(args.command, style.velocities)
+    except CommandError as exc:
+        raise CliError(str(exc)) from None
+    out = Path(args.out)
+    if out.suffix != ".npz":
+        raise CliError(f"--out: expected a .npz file, got {args.out!r}")
+    arrays = run_plan(load_robot(args.robot), style, schedule, args.duration)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp.npz")
+    np.savez_compressed(tmp, **arrays)
+    tmp.replace(out)
+    n = len(arrays["t"])
+    clamped = int(np.any(np.abs(arrays["command"] - arrays["command_requested"]) > 1e-9, axis=1).sum())
+    print(f"{out}: {n} samples at 125 Hz, {args.duration:g} s, style {style.name} on {args.robot}"
+          + (f"; command clamped to the style's limits in {clamped} samples" if clamped else ""))
+    return 0
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

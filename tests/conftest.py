@@ -79,3 +79,11 @@ def served_studio():
     studio = ServedStudio()
     yield studio
     studio.stop()
+
+
+# Property tests: reproducible in CI (same examples every run), exploratory elsewhere.
+from hypothesis import settings as _hyp_settings  # noqa: E402
+
+_hyp_settings.register_profile("ci", derandomize=True, print_blob=True)
+if os.environ.get("CI"):
+    _hyp_settings.load_profile("ci")

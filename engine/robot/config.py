@@ -77,6 +77,20 @@ class FootPoint:
 
 
 @dataclass(frozen=True)
+class GaitLimits:
+    """What the controller can track on this robot: bounds for style validation and defaults."""
+
+    pelvis_height_m: float = 0.0  # default walking pelvis (root link) height
+    pelvis_height_range_m: tuple[float, float] = (0.0, 0.0)
+    stance_width_m: float = 0.2  # default distance between the feet centres
+    stance_width_range_m: tuple[float, float] = (0.1, 0.5)
+    min_single_support_s: float = 0.25
+    min_double_support_s: float = 0.05
+    max_cycle_s: float = 3.0
+    max_swing_height_m: float = 0.3
+
+
+@dataclass(frozen=True)
 class RobotConfig:
     name: str
     display_name: str
@@ -100,6 +114,7 @@ class RobotConfig:
     visual_face_budget: int = 30000
     collision_face_budget: int = 400
     default_style: str | None = None
+    gait: GaitLimits | None = None  # bipeds
 
     @property
     def simulated(self) -> bool:
@@ -165,7 +180,7 @@ def _kind_name(kind: type | tuple[type, ...]) -> str:
 
 _TOP_FIELDS = {
     "name", "display_name", "kind", "source", "model", "standing", "gains", "upper_body",
-    "feet", "fixes", "mesh", "default_style",
+    "feet", "fixes", "mesh", "default_style", "gait",
 }
 
 
@@ -282,7 +297,36 @@ def load_config(path: Path) -> RobotConfig:
     visual_budget = r.get(mesh, "visual_face_budget", "mesh.", int, 30000)
     collision_budget = r.get(mesh, "collision_face_budget", "mesh.", int, 400)
 
+    gait: GaitLimits | None = None
+    gait_table = r.get(data, "gait", "", dict, None)
+    if kind == "biped" and gait_table is None:
+        raise r.fail("gait", "missing required field (expected a table with pelvis_height_m, pelvis_height_range_m)")
+    if gait_table is not None:
+        fields = {f for f in GaitLimits.__dataclass_fields__}
+        r.unknown(gait_table, fields, "gait.")
+        values: dict[str, Any] = {}
+        for key in fields:
+            if key.endswith("_range_m"):
+                rng = r.get(gait_table, key, "gait.", list, ...) if key == "pelvis_height_range_m" else \
+                    r.get(gait_table, key, "gait.", list, None)
+                if rng is None:
+                    continue
+                if len(rng) != 2 or not all(isinstance(v, (int, float)) for v in rng) or not rng[0] < rng[1]:
+                    raise r.fail(f"gait.{key}", f"expected [low, high] with low < high, got {rng!r}")
+                values[key] = (float(rng[0]), float(rng[1]))
+            elif key == "pelvis_height_m":
+                values[key] = r.get(gait_table, key, "gait.", float)
+            elif key in gait_table:
+                values[key] = r.get(gait_table, key, "gait.", float)
+                if values[key] <= 0:
+                    raise r.fail(f"gait.{key}", f"expected a positive number, got {values[key]!r}")
+        gait = GaitLimits(**values)
+        lo, hi = gait.pelvis_height_range_m
+        if not lo <= gait.pelvis_height_m <= hi:
+            raise r.fail("gait.pelvis_height_m", f"expected within pelvis_height_range_m [{lo}, {hi}]")
+
     return RobotConfig(
+        gait=gait,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,

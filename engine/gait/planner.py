@@ -1,0 +1,424 @@
+"""The procedural gait planner (paper §4.2, Eqs. 1–6): r(t) = g(v, s, Π, t).
+
+Each 125 Hz tick it
+1. blends the style's samples for the command velocity (sampler §5.3 + phase-space blending),
+2. advances a *phase clock* φ at dφ/dt = κ / Ω'(φ) — contact events sit at fixed phases
+   (LLO 0, LTD 0.1, RLO 0.5, RTD 0.6), so blends, live edits and time scaling never
+   reorder or skip them,
+3. integrates the path frame, re-evaluates the swing foot's upcoming foothold (Eq. 4, with
+   the safe-region projection) and latches it at touchdown,
+4. composes nominal and stylized motion (Eq. 3): feet = nominal swing (Eqs. 5–6) ⊕ swing
+   curves with the heel/toe rig; pelvis height and rotation; upper-body joints,
+5. previews the contact sequence over 2 s (footholds, timings, support polygons) for the MPC.
+
+Discrete changes (a new style while editing) cross-fade over ``STYLE_FADE_S`` as a
+phase-space blend of the old and new samples, so the reference stays continuous.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine.geometry import convex_hull_2d, quat_from_matrix, rot_z, rot_zyx, smooth_max, smooth_min, smoothstep
+from engine.gait.blending import HEEL, SWING_PHASES, TOE, BlendedGait, ChannelLayout, StyleBanks
+from engine.gait.footsteps import (
+    Foothold,
+    SafeRegion,
+    foothold_from_path,
+    project_to_safe_region,
+    stance_offset,
+)
+from engine.gait.heel_toe import foot_rig, stance_pitch
+from engine.gait.path_frame import PathFrame, predict
+from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
+from engine.gait.style import SIDES, Style, StyleContext
+from engine.gait.swing import nominal_swing
+from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
+
+PLANNER_RATE_HZ = 125.0
+PREVIEW_S = 2.0
+STYLE_FADE_S = 0.3
+START_PHASE = PHI_RTD  # start in double support, right foot just down: the left lifts first
+CONTACT_TOL_M = 1e-3
+MIN_HEEL_TOE_TRANSITION_S = 0.08
+TARGET_SETTLE_FRACTION = 0.4
+TRANSITION_SMOOTHING_S = 0.01
+
+
+@dataclass
+class ContactPhase:
+    """A support interval of the preview: which feet are down where, and the support polygon."""
+
+    t_start_s: float
+    t_end_s: float
+    footholds: dict[str, Foothold]
+    polygon: np.ndarray  # (M, 2) counter-clockwise
+
+
+@dataclass
+class GaitReference:
+    """The planner output r(t) of Eq. 2 with everything the controller and the studio need."""
+
+    t_s: float
+    phase: float  # cycles since start (integer part) + gait phase φ
+    command: np.ndarray  # (3,) command after clamping [vx, vy, wz]
+    sample_weights: np.ndarray  # (9,)
+    path_pose: np.ndarray  # (3,) x, y, yaw
+    pelvis_z: float
+    pelvis_z_rate: float
+    pelvis_rot: np.ndarray  # (3, 3)
+    pelvis_ang_vel: np.ndarray  # (3,) world
+    foot_pos: np.ndarray  # (2, 3) sole centres [left, right]
+    foot_rot: np.ndarray  # (2, 3, 3)
+    foot_lin_vel: np.ndarray  # (2, 3)
+    foot_ang_vel: np.ndarray  # (2, 3)
+    contact: np.ndarray  # (2,) bool: foot in its support phase
+    corner_contact: np.ndarray  # (2, 4) bool: sole corner on the ground
+    sole_corners: np.ndarray  # (2, 4, 3) world
+    upper_q: np.ndarray  # (K,)
+    upper_qd: np.ndarray  # (K,)
+    footholds: dict[str, Foothold]  # current latched (stance) or target (swing) foothold per side
+    preview: list[ContactPhase] = field(default_factory=list)
+    cycle_s: float = 0.0
+    swing_progress: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    @property
+    def pelvis_quat(self) -> np.ndarray:
+        return quat_from_matrix(self.pelvis_rot)
+
+    def foot_quat(self, i: int) -> np.ndarray:
+        return quat_from_matrix(self.foot_rot[i])
+
+
+def _angular_velocity(r0: np.ndarray, r1: np.ndarray, dt: float) -> np.ndarray:
+    """World angular velocity taking r0 to r1 in dt (small-angle)."""
+    d = r1 @ r0.T
+    return np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]]) / (2.0 * dt)
+
+
+@dataclass
+class _Pose:
+    pos: np.ndarray
+    rot: np.ndarray
+
+
+class GaitPlanner:
+    """Stateful planner: ``reset`` once, then ``step`` at 125 Hz with the velocity command."""
+
+    def __init__(self, style: Style, ctx: StyleContext, sole_length_m: float, sole_width_m: float):
+        self.ctx = ctx
+        self.sole_length_m = sole_length_m
+        self.sole_width_m = sole_width_m
+        hl, hw = 0.5 * sole_length_m, 0.5 * sole_width_m
+        self.sole_corners_local = np.array([[hl, hw, 0.0], [hl, -hw, 0.0], [-hl, -hw, 0.0], [-hl, hw, 0.0]])
+        self.region = SafeRegion.for_sole(sole_length_m, sole_width_m)
+        self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
+        self.banks = StyleBanks(style, self.layout)
+        self._fade_from: StyleBanks | None = None
+        self._fade_elapsed_s = 0.0
+        self.t_s = 0.0
+        self.phi = START_PHASE
+        self.path = PathFrame()
+        self.command = np.zeros(3)
+        self.command_clamped = False
+        self.weights = np.zeros(len(SAMPLE_NAMES))
+        self.latched: dict[str, Foothold] = {}
+        self.swing_start: dict[str, Foothold] = {}
+        self.target: dict[str, Foothold] = {}
+        self.blend: BlendedGait | None = None
+        self._blend_stale = True
+        self.reset()
+
+    @property
+    def style(self) -> Style:
+        return self.banks.style
+
+    # ------------------------------------------------------------------ setup
+    def reset(self, path_pose: np.ndarray | None = None, left: Foothold | None = None,
+              right: Foothold | None = None) -> None:
+        """Start standing in double support (right foot just touched down)."""
+        pose = np.zeros(3) if path_pose is None else np.asarray(path_pose, dtype=float)
+        self.path = PathFrame(*pose)
+        self.t_s = 0.0
+        self.phi = START_PHASE
+        self.command = np.zeros(3)
+        self.weights = sample_weights((0.0, 0.0, 0.0), self.style.velocities, self.style.blend_eta)
+        self.blend = self._blend()
+        self._blend_stale = True
+        a = self.blend.attributes
+        for side, given in (("left", left), ("right", right)):
+            stance = stance_offset(side, a.stance_width_m, a.stance_splay_rad, a.stance_x_bias_m)
+            self.latched[side] = given if given is not None else foothold_from_path(pose, stance)
+        self.swing_start = dict(self.latched)
+        self.target = dict(self.latched)
+        self.landed = {side: False for side in SIDES}  # no touchdown transition before the first step
+        self._raw_target: dict[str, Foothold] = {}
+        self._last_pose = None
+
+    def set_style(self, style: Style) -> None:
+        """Switch to an edited style; the reference cross-fades to it over STYLE_FADE_S."""
+        if style is self.style:
+            return
+        self._fade_from = self.banks
+        self._fade_elapsed_s = 0.0
+        self._blend_stale = True
+        self.banks = StyleBanks(style, self.layout, previous=self.banks)
+
+    # ------------------------------------------------------------------ helpers
+    def _blend(self) -> BlendedGait:
+        members = [(float(w), self.banks.banks[n]) for w, n in zip(self.weights, SAMPLE_NAMES) if w > 1e-9]
+        if self._fade_from is not None:
+            f = smoothstep(self._fade_elapsed_s / STYLE_FADE_S)
+            old = [(float(w) * (1 - f), self._fade_from.banks[n]) for w, n in zip(self.weights, SAMPLE_NAMES) if w > 1e-9]
+            members = [(w * f, b) for w, b in members] + old
+        return self.banks.blend(members)
+
+    def clamp_command(self, v: np.ndarray) -> np.ndarray:
+        """The command limited to the style's sample velocities (``command_clamped`` tells)."""
+        vel = self.style.velocities
+        out, clamped = [], False
+        for value, lim in zip((float(v[0]), float(v[1]), float(v[2])), (vel.x_max_mps, vel.y_max_mps, vel.yaw_max_radps)):
+            if not math.isfinite(value):
+                value, clamped = 0.0, True
+            c = lim if value > lim else (-lim if value < -lim else value)
+            clamped |= c != value
+            out.append(c)
+        self.command_clamped = clamped
+        return np.array(out)
+
+    def stance(self, side: str, blend: BlendedGait | None = None) -> np.ndarray:
+        b = blend or self.blend
+        return stance_offset(side, b.attribute("stance_width_m"), b.attribute("stance_splay_rad"),
+                             b.attribute("stance_x_bias_m"))
+
+    @staticmethod
+    def in_swing(side: str, phi: float) -> bool:
+        lo, hi = SWING_PHASES[side]
+        f = phi - math.floor(phi)
+        return lo <= f < hi
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, dt_s: float, command: np.ndarray, kappa: float = 1.0,
+             step_adjustment_xy: np.ndarray | None = None, with_preview: bool = True) -> GaitReference:
+        """Advance by ``dt_s`` under ``command`` (time-scaled by κ) and return r(t)."""
+        self.command = self.clamp_command(command)
+        weights = sample_weights(tuple(self.command), self.style.velocities, self.style.blend_eta)
+        fading = self._fade_from is not None
+        if fading:
+            self._fade_elapsed_s += dt_s
+            if self._fade_elapsed_s >= STYLE_FADE_S:
+                self._fade_from = None
+        if fading or self._blend_stale or not np.array_equal(weights, self.weights):
+            self.weights = weights
+            self.blend = self._blend()
+            self._blend_stale = False
+        blend = self.blend
+        kappa = float(kappa) if math.isfinite(kappa) and kappa > 0 else 1.0
+
+        # Exact phase clock: advance the gait time of the current blend by κ·dt, map back to φ.
+        phi_old = self.phi
+        self.phi = max(blend.phase_of_time(blend.time_at(phi_old) + kappa * dt_s), phi_old)
+        self.path.advance(self.command, kappa * dt_s)
+        self.t_s += dt_s
+        self._handle_events(phi_old, self.phi)
+        adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
+        for side in SIDES:
+            if self.in_swing(side, self.phi):
+                self._track_target(side, self._upcoming_foothold(side, adjust))
+        ref = self.evaluate(self.phi)
+        if with_preview:
+            ref.preview = self.preview(kappa)
+        return ref
+
+    def _track_target(self, side: str, raw: Foothold) -> None:
+        """Follow the re-evaluated foothold's increments, easing them out before touchdown.
+
+        The paper re-evaluates the upcoming foothold every tick and latches it at touchdown;
+        a target still moving at touchdown would land the foot with that velocity (a kink).
+        Following increments with gain 1 − w(s), w easing 0 → 1 over the last
+        TARGET_SETTLE_FRACTION of the swing, keeps r(t) C1 and lands exactly on the target.
+        """
+        prev = self._raw_target.get(side)
+        self._raw_target[side] = raw
+        if prev is None:
+            self.target[side] = raw
+            return
+        lo, td = SWING_PHASES[side]
+        k = math.floor(self.phi - lo)
+        blend = self.blend
+        t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
+        s = (blend.time_at(self.phi) - t_lo) / (t_td - t_lo)
+        gain = 1.0 - smoothstep((s - (1.0 - TARGET_SETTLE_FRACTION)) / TARGET_SETTLE_FRACTION)
+        cur = self.target[side]
+        d_yaw = math.remainder(raw.yaw - prev.yaw, 2 * math.pi)
+        self.target[side] = Foothold(cur.x + gain * (raw.x - prev.x), cur.y + gain * (raw.y - prev.y),
+                                     cur.yaw + gain * d_yaw)
+
+    def _handle_events(self, phi_old: float, phi_new: float) -> None:
+        """Liftoff: remember where the foot leaves from. Touchdown: latch the target."""
+        events = []
+        for side in SIDES:
+            lo, td = SWING_PHASES[side]
+            for base in (math.floor(phi_old), math.floor(phi_old) + 1):
+                for phase, kind in ((base + lo, "liftoff"), (base + td, "touchdown")):
+                    if phi_old < phase <= phi_new:
+                        events.append((phase, side, kind))
+        for _, side, kind in sorted(events):
+            if kind == "liftoff":
+                self.swing_start[side] = self.latched[side]
+                self.target[side] = self._upcoming_foothold(side, np.zeros(2))
+                self._raw_target[side] = self.target[side]
+            else:
+                self.latched[side] = self.target[side]
+                self.landed[side] = True
+
+    def _contact_midpoint_phase(self, side: str, phi: float) -> tuple[float, float]:
+        """(touchdown φ, next liftoff φ) of the contact that follows the current/next swing."""
+        lo, td = SWING_PHASES[side]
+        k = math.floor(phi - lo)
+        return k + td, k + 1 + lo
+
+    def _upcoming_foothold(self, side: str, adjust_xy: np.ndarray) -> Foothold:
+        blend = self.blend
+        phi_td, phi_lo = self._contact_midpoint_phase(side, self.phi)
+        t_now = blend.time_at(self.phi)
+        t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_lo))
+        pose = self.path.predicted(self.command, max(t_mid - t_now, 0.0))
+        target = foothold_from_path(pose, self.stance(side))
+        if adjust_xy.any():
+            target = Foothold(target.x + adjust_xy[0], target.y + adjust_xy[1], target.yaw)
+        other = "right" if side == "left" else "left"
+        return project_to_safe_region(self.latched[other], target, side, self.region)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, phi: float) -> GaitReference:
+        """r at phase φ for the current state. Rates are backward differences over the last tick
+        (the controller interpolates between ticks with them)."""
+        blend = self.blend
+        assert blend is not None
+        pose = self._pose_at(phi, blend)
+        prev, self._last_pose = self._last_pose, pose
+        dt = self.t_s - prev["t"] if prev is not None else 0.0
+        feet = pose["feet"]
+        foot_pos = np.array([feet[s].pos for s in SIDES])
+        foot_rot = np.array([feet[s].rot for s in SIDES])
+        corners = (foot_rot @ self.sole_corners_local.T).transpose(0, 2, 1) + foot_pos[:, None, :]
+        if prev is None or dt <= 0:
+            z_rate, pelvis_w = 0.0, np.zeros(3)
+            lin, ang = np.zeros((2, 3)), np.zeros((2, 3))
+            upper_qd = np.zeros_like(pose["upper"])
+        else:
+            z_rate = (pose["pelvis_z"] - prev["pelvis_z"]) / dt
+            pelvis_w = _angular_velocity(prev["pelvis_rot"], pose["pelvis_rot"], dt)
+            lin = np.array([(feet[s].pos - prev["feet"][s].pos) / dt for s in SIDES])
+            ang = np.array([_angular_velocity(prev["feet"][s].rot, feet[s].rot, dt) for s in SIDES])
+            upper_qd = (pose["upper"] - prev["upper"]) / dt
+        return GaitReference(
+            t_s=self.t_s, phase=phi, command=self.command.copy(),
+            sample_weights=self.weights.copy(), path_pose=self.path.pose(),
+            pelvis_z=pose["pelvis_z"], pelvis_z_rate=z_rate, pelvis_rot=pose["pelvis_rot"], pelvis_ang_vel=pelvis_w,
+            foot_pos=foot_pos, foot_rot=foot_rot, foot_lin_vel=lin, foot_ang_vel=ang,
+            contact=np.array([not self.in_swing(s, phi) for s in SIDES]),
+            corner_contact=corners[:, :, 2] < CONTACT_TOL_M, sole_corners=corners,
+            upper_q=pose["upper"], upper_qd=upper_qd,
+            footholds={s: (self.target[s] if self.in_swing(s, phi) else self.latched[s]) for s in SIDES},
+            cycle_s=blend.events_s[3],
+            swing_progress=np.array([pose["progress"][s] for s in SIDES]),
+        )
+
+    def _pose_at(self, phi: float, blend: BlendedGait) -> dict:
+        cycle_vals, left_vals, right_vals, *_ = blend.channels(phi)
+        pelvis_rot = rot_z(self.path.yaw) @ rot_zyx(cycle_vals[1], cycle_vals[2], cycle_vals[3])
+        feet, progress = {}, {}
+        t = blend.time_at(phi)
+        for side, vals in (("left", left_vals), ("right", right_vals)):
+            feet[side], progress[side] = self._foot_at(side, phi, t, blend, vals)
+        return {"t": self.t_s, "pelvis_z": blend.attribute("pelvis_height_m") + cycle_vals[0], "pelvis_rot": pelvis_rot,
+                "feet": feet, "upper": cycle_vals[4:].copy(), "progress": progress}
+
+    def _foot_at(self, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray) -> tuple[_Pose, float]:
+        lo, td = SWING_PHASES[side]
+        k = math.floor(phi - lo)
+        if self.in_swing(side, phi):
+            t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
+            s = min(max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
+            x, y, yaw, _ = nominal_swing(self.swing_start[side], self.target[side], s)
+            rig_r, rig_t = foot_rig(self.sole_length_m, vals[3], vals[HEEL], vals[TOE], vals[6], self.sole_width_m)
+            offset = vals[0:3] + rig_t
+            base = rot_z(yaw)
+            return _Pose(np.array([x, y, 0.0]) + base @ offset, base @ rig_r), s
+        # Support phase: latched foothold with the heel/toe transitions after touchdown / before liftoff.
+        hold = self.latched[side]
+        t_td = blend.event_time(k + td)  # last touchdown (k indexes the swing that ended)
+        t_next_lo = blend.event_time(k + 1 + lo)
+        foothold_s = t_next_lo - t_td
+        t_ltd, t_rlo, t_rtd, cycle = blend.events_s
+        ds = (t_rlo - t_ltd, cycle - t_rtd)
+        ds_after_td, ds_before_lo = ds if side == "left" else ds[::-1]
+        # A pitched foot at liftoff/touchdown needs time to roll from/to flat: never less than
+        # MIN_HEEL_TOE_TRANSITION_S (else the foot would snap), never more than the double support.
+        # Smooth min/max: durations vary with the blend weights, and a hard switch of the
+        # binding limit would put a kink in the foot's pitch.
+        eps = TRANSITION_SMOOTHING_S
+        d_td = smooth_min(smooth_min(smooth_max(blend.attribute("touchdown_transition_s"), MIN_HEEL_TOE_TRANSITION_S, eps),
+                                     0.5 * foothold_s, eps), ds_after_td, eps)
+        d_lo = smooth_min(smooth_min(smooth_max(blend.attribute("liftoff_transition_s"), MIN_HEEL_TOE_TRANSITION_S, eps),
+                                     0.5 * foothold_s, eps), ds_before_lo, eps)
+        liftoff_pitch, touchdown_pitch = blend.boundary_pitch[side]
+        if not self.landed[side]:
+            d_td = 0.0
+        heel, toe = stance_pitch(t - t_td, t_next_lo - t, touchdown_pitch, liftoff_pitch, d_td, d_lo)
+        base = rot_z(hold.yaw)
+        pos = hold.position()
+        if heel == 0.0 and toe == 0.0:
+            return _Pose(pos, base), 1.0
+        rig_r, rig_t = foot_rig(self.sole_length_m, 0.0, heel, toe, 0.0)
+        return _Pose(pos + base @ rig_t, base @ rig_r), 1.0
+
+    # ------------------------------------------------------------------ preview for the MPC
+    def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
+        """Support intervals over the next ``horizon_s``: timings, footholds, polygons."""
+        blend = self.blend
+        assert blend is not None
+        events = (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
+        t_now = blend.time_at(self.phi)
+        phases: list[ContactPhase] = []
+        footholds = {s: (self.target[s] if self.in_swing(s, self.phi) else self.latched[s]) for s in SIDES}
+        swinging = {s for s in SIDES if self.in_swing(s, self.phi)}  # their target is already known
+        k = math.floor(self.phi)
+        boundaries = [k + c + e for c in range(4) for e in events if k + c + e > self.phi]
+        prev_phi = self.phi
+        for b in boundaries:
+            t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
+            t1 = (blend.event_time(b) - t_now) / kappa
+            down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
+            if len(down) == 1:
+                polygon = footholds[down[0]].corners(self.sole_length_m, self.sole_width_m)
+            else:
+                polygon = convex_hull_2d(np.vstack([footholds[s].corners(self.sole_length_m, self.sole_width_m)
+                                                    for s in down]))
+            phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
+            if t1 >= horizon_s:
+                break
+            f = b - math.floor(b)
+            for side in SIDES:
+                if abs(f - SWING_PHASES[side][1]) < 1e-9:  # this foot touches down at b
+                    if side in swinging:
+                        swinging.discard(side)
+                    else:
+                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds)}
+            prev_phi = b
+        return phases
+
+    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
+        blend = self.blend
+        lo, _ = SWING_PHASES[side]
+        phi_next_lo = math.floor(phi_td - lo) + 1 + lo
+        t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
+        pose = predict(self.path.pose(), self.command, max(t_mid - t_now, 0.0))
+        target = foothold_from_path(pose, self.stance(side))
+        other = "right" if side == "left" else "left"
+        return project_to_safe_region(footholds[other], target, side, self.region)

@@ -1,0 +1,170 @@
+"""The gait planner's invariants (paper §4): event ordering, footholds, stance, ground, C1."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from engine.gait.planner import GaitPlanner
+from engine.gait.style import load_style
+from tests.conftest import REPO
+from tests.gait.strategies import g1_context, smooth_commands, styles
+
+SETTINGS = settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+SOLE = (0.17, 0.055)
+DT = 1.0 / 125.0
+
+
+def run(style, command, seconds: float, dt: float = DT):
+    planner = GaitPlanner(style, g1_context(), *SOLE)
+    refs = []
+    for k in range(int(round(seconds / dt))):
+        refs.append(planner.step(dt, command((k + 1) * dt), with_preview=False))
+    return planner, refs
+
+
+@SETTINGS
+@given(styles(), smooth_commands())
+def test_contact_events_follow_the_walk_cycle(style, command):
+    _, refs = run(style, command, 6.0)
+    contact = np.array([r.contact for r in refs])
+    assert contact.any(axis=1).all(), "never both feet in the air"
+    changes = []
+    for k in range(1, len(contact)):
+        for i, side in enumerate(("L", "R")):
+            if contact[k, i] != contact[k - 1, i]:
+                changes.append(side + ("TD" if contact[k, i] else "LO"))
+    cycle = ["LLO", "LTD", "RLO", "RTD"]
+    assert len(changes) >= 8
+    start = cycle.index(changes[0])
+    assert changes == [cycle[(start + i) % 4] for i in range(len(changes))]
+
+
+@SETTINGS
+@given(styles(heel_toe=False), smooth_commands())
+def test_swing_feet_land_exactly_on_their_footholds_and_stay(style, command):
+    _, refs = run(style, command, 6.0)
+    for k in range(1, len(refs)):
+        for i, side in enumerate(("left", "right")):
+            if refs[k].contact[i] and not refs[k - 1].contact[i]:  # touchdown
+                hold = refs[k].footholds[side]
+                np.testing.assert_allclose(refs[k].foot_pos[i], [hold.x, hold.y, 0.0], atol=1e-9)
+                assert math.atan2(refs[k].foot_rot[i][1, 0], refs[k].foot_rot[i][0, 0]) == pytest.approx(
+                    math.atan2(math.sin(hold.yaw), math.cos(hold.yaw)), abs=1e-9)
+
+
+@SETTINGS
+@given(styles(heel_toe=True), smooth_commands())
+def test_flat_feet_do_not_move_and_soles_stay_above_ground(style, command):
+    _, refs = run(style, command, 6.0)
+    for k in range(len(refs)):
+        assert refs[k].sole_corners[:, :, 2].min() >= -1e-4, "sole corner below the ground"
+        if k == 0:
+            continue
+        for i in range(2):
+            flat_now = refs[k].contact[i] and not refs[k].sole_corners[i, :, 2].any()
+            flat_before = refs[k - 1].contact[i] and not refs[k - 1].sole_corners[i, :, 2].any()
+            if flat_now and flat_before:
+                np.testing.assert_allclose(refs[k].foot_pos[i], refs[k - 1].foot_pos[i], atol=1e-12)
+                np.testing.assert_allclose(refs[k].foot_rot[i], refs[k - 1].foot_rot[i], atol=1e-12)
+            # In support (flat or on a heel/toe edge) some corner touches the ground: no slip upward.
+            if refs[k].contact[i]:
+                assert refs[k].corner_contact[i].any()
+
+
+def _max_velocity_jump(refs, dt):
+    pos = np.array([np.concatenate([r.foot_pos.ravel(), [r.pelvis_z], r.upper_q]) for r in refs])
+    vel = np.diff(pos, axis=0) / dt
+    return np.abs(np.diff(vel, axis=0)).max()
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(styles(heel_toe=True), smooth_commands())
+def test_reference_is_c1_while_the_command_changes_smoothly(style, command):
+    """Velocity jumps shrink with the time step (a C1 signal's Δv ~ a·dt; a kink's would not).
+
+    Compared at 2 ms and 0.25 ms: blending samples whose timing proportions differ a lot from
+    the phase map's nominal ones makes the time warp steep (still C1) near contact events,
+    which coarser steps cannot resolve. A kink keeps Δv at every step (ratio ≈ 1); a C1
+    signal's shrinks toward 1/8.
+    """
+    coarse_dt, fine_dt = DT / 4, DT / 32
+    _, coarse = run(style, command, 2.0, dt=coarse_dt)
+    _, fine = run(style, command, 2.0, dt=fine_dt)
+    jump_coarse = _max_velocity_jump(coarse, coarse_dt)
+    jump_fine = _max_velocity_jump(fine, fine_dt)
+    assert jump_fine < 0.6 * jump_coarse + 1e-6, (jump_coarse, jump_fine)
+    assert _max_velocity_jump(run(style, command, 2.0, dt=DT)[1], DT) / DT < 600.0  # bounded differences at 125 Hz
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(styles(), styles(), st.floats(0.05, 3.0))
+def test_live_edit_does_not_jump_the_feet(style_a, style_b, switch_s):
+    planner = GaitPlanner(style_a, g1_context(), *SOLE)
+    refs = []
+    for k in range(int(4.0 / DT)):
+        if abs(k * DT - switch_s) < DT / 2:
+            planner.set_style(style_b)
+        refs.append(planner.step(DT, np.array([0.2, 0.0, 0.1]), with_preview=False))
+    pos = np.array([r.foot_pos for r in refs])
+    speed = np.linalg.norm(np.diff(pos, axis=0), axis=2).max() / DT
+    assert speed < 6.0, f"a foot jumped ({speed:.1f} m/s)"
+
+
+@SETTINGS
+@given(styles(), smooth_commands())
+def test_sample_weights_are_convex(style, command):
+    _, refs = run(style, command, 3.0)
+    w = np.array([r.sample_weights for r in refs])
+    assert (w >= 0).all() and np.allclose(w.sum(axis=1), 1.0)
+
+
+def test_path_frame_follows_the_command():
+    style = load_style(REPO / "styles/g1/neutral.json")
+    planner, refs = run(style, lambda t: np.array([0.3, 0.0, 0.0]), 10.0)
+    assert refs[-1].path_pose[0] == pytest.approx(3.0, abs=1e-6)
+    feet_x = refs[-1].foot_pos[:, 0].mean()
+    assert 2.6 < feet_x < 3.4
+    planner, refs = run(style, lambda t: np.array([0.0, 0.0, 0.5]), 6.0)
+    assert refs[-1].path_pose[2] == pytest.approx(3.0, abs=1e-6)
+    yaws = [math.atan2(r[1, 0], r[0, 0]) for r in refs[-1].foot_rot]
+    assert abs(math.remainder(yaws[0] - 3.0, 2 * math.pi)) < 0.7
+
+
+def test_impossible_command_is_clamped():
+    style = load_style(REPO / "styles/g1/neutral.json")
+    planner = GaitPlanner(style, g1_context(), *SOLE)
+    ref = planner.step(DT, np.array([50.0, -3.0, float("nan")]))
+    assert planner.command_clamped
+    np.testing.assert_allclose(ref.command, [0.5, -0.15, 0.0])
+
+
+def test_overlapping_foothold_is_projected_to_the_safe_region():
+    style = load_style(REPO / "styles/g1/neutral.json")
+    planner = GaitPlanner(style, g1_context(), *SOLE)
+    # Strafing right hard while turning left would put the left foot onto/over the right one.
+    _, refs = run(style, lambda t: np.array([0.0, -0.15, 1.0]), 8.0)
+    for r in refs:
+        left, right = r.footholds["left"], r.footholds["right"]
+        local = right.to_local(left)
+        assert local[1] >= 0.5 * SOLE[1] + 0.02 - 1e-9  # the left foot stays left of the right foot
+
+
+def test_preview_covers_two_seconds_with_valid_polygons():
+    style = load_style(REPO / "styles/g1/neutral.json")
+    planner = GaitPlanner(style, g1_context(), *SOLE)
+    for _ in range(100):
+        ref = planner.step(DT, np.array([0.4, 0.0, 0.3]))
+    phases = ref.preview
+    assert phases[0].t_start_s == pytest.approx(ref.t_s) and phases[-1].t_end_s >= ref.t_s + 2.0
+    for a, b in zip(phases, phases[1:]):
+        assert a.t_end_s == pytest.approx(b.t_start_s)
+    for p in phases:
+        assert len(p.footholds) in (1, 2) and len(p.polygon) >= 4
+        x, y = p.polygon[:, 0], p.polygon[:, 1]
+        area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+        assert area > 0  # counter-clockwise and not degenerate

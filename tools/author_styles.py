@@ -1,0 +1,287 @@
+"""Author the shipped styles (styles/g1/*.json, styles/talos/neutral.json) from compact recipes.
+
+Run ``.venv/bin/python tools/author_styles.py`` to regenerate them. Each style is built with
+the style data model and validated against its robot before it is written, exactly as the
+studio's editor would save it; animators then refine them in the studio.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from engine.gait.curves import HermiteCurve, Knot, TangentMode  # noqa: E402
+from engine.gait.style import (  # noqa: E402
+    Attributes,
+    GaitSample,
+    Intervals,
+    Style,
+    StyleContext,
+    save_style,
+    validate_style,
+)
+from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities  # noqa: E402
+
+FLAT = TangentMode.FLAT
+
+
+def swing_bump(duration: float, height: float, peak: float = 0.5) -> HermiteCurve:
+    """Foot height over a swing: zero and flat at liftoff/touchdown, one smooth peak."""
+    return HermiteCurve([Knot(0.0, 0.0, mode=FLAT), Knot(peak * duration, height),
+                         Knot(duration, 0.0, mode=FLAT)], duration)
+
+
+def swing_profile(duration: float, points: list[tuple[float, float]]) -> HermiteCurve:
+    """A swing curve through (fraction, value) points, pinned flat at zero at both ends."""
+    knots = [Knot(0.0, 0.0, mode=FLAT)] + [Knot(f * duration, v) for f, v in points] + [Knot(duration, 0.0, mode=FLAT)]
+    return HermiteCurve(knots, duration)
+
+
+def swing_pitch(duration: float, start: float, end: float, mid: float = 0.0, mid_at: float = 0.5) -> HermiteCurve:
+    """Heel or toe pitch over a swing: ``start`` at liftoff, ``end`` at touchdown (flat tangents)."""
+    knots = [Knot(0.0, start, mode=FLAT)]
+    if mid != 0.0 or start != 0.0 and end != 0.0:
+        knots.append(Knot(mid_at * duration, mid))
+    knots.append(Knot(duration, end, mode=FLAT))
+    return HermiteCurve(knots, duration)
+
+
+def cycle_wave(period: float, mean: float, amplitude: float, peak_s: float, harmonics: int = 1) -> HermiteCurve:
+    """A periodic curve, ``harmonics`` peaks per cycle, maxima at ``peak_s`` (mod period/harmonics)."""
+    knots = []
+    step = period / (4 * harmonics)
+    for i in range(4 * harmonics):
+        t = (peak_s + i * step) % period
+        value = mean + amplitude * math.cos(2 * math.pi * harmonics * (t - peak_s) / period)
+        knots.append(Knot(t, round(value, 6)))
+    knots.sort(key=lambda k: k.t_s)
+    return HermiteCurve(knots, period, periodic=True)
+
+
+def cycle_const(period: float, value: float) -> HermiteCurve:
+    return HermiteCurve([Knot(0.0, value)], period, periodic=True)
+
+
+@dataclass
+class Recipe:
+    """One sample's parameters; the curves are derived from these numbers."""
+
+    cycle_s: float
+    swing_s: float  # left swing duration
+    right_swing_s: float | None = None  # defaults to swing_s (symmetric)
+    swing_height_m: float = 0.07
+    swing_peak: float = 0.5
+    width_m: float = 0.24
+    splay_rad: float = 0.0
+    x_bias_m: float = 0.0
+    pelvis_height_m: float = 0.72
+    pelvis_bob_m: float = 0.0  # twice per cycle, lowest at mid double support
+    pelvis_yaw_rad: float = 0.0  # counter-rotation amplitude (left hip forward at left touchdown)
+    pelvis_roll_rad: float = 0.0  # hip drop toward the swing side
+    pelvis_pitch_rad: float = 0.0  # constant forward lean
+    spine_yaw_rad: float = 0.0  # waist yaw counter to the pelvis
+    arm_swing_rad: float = 0.0  # shoulder pitch amplitude (counter to the legs)
+    shoulder_pitch_rad: float | None = None  # arm carriage (mean)
+    shoulder_roll_rad: float | None = None
+    elbow_rad: float | None = None
+    elbow_swing_rad: float = 0.0
+    torso_pitch_rad: float | None = None
+    heel_strike_rad: float = 0.0  # ψ_heel at touchdown (≤ 0 in the file)
+    toe_off_rad: float = 0.0  # ψ_toe at liftoff (≥ 0)
+    liftoff_transition_s: float = 0.0
+    touchdown_transition_s: float = 0.0
+    swing_x_m: list[tuple[float, float]] = field(default_factory=list)  # extra swing x profile points
+    swing_y_m: list[tuple[float, float]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Joints:
+    """Upper-body joint names of a robot, by role (None when the robot lacks it)."""
+
+    shoulder_pitch: tuple[str, str]
+    shoulder_roll: tuple[str, str]
+    elbow: tuple[str, str]
+    spine_yaw: str | None
+    torso_pitch: str | None
+    elbow_sign: float = 1.0  # + bends the elbow on G1, − on TALOS
+
+
+G1 = Joints(("left_shoulder_pitch_joint", "right_shoulder_pitch_joint"),
+            ("left_shoulder_roll_joint", "right_shoulder_roll_joint"),
+            ("left_elbow_joint", "right_elbow_joint"), "waist_yaw_joint", "waist_pitch_joint")
+TALOS = Joints(("arm_left_1_joint", "arm_right_1_joint"), ("arm_left_2_joint", "arm_right_2_joint"),
+               ("arm_left_4_joint", "arm_right_4_joint"), "torso_1_joint", "torso_2_joint", elbow_sign=-1.0)
+
+
+def build_sample(r: Recipe, joints: Joints, ctx: StyleContext) -> GaitSample:
+    right = r.right_swing_s if r.right_swing_s is not None else r.swing_s
+    ds = 0.5 * (r.cycle_s - r.swing_s - right)
+    iv = Intervals(r.cycle_s, (0.0, r.swing_s), (r.swing_s + ds, r.swing_s + ds + right))
+    t_ltd, t_rlo, t_rtd, period = iv.events_s
+    curves: dict[str, HermiteCurve] = {}
+    for side, d in (("left", r.swing_s), ("right", right)):
+        curves[f"{side}_foot.z"] = swing_bump(d, r.swing_height_m, r.swing_peak)
+        if r.heel_strike_rad or r.toe_off_rad:
+            curves[f"{side}_foot.toe_pitch"] = swing_pitch(d, r.toe_off_rad, 0.0)
+            curves[f"{side}_foot.heel_pitch"] = swing_pitch(d, 0.0, -r.heel_strike_rad)
+        if r.swing_x_m:
+            curves[f"{side}_foot.x"] = swing_profile(d, r.swing_x_m)
+        if r.swing_y_m:
+            sign = 1.0 if side == "left" else -1.0
+            curves[f"{side}_foot.y"] = swing_profile(d, [(f, sign * v) for f, v in r.swing_y_m])
+    mid_ds1 = 0.5 * (t_ltd + t_rlo)
+    if r.pelvis_bob_m:
+        # Highest mid single support, lowest in double support: two bobs per cycle.
+        curves["pelvis.z"] = cycle_wave(period, 0.0, r.pelvis_bob_m, (mid_ds1 + period / 4) % period, harmonics=2)
+    if r.pelvis_yaw_rad:
+        curves["pelvis.yaw"] = cycle_wave(period, 0.0, r.pelvis_yaw_rad, t_rtd)  # right hip forward at RTD
+    if r.pelvis_roll_rad:
+        curves["pelvis.roll"] = cycle_wave(period, 0.0, r.pelvis_roll_rad, 0.5 * (t_rlo + t_rtd))
+    if r.pelvis_pitch_rad:
+        curves["pelvis.pitch"] = cycle_const(period, r.pelvis_pitch_rad)
+    if joints.spine_yaw and r.spine_yaw_rad:
+        curves[f"joints.{joints.spine_yaw}"] = cycle_wave(period, 0.0, r.spine_yaw_rad, t_ltd)
+    if joints.torso_pitch and r.torso_pitch_rad is not None:
+        curves[f"joints.{joints.torso_pitch}"] = cycle_const(period, r.torso_pitch_rad)
+    for i, side in enumerate(("left", "right")):
+        sp = joints.shoulder_pitch[i]
+        mean = ctx.standing_angles[sp] if r.shoulder_pitch_rad is None else r.shoulder_pitch_rad
+        # Arm swings back (+pitch) when the same-side leg swings forward: left arm back at LTD.
+        back_at = t_ltd if side == "left" else t_rtd
+        if r.arm_swing_rad:
+            curves[f"joints.{sp}"] = cycle_wave(period, mean, r.arm_swing_rad, back_at)
+        elif r.shoulder_pitch_rad is not None:
+            curves[f"joints.{sp}"] = cycle_const(period, mean)
+        if r.shoulder_roll_rad is not None:
+            sign = 1.0 if side == "left" else -1.0
+            curves[f"joints.{joints.shoulder_roll[i]}"] = cycle_const(period, sign * r.shoulder_roll_rad)
+        el = joints.elbow[i]
+        el_mean = ctx.standing_angles[el] if r.elbow_rad is None else joints.elbow_sign * r.elbow_rad
+        if r.elbow_swing_rad:
+            # Elbows bend more as the arm swings forward.
+            curves[f"joints.{el}"] = cycle_wave(period, el_mean, joints.elbow_sign * r.elbow_swing_rad,
+                                                 (back_at + period / 2) % period)
+        elif r.elbow_rad is not None:
+            curves[f"joints.{el}"] = cycle_const(period, el_mean)
+    attrs = Attributes(stance_width_m=r.width_m, stance_splay_rad=r.splay_rad, stance_x_bias_m=r.x_bias_m,
+                       liftoff_transition_s=r.liftoff_transition_s, touchdown_transition_s=r.touchdown_transition_s,
+                       pelvis_height_m=r.pelvis_height_m)
+    return GaitSample(iv, attrs, curves)
+
+
+def make_style(name: str, robot: str, description: str, velocities: SampleVelocities,
+               recipes: dict[str, Recipe], joints: Joints) -> Style:
+    ctx = StyleContext.for_robot(robot)
+    samples = {n: build_sample(recipes[n], joints, ctx) for n in SAMPLE_NAMES}
+    style = Style(name, robot, velocities, samples, blend_eta=0.5, description=description)
+    validate_style(style, ctx)
+    return style
+
+
+def with_(base: Recipe, **changes) -> Recipe:
+    from dataclasses import replace
+
+    return replace(base, **changes)
+
+
+def nine(in_place: Recipe, forward_slow: Recipe, forward_fast: Recipe, reverse_slow: Recipe | None = None,
+         reverse_fast: Recipe | None = None, strafe: Recipe | None = None, turn: Recipe | None = None) -> dict[str, Recipe]:
+    return {
+        "forward_fast": forward_fast, "forward_slow": forward_slow, "in_place": in_place,
+        "reverse_slow": reverse_slow or forward_slow, "reverse_fast": reverse_fast or forward_slow,
+        "left_strafe": strafe or in_place, "right_strafe": strafe or in_place,
+        "left_turn": turn or in_place, "right_turn": turn or in_place,
+    }
+
+
+# ----------------------------------------------------------------------------- G1 styles
+
+
+def g1_neutral() -> Style:
+    base = Recipe(cycle_s=0.9, swing_s=0.36, swing_height_m=0.06, pelvis_height_m=0.72, arm_swing_rad=0.0)
+    slow = with_(base, cycle_s=0.85, swing_s=0.34, swing_height_m=0.07, arm_swing_rad=0.12)
+    fast = with_(base, cycle_s=0.8, swing_s=0.32, swing_height_m=0.08, arm_swing_rad=0.22, elbow_swing_rad=0.1)
+    rev = with_(slow, arm_swing_rad=0.08)
+    strafe = with_(base, cycle_s=0.75, swing_s=0.3, width_m=0.22, swing_height_m=0.06)
+    return make_style("neutral", "g1", "The nominal gait: even timing, modest arm swing, no frills.",
+                      SampleVelocities(0.5, 0.25, 0.15, 1.0),
+                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.8, swing_s=0.32), strafe, base), G1)
+
+
+def g1_casual() -> Style:
+    base = Recipe(cycle_s=1.3, swing_s=0.5, swing_height_m=0.06, width_m=0.3, splay_rad=0.3, pelvis_height_m=0.71,
+                  pelvis_bob_m=0.008, pelvis_yaw_rad=0.08, spine_yaw_rad=0.16, pelvis_roll_rad=0.04,
+                  arm_swing_rad=0.25, elbow_swing_rad=0.15, shoulder_roll_rad=0.22, elbow_rad=0.55)
+    slow = with_(base, cycle_s=1.2, swing_s=0.46, arm_swing_rad=0.32, pelvis_yaw_rad=0.1, spine_yaw_rad=0.2)
+    fast = with_(base, cycle_s=1.0, swing_s=0.38, swing_height_m=0.07, arm_swing_rad=0.4, pelvis_yaw_rad=0.12,
+                 spine_yaw_rad=0.24, width_m=0.28)
+    strafe = with_(base, cycle_s=0.95, swing_s=0.36, width_m=0.24, splay_rad=0.15, pelvis_yaw_rad=0.04,
+                   spine_yaw_rad=0.08)
+    return make_style("casual", "g1", "Relaxed: slow cycle, open toes-out stance, hips and shoulders counter-rotate, "
+                      "loose arm swing (paper §8.2).", SampleVelocities(0.4, 0.2, 0.1, 0.8),
+                      nine(base, slow, fast, with_(slow, arm_swing_rad=0.2, width_m=0.26, splay_rad=0.15),
+                           with_(slow, cycle_s=1.1, swing_s=0.42, arm_swing_rad=0.25, width_m=0.26, splay_rad=0.15),
+                           strafe, base), G1)
+
+
+def g1_sneak() -> Style:
+    base = Recipe(cycle_s=1.6, swing_s=0.62, swing_height_m=0.12, swing_peak=0.4, width_m=0.28, pelvis_height_m=0.64,
+                  pelvis_pitch_rad=0.12, torso_pitch_rad=0.25, shoulder_pitch_rad=-0.55, shoulder_roll_rad=0.3,
+                  elbow_rad=1.35, arm_swing_rad=0.06, swing_x_m=[(0.55, 0.03)])
+    slow = with_(base, cycle_s=1.5, swing_s=0.58)
+    fast = with_(base, cycle_s=1.3, swing_s=0.5, swing_height_m=0.13)
+    strafe = with_(base, cycle_s=1.1, swing_s=0.42, width_m=0.22, swing_height_m=0.09, pelvis_height_m=0.66)
+    return make_style("sneak", "g1", "Sneaking: low pelvis, long slow high-knee swings, arms carried forward and "
+                      "bent, leaning in.", SampleVelocities(0.3, 0.15, 0.08, 0.6),
+                      nine(base, slow, fast, slow, slow, strafe, base), G1)
+
+
+def g1_injured() -> Style:
+    # Asymmetric at slow speeds: a short left swing (hurry off the hurt right leg), a positive
+    # x-bias and a pelvis dropping over the right leg; symmetric at Forward Fast (paper §8.1).
+    limp = Recipe(cycle_s=1.1, swing_s=0.3, right_swing_s=0.5, swing_height_m=0.05, x_bias_m=0.06,
+                  pelvis_height_m=0.7, pelvis_roll_rad=0.06, pelvis_yaw_rad=0.05, arm_swing_rad=0.1,
+                  shoulder_roll_rad=0.25)
+    slow = with_(limp, cycle_s=1.0, swing_s=0.28, right_swing_s=0.46)
+    fast = Recipe(cycle_s=0.8, swing_s=0.32, swing_height_m=0.08, pelvis_height_m=0.72, arm_swing_rad=0.22,
+                  elbow_swing_rad=0.1)
+    strafe = with_(limp, cycle_s=0.95, swing_s=0.28, right_swing_s=0.4, x_bias_m=0.03, width_m=0.22)
+    reverse = with_(slow, x_bias_m=0.03)
+    return make_style("injured", "g1", "Limping on a hurt right leg at slow speeds; blends back to a symmetric gait "
+                      "at Forward Fast (paper §8.1).", SampleVelocities(0.45, 0.2, 0.1, 0.8),
+                      nine(limp, slow, fast, reverse, reverse, strafe, limp), G1)
+
+
+# ----------------------------------------------------------------------------- TALOS
+
+
+def talos_neutral() -> Style:
+    base = Recipe(cycle_s=1.3, swing_s=0.5, swing_height_m=0.06, width_m=0.2, pelvis_height_m=0.98,
+                  shoulder_pitch_rad=0.25, shoulder_roll_rad=0.17, elbow_rad=0.5)
+    slow = with_(base, cycle_s=1.2, swing_s=0.46, arm_swing_rad=0.1)
+    fast = with_(base, cycle_s=1.1, swing_s=0.42, swing_height_m=0.07, arm_swing_rad=0.18)
+    return make_style("neutral", "talos", "The nominal TALOS gait: even timing, gentle arm swing.",
+                      SampleVelocities(0.4, 0.2, 0.1, 0.6), nine(base, slow, fast, slow, slow, base, base), TALOS)
+
+
+STYLES = {
+    ("g1", "neutral"): g1_neutral, ("g1", "casual"): g1_casual, ("g1", "sneak"): g1_sneak,
+    ("g1", "injured"): g1_injured, ("talos", "neutral"): talos_neutral,
+}
+
+
+def main() -> int:
+    for (robot, name), make in STYLES.items():
+        path = REPO / "styles" / robot / f"{name}.json"
+        save_style(path, make())
+        print(f"wrote {path.relative_to(REPO)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
