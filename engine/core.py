@@ -1,23 +1,32 @@
 """EngineCore: the engine's state machine, independent of processes and clocks.
 
-It owns the robot model and the simulation, applies commands and produces events. The
-engine process (:mod:`engine.process`) drives it in real time; tests and benchmarks drive it
-directly, as fast as it goes.
+It owns the robot model, the simulation and the controllers, applies commands and produces
+events. The engine process (:mod:`engine.process`) drives it in real time; tests and
+benchmarks drive it directly, as fast as it goes.
+
+Modes (bipeds with styles): ``stand`` (joint PD on the standing pose), ``test`` (walk under
+the joystick command) and ``edit`` (walk the selected sample's cycle at that sample's
+velocity, paper §6.1). Quadrupeds and source skeletons only stand / are shown.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import mujoco
 import numpy as np
 
 from engine import protocol as msg
+from engine.control.controller import Controller
 from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel, load_robot
-from engine.sim import CONTROL_PERIOD_S, Simulation
+from engine.sim import CONTROL_PERIOD_S, Simulation, standing_controller
 
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
+MODES = ("stand", "test", "edit")
+JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
+GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
 
 
 class EngineCore:
@@ -30,11 +39,27 @@ class EngineCore:
         self._fallen_at_s: float | None = None
         self._kin_data: mujoco.MjData | None = None
         self.real_time_factor = 0.0
+        self.playback_speed = 1.0
+        self.mode = "stand"
+        self.edit_sample = "in_place"
+        self.velocity_command = np.zeros(3)
+        self.style = None
+        self.ctx = None
+        self.walker = None
+        self.ghost = None
+        self.ghost_q: np.ndarray | None = None
+        self._ghost_data: mujoco.MjData | None = None
+        self._ticks = 0
+        self.style_revision = 0
         self.load(robot)
 
     # ------------------------------------------------------------------ robot
     def load(self, name: str) -> None:
         self.robot = load_robot(name)
+        self.style = self.ctx = self.walker = self.ghost = None
+        self.ghost_q = None
+        self._ghost_data = None
+        self.mode = "stand"
         if self.robot.config.simulated:
             self.sim = Simulation(self.robot)
             self._kin_data = None
@@ -43,11 +68,23 @@ class EngineCore:
             self._kin_data = mujoco.MjData(self.robot.mj_model)
             self._kin_data.qpos[:] = self.robot.mj_standing_qpos()
             mujoco.mj_kinematics(self.robot.mj_model, self._kin_data)
+        if self.robot.kind == "biped" and self.robot.config.default_style:
+            self._load_default_style()
         self._fallen_at_s = None
         self.emit(msg.RobotLoaded(
             robot=self.robot.name, robot_kind=self.robot.kind, body_names=tuple(self.robot.body_names),
             joint_names=tuple(self.robot.joint_names), simulated=self.sim is not None,
         ))
+
+    def _load_default_style(self) -> None:
+        from engine.gait.style import StyleContext, StyleError, load_style, styles_dir
+
+        try:
+            self.ctx = StyleContext.for_robot(self.robot.name)
+            self.style = load_style(styles_dir(self.robot.name) / f"{self.robot.config.default_style}.json", self.ctx)
+        except StyleError as exc:
+            self.emit(msg.Notice("error", f"default style: {exc}"))
+            self.style = None
 
     @property
     def running(self) -> bool:
@@ -77,11 +114,79 @@ class EngineCore:
         elif isinstance(command, msg.SwitchRobot):
             if command.robot != self.robot.name:
                 self.load(command.robot)
+        elif isinstance(command, msg.SetVelocityCommand):
+            v = np.array([command.vx_mps, command.vy_mps, command.wz_radps], dtype=float)
+            if not np.all(np.isfinite(v)):
+                raise ValueError("velocity command must be finite")
+            self.velocity_command = v
+        elif isinstance(command, msg.SetStyle):
+            if self._set_style(command.style):
+                self.style_revision = int(command.revision)
+        elif isinstance(command, msg.SetMode):
+            self._set_mode(command.mode, command.options)
+        elif isinstance(command, msg.SetPlaybackSpeed):
+            speed = float(command.speed)
+            if not (math.isfinite(speed) and 0.05 <= speed <= 4.0):
+                raise ValueError(f"playback speed must be within 0.05..4, got {speed}")
+            self.playback_speed = speed
         else:
             raise ValueError(f"not supported by this engine yet: {command.kind}")
 
+    def _set_style(self, document: dict) -> bool:
+        from engine.gait.style import StyleContext, StyleError, style_from_dict
+
+        if self.robot.kind != "biped":
+            raise ValueError(f"{self.robot.name} does not walk styles")
+        ctx = self.ctx or StyleContext.for_robot(self.robot.name)
+        try:
+            style = style_from_dict(document, ctx, expected_robot=self.robot.name)
+        except StyleError as exc:
+            self.emit(msg.Notice("error", f"style refused: {exc}"))
+            return False
+        self.ctx, self.style = ctx, style
+        if self.walker is not None:
+            self.walker.set_style(style)
+        return True
+
+    def _set_mode(self, mode: str, options: dict) -> None:
+        if mode not in MODES:
+            raise ValueError(f"mode: expected one of {', '.join(MODES)}, got {mode!r}")
+        if mode != "stand" and (self.sim is None or self.style is None):
+            raise ValueError(f"{self.robot.name} has no walking style: it can only stand")
+        sample = options.get("sample", self.edit_sample)
+        from engine.gait.velocity_sampler import SAMPLE_NAMES
+
+        if sample not in SAMPLE_NAMES:
+            raise ValueError(f"sample: expected one of {', '.join(SAMPLE_NAMES)}, got {sample!r}")
+        self.edit_sample = sample
+        if mode == self.mode:
+            return
+        self.mode = mode
+        if mode == "stand":
+            self.walker = None
+            assert self.sim is not None
+            self.sim.set_controller(standing_controller(self.robot))
+        else:
+            self._start_walking()
+
+    def _start_walking(self) -> None:
+        from engine.control.walking_controller import WalkingController
+        from engine.gait.kinematic_preview import KinematicPreview
+
+        assert self.sim is not None and self.style is not None
+        self.walker = WalkingController(self.robot, self.style, ctx=self.ctx)
+        self.sim.set_controller(self.walker)
+        self.ghost = KinematicPreview(self.robot, self.ctx.upper_joints)
+
+    def command_now(self) -> np.ndarray:
+        if self.mode == "edit" and self.style is not None:
+            return np.array(self.style.velocities.velocity_of(self.edit_sample))
+        return self.velocity_command
+
     def reset(self) -> None:
         if self.sim is not None:
+            if self.mode != "stand" and self.style is not None:
+                self._start_walking()
             self.sim.reset()
         self._fallen_at_s = None
 
@@ -91,13 +196,29 @@ class EngineCore:
         if not self.running:
             return
         assert self.sim is not None
+        if self.walker is not None:
+            self.walker.set_command(self.command_now())
         self.sim.step()
+        self._ticks += 1
+        if self.walker is not None and self._ticks % GHOST_EVERY_TICKS == 0:
+            self._update_ghost()
         if self.sim.fallen:
             if self._fallen_at_s is None:
                 self._fallen_at_s = self.sim.time_s
                 self.emit(msg.Notice("warning", f"{self.robot.name} fell at t = {self.sim.time_s:.2f} s; resetting"))
             elif self.sim.time_s - self._fallen_at_s > FALL_RESET_DELAY_S:
                 self.reset()
+
+    def _update_ghost(self) -> None:
+        walker, ghost = self.walker, self.ghost
+        if walker is None or ghost is None or walker.ref is None or walker.plan is None:
+            return
+        com = walker.plan.com_at(walker.ref.t_s)[0]
+        self.ghost_q = ghost.solve(walker.ref, com)
+        if self._ghost_data is None:
+            self._ghost_data = mujoco.MjData(self.robot.mj_model)
+        self._ghost_data.qpos[:] = self.robot.mj_qpos_from_pin(self.ghost_q)
+        mujoco.mj_kinematics(self.robot.mj_model, self._ghost_data)
 
     def frame(self) -> msg.Frame:
         self.seq += 1
@@ -113,8 +234,55 @@ class EngineCore:
         return msg.Frame(
             seq=self.seq, sim_time_s=t, body_pos=pos.astype(np.float32), body_quat=quat.astype(np.float32),
             joint_q=joint_q.astype(np.float32), paused=self.paused, fallen=fallen,
-            real_time_factor=self.real_time_factor,
+            real_time_factor=self.real_time_factor, mode=self.mode, style_revision=self.style_revision,
         )
+
+    def telemetry(self) -> msg.Telemetry | None:
+        """Overlay and plot signals (walking modes), ghost poses, joint-limit proximity."""
+        if self.sim is None:
+            return None
+        signals: dict[str, np.ndarray] = {}
+        q = self.sim.joint_positions()
+        margin = np.minimum(q - self.robot.joint_lower, self.robot.joint_upper - q)
+        signals["joint_limit_proximity"] = np.clip(1.0 - margin / JOINT_LIMIT_WARNING_RAD, 0.0, 1.0).astype(np.float32)
+        walker = self.walker
+        if walker is not None and walker.ref is not None:
+            tel = walker.telemetry
+            ref = walker.ref
+            signals.update({
+                "com_xy": tel.com_xy, "com_ref_xy": tel.com_ref_xy, "cop_ref_xy": tel.cop_ref_xy,
+                "com_path_xy": tel.com_path_xy, "cop_path_xy": tel.cop_path_xy,
+                "support_polygon": tel.support_polygon, "footholds_planned": tel.footholds,
+                "footholds_latched": np.array([walker.planner.latched[s].as_array() for s in ("left", "right")]),
+                "sample_weights": tel.sample_weights, "command": tel.command,
+                "phase": np.array([ref.phase]), "contact": ref.contact.astype(np.float32),
+                "pelvis_z": np.array([ref.pelvis_z, float(self.sim.data.qpos[2])]),
+                "pelvis_yaw": np.array([math.atan2(ref.pelvis_rot[1, 0], ref.pelvis_rot[0, 0]), self._base_yaw()]),
+            })
+            if tel.feedback is not None:
+                fb = tel.feedback
+                signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
+                                                fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
+            if len(ref.upper_q):
+                j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
+                idx = self.robot.joint_names.index(self.ctx.upper_joints[j])
+                signals["arm_joint"] = np.array([ref.upper_q[j], q[idx]])
+            if self.ghost_q is not None and self._ghost_data is not None:
+                signals["ghost_body_pos"] = self._ghost_data.xpos[1:].copy()
+                signals["ghost_body_quat"] = self._ghost_data.xquat[1:].copy()
+        return msg.Telemetry(self.sim.time_s, {k: np.asarray(v, dtype=np.float32) for k, v in signals.items()})
+
+    def _base_yaw(self) -> float:
+        q = self.sim.data.qpos
+        return math.atan2(2 * (q[3] * q[6] + q[4] * q[5]), 1 - 2 * (q[5] ** 2 + q[6] ** 2))
+
+
+def _tracked_arm_joint(upper: tuple[str, ...]) -> str:
+    """The arm joint shown in the tracking plot (an elbow where there is one; Fig. 14)."""
+    for name in upper:
+        if "elbow" in name or name.endswith("_4_joint"):
+            return name
+    return upper[0]
 
 
 CONTROL_RATE_HZ = 1.0 / CONTROL_PERIOD_S

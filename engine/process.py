@@ -19,6 +19,7 @@ from engine import protocol as msg
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PUBLISH_HZ = 60.0
+TELEMETRY_HZ = 20.0
 MAX_CATCH_UP_TICKS = 25  # never run more than 50 ms of simulation in one go; drop time instead
 
 
@@ -37,8 +38,9 @@ def engine_main(conn: Connection, robot: str) -> None:
 
         core = EngineCore(DEFAULT_ROBOT, emit)
 
-    period = 1.0 / CONTROL_RATE_HZ
     publish_period = 1.0 / PUBLISH_HZ
+    telemetry_period = 1.0 / TELEMETRY_HZ
+    next_telemetry = time.perf_counter()
     wall0 = time.perf_counter()
     ticks = 0
     next_publish = wall0
@@ -52,8 +54,10 @@ def engine_main(conn: Connection, robot: str) -> None:
                     return
                 robot_before = core.robot.name
                 core.handle(command)
-                if core.robot.name != robot_before:
+                if core.robot.name != robot_before or isinstance(command, msg.SetPlaybackSpeed):
                     wall0, ticks = time.perf_counter(), 0
+                    rtf_wall, rtf_ticks = wall0, 0
+            period = 1.0 / (CONTROL_RATE_HZ * core.playback_speed)
             now = time.perf_counter()
             if core.running:
                 due = int((now - wall0) / period) - ticks
@@ -67,8 +71,13 @@ def engine_main(conn: Connection, robot: str) -> None:
                 wall0 = now - ticks * period
             now = time.perf_counter()
             if now - rtf_wall >= 1.0:
-                core.real_time_factor = (ticks - rtf_ticks) * period / (now - rtf_wall)
+                core.real_time_factor = (ticks - rtf_ticks) / CONTROL_RATE_HZ / (now - rtf_wall)
                 rtf_wall, rtf_ticks = now, ticks
+            if now >= next_telemetry:
+                telemetry = core.telemetry()
+                if telemetry is not None:
+                    conn.send(telemetry)
+                next_telemetry = max(next_telemetry + telemetry_period, now)
             if now >= next_publish:
                 conn.send(core.frame())
                 next_publish = max(next_publish + publish_period, now)

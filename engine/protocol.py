@@ -64,6 +64,7 @@ class SetStyle:
     """A whole walking style as its JSON document (validated by the engine)."""
 
     style: dict[str, Any]
+    revision: int = 0  # frames report the revision they were computed with (edit latency)
     kind: str = "set_style"
 
 
@@ -74,6 +75,14 @@ class SetMode:
     mode: str
     options: dict[str, Any] = field(default_factory=dict)
     kind: str = "set_mode"
+
+
+@dataclass(frozen=True)
+class SetPlaybackSpeed:
+    """Simulated time per wall-clock time (slow motion < 1)."""
+
+    speed: float
+    kind: str = "set_playback_speed"
 
 
 @dataclass(frozen=True)
@@ -90,7 +99,8 @@ class Shutdown:
     kind: str = "shutdown"
 
 
-Command = Reset | SetPaused | ApplyPush | SwitchRobot | SetVelocityCommand | SetStyle | SetMode | StartJob | Shutdown
+Command = (Reset | SetPaused | ApplyPush | SwitchRobot | SetVelocityCommand | SetStyle | SetMode | SetPlaybackSpeed
+           | StartJob | Shutdown)
 
 # ------------------------------------------------------------------ events (engine → studio)
 
@@ -119,6 +129,8 @@ class Frame:
     paused: bool
     fallen: bool
     real_time_factor: float
+    mode: str = "stand"
+    style_revision: int = 0
     kind: str = "frame"
 
 

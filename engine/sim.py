@@ -47,6 +47,7 @@ class Simulation:
         self.root_body_id = self.model.body(robot.config.root_link).id
         self.standing_base_z = float(robot.q_standing[2])
         self.fallen = False
+        self.imu = None
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -88,9 +89,18 @@ class Simulation:
         body_id = self.root_body_id if body is None else self.model.body(body).id
         self.pushes.append(Push(np.asarray(force_n, dtype=float), self.time_s, float(duration_s), body_id))
 
+    def enable_imu(self, noise: object | None = None, seed: int = 0) -> None:
+        """Attach the simulated IMU: controllers then receive ``state.imu`` samples."""
+        from engine.control.estimator import ImuNoise, MujocoImu
+
+        self.imu = MujocoImu(self.model, noise=noise if noise is not None else ImuNoise(), seed=seed)
+
     def step(self) -> None:
         """One control tick: controller → joint servos → one physics step."""
-        self.command = self.controller.compute(self.state())
+        state = self.state()
+        if self.imu is not None:
+            state.imu = self.imu.read(self.data)
+        self.command = self.controller.compute(state)
         self._apply_servos(self.command)
         self._apply_pushes()
         mujoco.mj_step(self.model, self.data)

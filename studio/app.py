@@ -1,6 +1,8 @@
-"""The studio: a viser server showing the engine's robot, with the editing panels.
+"""The studio: a viser app showing the engine's robot, with the editing panels.
 
-Studio code only views and edits engine state: numerics live in the engine process.
+Studio code only views and edits engine state: numerics live in the engine process. The
+style being edited lives in a :class:`StyleSession`; every accepted edit is sent to the
+engine (with a revision number, so frames tell when an edit shows), autosaved, and undoable.
 """
 
 from __future__ import annotations
@@ -15,31 +17,63 @@ from engine import protocol as msg
 from engine.robot.config import load_robot_config
 from engine.robot.model import load_robot
 from studio.engine_link import EngineLink
+from studio.overlays import Overlays
+from studio.panels.drive_panel import DrivePanel
+from studio.panels.plots_panel import PlotsPanel
 from studio.panels.robot_panel import RobotPanel
 from studio.robot_view import RobotView
+from studio.style_session import StyleSession
 
-STATUS_PERIOD_S = 0.5
+STATUS_PERIOD_S = 0.25
+GHOST_OFFSET = (0.0, 0.9, 0.0)  # the reference ghost walks beside the simulated robot
+LIMIT_RED = np.array([230, 40, 40])
 
 
 class Studio:
-    def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080):
+    def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None):
         load_robot_config(robot)  # fail fast, before any server or process starts
         self.robot_name = robot
+        self.styles_folder = styles_folder
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
         self.server.scene.set_up_direction("+z")
-        self.server.gui.configure_theme(control_layout="fixed", control_width="medium", dark_mode=False,
-                                        show_logo=False)
-        self.server.scene.add_grid("/ground", width=12.0, height=12.0, plane="xy", cell_size=0.25,
-                                   section_size=1.0, shadow_opacity=0.2)
+        self.server.gui.configure_theme(control_layout="fixed", control_width="large", dark_mode=False, show_logo=False)
         self.server.initial_camera.position = (2.0, -2.2, 1.3)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.6)
+        self.server.scene.add_grid("/ground", width=40.0, height=40.0, plane="xy", cell_size=0.25,
+                                   section_size=1.0, shadow_opacity=0.2)
         self.view = RobotView(self.server)
-        self.robot_panel = RobotPanel(self.server, self)
-        self.events_seen: dict[str, int] = {}
+        self.ghost_root = self.server.scene.add_frame("/ghost", position=GHOST_OFFSET, show_axes=False, visible=False)
+        self.ghost_view = RobotView(self.server, root="/ghost/robot", opacity=0.35)
+        self.ghost_visible = True
+        self.overlays = Overlays(self.server)
+        self.mode = "stand"
         self.robot_simulated = True
+        self.session: StyleSession | None = None
+        self.events_seen: dict[str, int] = {}
         self.notices: list[tuple[str, str]] = []
         self._last_notice_time = 0.0
         self.loaded = threading.Event()
+        self.last_telemetry: msg.Telemetry | None = None
+        self.style_revision = 0
+        self.edit_times: dict[int, float] = {}
+        self.edit_latencies_s: list[float] = []
+        self._limit_bodies: list[str] = []
+        self._shade_cache: dict[str, tuple[str, float]] = {}
+
+        tabs = self.server.gui.add_tab_group()
+        self.tab_robot = tabs.add_tab("Robot", viser.Icon.ROBOT)
+        self.tab_style = tabs.add_tab("Style", viser.Icon.PALETTE)
+        self.tab_sample = tabs.add_tab("Sample", viser.Icon.ADJUSTMENTS)
+        self.tab_curves = tabs.add_tab("Curves", viser.Icon.CHART_LINE)
+        self.tab_plots = tabs.add_tab("Plots", viser.Icon.CHART_DOTS)
+        with self.tab_robot:
+            self.robot_panel = RobotPanel(self.server, self)
+            self.drive = DrivePanel(self.server, self)
+        with self.tab_plots:
+            self.plots = PlotsPanel(self.server)
+        self._style_folders: list = []
+        self.style_browser = self.sample_editor = self.curve_editor = None
+
         self.link = EngineLink(robot, self._on_event, self._on_status)
         self.server.on_client_connect(self._on_client)
         self._stop = threading.Event()
@@ -53,6 +87,7 @@ class Studio:
 
     def stop(self) -> None:
         self._stop.set()
+        self.drive._stop.set()
         self.link.stop()
         self.server.stop()
 
@@ -60,29 +95,172 @@ class Studio:
     def url(self) -> str:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
+    # ------------------------------------------------------------------ robot-dependent panels
+    def _build_style_panels(self, robot: str) -> None:
+        for folder in self._style_folders:
+            folder.remove()
+        self._style_folders.clear()
+        self.session = None
+        self.style_browser = self.sample_editor = self.curve_editor = None
+        cfg = load_robot_config(robot)
+        if cfg.kind != "biped" or not cfg.default_style:
+            for tab in (self.tab_style, self.tab_sample, self.tab_curves):
+                with tab:
+                    folder = self.server.gui.add_folder("Walking")
+                    with folder:
+                        self.server.gui.add_markdown(f"{cfg.display_name} is a {cfg.kind}: there is no walking "
+                                                     "style to edit.")
+                    self._style_folders.append(folder)
+            return
+        session = StyleSession(robot, folder=(self.styles_folder / robot) if self.styles_folder else None)
+        opened = session.open(cfg.default_style)
+        if not opened.ok:
+            self._notify("error", opened.message)
+        self.session = session
+        from studio.panels.sample_editor import SampleEditor
+        from studio.panels.style_browser import StyleBrowser
+
+        with self.tab_style:
+            folder = self.server.gui.add_folder("Style")
+            with folder:
+                self.style_browser = StyleBrowser(self.server, session, self._notify)
+                undo = self.server.gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
+                redo = self.server.gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
+                undo.on_click(lambda _: self._report(session.undo()))
+                redo.on_click(lambda _: self._report(session.redo()))
+            self._style_folders.append(folder)
+        with self.tab_sample:
+            folder = self.server.gui.add_folder("Sample")
+            with folder:
+                self.sample_editor = SampleEditor(self.server, session, self._notify, on_sample=self._on_sample)
+            self._style_folders.append(folder)
+        with self.tab_curves:
+            folder = self.server.gui.add_folder("Function curves")
+            with folder:
+                self.curve_editor = self._make_curve_editor(session)
+            self._style_folders.append(folder)
+        session.subscribe(self._on_style_change)
+        self._send_style()
+
+    def _make_curve_editor(self, session: StyleSession):
+        try:
+            from studio.panels.curve_editor import CurveEditor
+        except Exception:  # noqa: BLE001 - a broken editor module must not take the studio down
+            self.server.gui.add_markdown("The curve editor is not available in this build.")
+            return None
+        editor = CurveEditor(self.server, session)
+        editor.set_sample(self.sample_editor.sample_name if self.sample_editor else "in_place")
+        return editor
+
+    def _on_sample(self, name: str) -> None:
+        if self.curve_editor is not None:
+            self.curve_editor.set_sample(name)
+        if self.mode == "edit":
+            self.link.send(msg.SetMode("edit", {"sample": name}))
+
+    def _on_style_change(self, style, reason: str) -> None:
+        self._send_style()
+
+    def _send_style(self) -> None:
+        if self.session is None or self.session.style is None:
+            return
+        self.style_revision += 1
+        self.edit_times[self.style_revision] = time.perf_counter()
+        self.link.send(msg.SetStyle(self.session.as_document(), revision=self.style_revision))
+
+    def _report(self, result) -> None:
+        self._notify("info" if result.ok else "warning", result.message)
+
     # ------------------------------------------------------------------ engine events
     def _on_event(self, event: msg.Event) -> None:
         self.events_seen[event.kind] = self.events_seen.get(event.kind, 0) + 1
         if isinstance(event, msg.Frame):
             self.view.update(event)
+            self._measure_edit_latency(event)
+        elif isinstance(event, msg.Telemetry):
+            self._on_telemetry(event)
         elif isinstance(event, msg.RobotLoaded):
-            self.robot_name = event.robot
-            self.robot_simulated = event.simulated
-            self.view.load(event.robot, event.body_names)
-            if self.robot_panel.robot.value != event.robot:
-                self.robot_panel.robot.value = event.robot
-            self.loaded.set()
+            self._on_robot_loaded(event)
         elif isinstance(event, msg.Notice):
             self._notify(event.level, event.message)
+
+    def _on_robot_loaded(self, event: msg.RobotLoaded) -> None:
+        changed = event.robot != (self.session.robot if self.session else None)
+        self.robot_name = event.robot
+        self.robot_simulated = event.simulated
+        self.view.load(event.robot, event.body_names)
+        self.ghost_view.load(event.robot, event.body_names)
+        model = load_robot(event.robot)
+        self._limit_bodies = [model.mj_model.body(int(model.mj_model.jnt_bodyid[
+            model.mj_model.joint(j).id])).name for j in model.joint_names]
+        if model.config.soles:
+            sole = model.config.soles["left"]
+            self.overlays.set_sole(sole.length_m, sole.width_m)
+        self.overlays.clear()
+        if self.robot_panel.robot.value != event.robot:
+            self.robot_panel.robot.value = event.robot
+        if changed or self.session is None:
+            self.mode = "stand"
+            self._build_style_panels(event.robot)
+        else:
+            self._send_style()  # an engine restart: give it back the edited style
+            if self.mode != "stand":
+                self.link.send(msg.SetMode(self.mode, {"sample": self.sample_editor.sample_name}))
+        self.loaded.set()
+
+    def _on_telemetry(self, event: msg.Telemetry) -> None:
+        self.last_telemetry = event
+        s = event.signals
+        if "support_polygon" in s:
+            self.overlays.update(s)
+        self.plots.add(event.sim_time_s, s)
+        if "ghost_body_pos" in s and self.ghost_visible:
+            self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
+                                             np.zeros(0), False, False, 0.0))
+        self._shade_joint_limits(s.get("joint_limit_proximity"))
+        if self.curve_editor is not None and "phase" in s and self.session is not None and self.sample_editor:
+            try:
+                iv = self.session.style.samples[self.sample_editor.sample_name].intervals
+                phi = float(s["phase"][0]) % 1.0
+                self.curve_editor.set_playhead(float(iv.phase_map().time_at(phi)) if self.mode == "edit" else None)
+            except Exception:  # noqa: BLE001 - the playhead is cosmetic
+                pass
+
+    def _shade_joint_limits(self, proximity) -> None:
+        """Links whose joint nears a limit turn red (paper §6.1)."""
+        if proximity is None or len(proximity) != len(self._limit_bodies):
+            return
+        per_body: dict[str, float] = {}
+        for body, p in zip(self._limit_bodies, proximity):
+            per_body[body] = max(per_body.get(body, 0.0), float(p))
+        for body, p in per_body.items():
+            base = self.view.base_colors.get(body)
+            if base is None:
+                continue
+            color = None if p <= 0.0 else tuple(int(c) for c in (1 - p) * np.array(base) + p * LIMIT_RED)
+            key = (body, round(p, 1))
+            if self._shade_cache.get(body) != key:
+                self._shade_cache[body] = key
+                self.view.tint(body, color)
+
+    def _measure_edit_latency(self, frame: msg.Frame) -> None:
+        rev = frame.style_revision
+        done = [r for r in self.edit_times if r <= rev]
+        now = time.perf_counter()
+        for r in done:
+            self.edit_latencies_s.append(now - self.edit_times.pop(r))
 
     def _on_status(self, level: str, text: str) -> None:
         self._notify(level, text)
 
     def _notify(self, level: str, text: str) -> None:
+        if not text:
+            return
         self.notices.append((level, text))
         self._last_notice_time = time.monotonic()
         color = {"error": "red", "warning": "yellow", "info": "blue"}.get(level, "blue")
-        title = {"error": "Engine", "warning": "Heads up", "info": "Engine"}.get(level, "Studio")
+        title = {"error": "Engine" if "engine" in text.lower() else "Error", "warning": "Heads up", "info": "Studio"}[
+            level if level in ("error", "warning", "info") else "info"]
         for client in self.server.get_clients().values():
             client.add_notification(title, text, color=color, auto_close_seconds=6.0)
 
@@ -98,24 +276,47 @@ class Studio:
         self.loaded.clear()
         self.link.send(msg.SwitchRobot(robot))
 
+    def set_mode(self, mode: str) -> None:
+        if mode != "stand" and self.session is None:
+            self._notify("warning", f"{self.robot_name} has no walking style: it can only stand")
+            return
+        self.mode = mode
+        sample = self.sample_editor.sample_name if self.sample_editor else "in_place"
+        self.link.send(msg.SetMode(mode, {"sample": sample}))
+        self.overlays.set_visible(mode != "stand" and self.drive.show_overlays.value)
+        self.set_ghost_visible(self.drive.show_ghost.value)
+
+    def set_ghost_visible(self, visible: bool) -> None:
+        self.ghost_visible = visible
+        self.ghost_root.visible = visible and self.mode != "stand"
+
+    def velocity_limits(self) -> np.ndarray:
+        if self.session is None or self.session.style is None:
+            return np.zeros(3)
+        v = self.session.style.velocities
+        return np.array([v.x_max_mps, v.y_max_mps, v.yaw_max_radps])
+
     @property
     def robot_mass_kg(self) -> float:
         return load_robot(self.robot_name).mass_kg
+
+    def robot_position(self) -> np.ndarray | None:
+        frame = self.view.last_frame
+        if frame is None or not len(frame.body_pos):
+            return None
+        return np.asarray(frame.body_pos[0], dtype=float)
 
     def robot_yaw_rad(self) -> float:
         frame = self.view.last_frame
         if frame is None or len(frame.body_quat) == 0:
             return 0.0
-        root = load_robot(self.robot_name).config.root_link
-        try:
-            idx = self.view.body_names.index(root)
-        except ValueError:
-            return 0.0
-        w, x, y, z = (float(c) for c in frame.body_quat[idx])
+        w, x, y, z = (float(c) for c in frame.body_quat[0])
         return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
     def _status_loop(self) -> None:
+        tick = 0
         while not self._stop.wait(STATUS_PERIOD_S):
+            tick += 1
             frame = self.view.last_frame
             pid = self.link.pid
             if frame is None:
@@ -124,9 +325,13 @@ class Studio:
                 text = f"Engine running · pid {pid} · {self.robot_name} is a source skeleton: shown, not simulated"
             else:
                 state = "paused" if frame.paused else ("fallen" if frame.fallen else "running")
-                text = (f"Engine {state} · pid {pid} · t = {frame.sim_time_s:.1f} s · "
+                text = (f"Engine {state} · pid {pid} · {frame.mode} mode · t = {frame.sim_time_s:.1f} s · "
                         f"real-time factor {frame.real_time_factor:.2f}")
             self.robot_panel.show_status(text)
+            try:
+                self.plots.render()
+            except Exception:  # noqa: BLE001 - plots are cosmetic
+                pass
 
 
 def serve(robot: str, host: str, port: int) -> None:

@@ -38,6 +38,19 @@ def _parser() -> argparse.ArgumentParser:
     plan.add_argument("--duration", type=float, default=10.0, help="seconds to plan")
     plan.add_argument("--out", required=True, help="output .npz")
 
+    walk = sub.add_parser("walk", help="walk a style headless in closed loop (MuJoCo + the full control stack)")
+    walk.add_argument("--robot", default="g1")
+    walk.add_argument("--style", default="neutral", help="a style name of the robot or a path to a style file")
+    walk.add_argument("--command", default="forward", help="vx,vy,wz | stand | forward | sweep | keyframes.json")
+    walk.add_argument("--duration", type=float, default=10.0, help="seconds of simulated time")
+    walk.add_argument("--push", action="append", default=[], metavar="t,fx,fy,fz,dur",
+                      help="push the pelvis at t for dur seconds with (fx, fy, fz) N, world frame; repeatable")
+    walk.add_argument("--wbc", choices=("paper", "placo"), default="paper", help="whole-body controller")
+    walk.add_argument("--state", choices=("truth", "estimated"), default="truth", help="state feedback source")
+    walk.add_argument("--no-feedback", action="store_true", help="disable gait feedback (for comparison)")
+    walk.add_argument("--out", default=None, help="write the recorded run (.npz)")
+    walk.add_argument("--json", action="store_true", help="print the summary as JSON")
+
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -57,6 +70,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_check(args)
         if args.subcommand == "plan":
             return cmd_plan(args)
+        if args.subcommand == "walk":
+            return cmd_walk(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -178,6 +193,57 @@ def cmd_plan(args: argparse.Namespace) -> int:
     clamped = int(np.any(np.abs(arrays["command"] - arrays["command_requested"]) > 1e-9, axis=1).sum())
     print(f"{out}: {n} samples at 125 Hz, {args.duration:g} s, style {style.name} on {args.robot}"
           + (f"; command clamped to the style's limits in {clamped} samples" if clamped else ""))
+    return 0
+
+
+def cmd_walk(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from engine.gait.command_schedule import CommandError, parse_command
+    from engine.robot.config import RobotConfigError, load_robot_config
+    from engine.robot.model import load_robot
+    from engine.walk_runner import PushSpec, run_walk
+
+    try:
+        cfg = load_robot_config(args.robot)
+    except RobotConfigError as exc:
+        raise CliError(str(exc)) from None
+    if cfg.kind != "biped":
+        raise CliError(f"--robot: expected a biped (the walking controller walks bipeds), {args.robot} is a {cfg.kind}")
+    if not (args.duration > 0 and args.duration <= 3600):
+        raise CliError(f"--duration: expected 0 < T ≤ 3600 s, got {args.duration}")
+    style = resolve_style(args.robot, args.style)
+    try:
+        schedule = parse_command(args.command, style.velocities)
+        pushes = [PushSpec.parse(p) for p in args.push]
+    except (CommandError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    out = Path(args.out) if args.out else None
+    if out is not None and out.suffix != ".npz":
+        raise CliError(f"--out: expected a .npz file, got {args.out!r}")
+    v = style.velocities
+    requested = np.abs(schedule.values).max(axis=0)
+    limits = np.array([v.x_max_mps, v.y_max_mps, v.yaw_max_radps])
+    if np.any(requested > limits + 1e-9):
+        print(f"studio: warning: the command exceeds the style's limits (vx {v.x_max_mps}, vy {v.y_max_mps} m/s, "
+              f"wz {v.yaw_max_radps} rad/s); it is clamped", file=sys.stderr)
+    summary, arrays = run_walk(load_robot(args.robot), style, schedule, args.duration, pushes, wbc=args.wbc,
+                               state_source=args.state, feedback=not args.no_feedback, record=out is not None)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_name(f".{out.name}.tmp.npz")
+        np.savez_compressed(tmp, **arrays)
+        tmp.replace(out)
+    if args.json:
+        print(json.dumps(summary, indent=1))
+    else:
+        state = f"FELL at {summary['fall_time_s']:.2f} s" if summary["fell"] else "walked"
+        print(f"{args.robot}/{style.name} ({args.wbc}, {args.state} state): {state}; {summary['sim_time_s']:.1f} s "
+              f"simulated in {summary['wall_time_s']:.1f} s ({summary['real_time_factor']}x real time), "
+              f"{summary['distance_m']:.2f} m; velocity RMSE {summary['velocity_rmse']}; stance slip "
+              f"{summary['max_stance_slip_mm']} mm; CoP inside {summary['cop_inside_fraction']}")
     return 0
 
 

@@ -95,6 +95,7 @@ class Recipe:
     toe_off_rad: float = 0.0  # ψ_toe at liftoff (≥ 0)
     liftoff_transition_s: float = 0.0
     touchdown_transition_s: float = 0.0
+    swing_toe_pitch_rad: float = 0.0  # toes point down mid-swing (walking backward leads with the toes)
     swing_x_m: list[tuple[float, float]] = field(default_factory=list)  # extra swing x profile points
     swing_y_m: list[tuple[float, float]] = field(default_factory=list)
 
@@ -129,6 +130,8 @@ def build_sample(r: Recipe, joints: Joints, ctx: StyleContext) -> GaitSample:
         if r.heel_strike_rad or r.toe_off_rad:
             curves[f"{side}_foot.toe_pitch"] = swing_pitch(d, r.toe_off_rad, 0.0)
             curves[f"{side}_foot.heel_pitch"] = swing_pitch(d, 0.0, -r.heel_strike_rad)
+        elif r.swing_toe_pitch_rad:
+            curves[f"{side}_foot.toe_pitch"] = swing_profile(d, [(0.5, r.swing_toe_pitch_rad)])
         if r.swing_x_m:
             curves[f"{side}_foot.x"] = swing_profile(d, r.swing_x_m)
         if r.swing_y_m:
@@ -203,18 +206,20 @@ def nine(in_place: Recipe, forward_slow: Recipe, forward_fast: Recipe, reverse_s
 
 
 def g1_neutral() -> Style:
-    base = Recipe(cycle_s=0.9, swing_s=0.36, swing_height_m=0.06, pelvis_height_m=0.72, arm_swing_rad=0.0)
-    slow = with_(base, cycle_s=0.85, swing_s=0.34, swing_height_m=0.07, arm_swing_rad=0.12)
-    fast = with_(base, cycle_s=0.8, swing_s=0.32, swing_height_m=0.08, arm_swing_rad=0.22, elbow_swing_rad=0.1)
-    rev = with_(slow, arm_swing_rad=0.08)
+    base = Recipe(cycle_s=0.9, swing_s=0.36, swing_height_m=0.06, pelvis_height_m=0.67, arm_swing_rad=0.0)
+    slow = with_(base, cycle_s=0.8, swing_s=0.32, swing_height_m=0.07, arm_swing_rad=0.12)
+    # Cadence rises with speed (0.175 m steps at 0.5 m/s): G1's legs cannot reach longer steps.
+    fast = with_(base, cycle_s=0.7, swing_s=0.28, swing_height_m=0.07, pelvis_height_m=0.66, arm_swing_rad=0.22,
+                 elbow_swing_rad=0.1)
+    rev = with_(slow, arm_swing_rad=0.08, swing_height_m=0.05, swing_toe_pitch_rad=0.35)
     strafe = with_(base, cycle_s=0.75, swing_s=0.3, width_m=0.22, swing_height_m=0.06)
     return make_style("neutral", "g1", "The nominal gait: even timing, modest arm swing, no frills.",
                       SampleVelocities(0.5, 0.25, 0.15, 1.0),
-                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.8, swing_s=0.32), strafe, base), G1)
+                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.75, swing_s=0.3), strafe, base), G1)
 
 
 def g1_casual() -> Style:
-    base = Recipe(cycle_s=1.3, swing_s=0.5, swing_height_m=0.06, width_m=0.3, splay_rad=0.3, pelvis_height_m=0.71,
+    base = Recipe(cycle_s=1.3, swing_s=0.5, swing_height_m=0.06, width_m=0.3, splay_rad=0.3, pelvis_height_m=0.67,
                   pelvis_bob_m=0.008, pelvis_yaw_rad=0.08, spine_yaw_rad=0.16, pelvis_roll_rad=0.04,
                   arm_swing_rad=0.25, elbow_swing_rad=0.15, shoulder_roll_rad=0.22, elbow_rad=0.55)
     slow = with_(base, cycle_s=1.2, swing_s=0.46, arm_swing_rad=0.32, pelvis_yaw_rad=0.1, spine_yaw_rad=0.2)
@@ -224,8 +229,13 @@ def g1_casual() -> Style:
                    spine_yaw_rad=0.08)
     return make_style("casual", "g1", "Relaxed: slow cycle, open toes-out stance, hips and shoulders counter-rotate, "
                       "loose arm swing (paper §8.2).", SampleVelocities(0.4, 0.2, 0.1, 0.8),
-                      nine(base, slow, fast, with_(slow, arm_swing_rad=0.2, width_m=0.26, splay_rad=0.15),
-                           with_(slow, cycle_s=1.1, swing_s=0.42, arm_swing_rad=0.25, width_m=0.26, splay_rad=0.15),
+                      nine(base, slow, fast,
+                           with_(slow, cycle_s=0.95, swing_s=0.36, arm_swing_rad=0.2, width_m=0.23, splay_rad=0.15,
+                                 pelvis_roll_rad=0.02, swing_toe_pitch_rad=0.35,
+                                 swing_height_m=0.04),
+                           with_(slow, cycle_s=0.9, swing_s=0.34, arm_swing_rad=0.25, width_m=0.23, splay_rad=0.15,
+                                 pelvis_roll_rad=0.02, swing_toe_pitch_rad=0.35,
+                                 swing_height_m=0.04),
                            strafe, base), G1)
 
 
@@ -238,22 +248,23 @@ def g1_sneak() -> Style:
     strafe = with_(base, cycle_s=1.1, swing_s=0.42, width_m=0.22, swing_height_m=0.09, pelvis_height_m=0.66)
     return make_style("sneak", "g1", "Sneaking: low pelvis, long slow high-knee swings, arms carried forward and "
                       "bent, leaning in.", SampleVelocities(0.3, 0.15, 0.08, 0.6),
-                      nine(base, slow, fast, slow, slow, strafe, base), G1)
+                      nine(base, slow, fast, with_(slow, swing_toe_pitch_rad=0.4, swing_height_m=0.08),
+                           with_(slow, swing_toe_pitch_rad=0.4, swing_height_m=0.08), strafe, base), G1)
 
 
 def g1_injured() -> Style:
     # Asymmetric at slow speeds: a short left swing (hurry off the hurt right leg), a positive
     # x-bias and a pelvis dropping over the right leg; symmetric at Forward Fast (paper §8.1).
     limp = Recipe(cycle_s=1.1, swing_s=0.3, right_swing_s=0.5, swing_height_m=0.05, x_bias_m=0.06,
-                  pelvis_height_m=0.7, pelvis_roll_rad=0.06, pelvis_yaw_rad=0.05, arm_swing_rad=0.1,
-                  shoulder_roll_rad=0.25)
+                  pelvis_height_m=0.66, pelvis_roll_rad=0.06, pelvis_yaw_rad=0.05, arm_swing_rad=0.1,
+                  shoulder_roll_rad=0.25, swing_toe_pitch_rad=0.3)
     slow = with_(limp, cycle_s=1.0, swing_s=0.28, right_swing_s=0.46)
-    fast = Recipe(cycle_s=0.8, swing_s=0.32, swing_height_m=0.08, pelvis_height_m=0.72, arm_swing_rad=0.22,
+    fast = Recipe(cycle_s=0.8, swing_s=0.32, swing_height_m=0.08, pelvis_height_m=0.68, arm_swing_rad=0.22,
                   elbow_swing_rad=0.1)
     strafe = with_(limp, cycle_s=0.95, swing_s=0.28, right_swing_s=0.4, x_bias_m=0.03, width_m=0.22)
-    reverse = with_(slow, x_bias_m=0.03)
+    reverse = with_(slow, x_bias_m=0.03, swing_height_m=0.045, swing_toe_pitch_rad=0.35)
     return make_style("injured", "g1", "Limping on a hurt right leg at slow speeds; blends back to a symmetric gait "
-                      "at Forward Fast (paper §8.1).", SampleVelocities(0.45, 0.2, 0.1, 0.8),
+                      "at Forward Fast (paper §8.1).", SampleVelocities(0.45, 0.15, 0.1, 0.8),
                       nine(limp, slow, fast, reverse, reverse, strafe, limp), G1)
 
 

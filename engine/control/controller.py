@@ -22,6 +22,7 @@ class RobotState:
     t_s: float
     q: np.ndarray
     v: np.ndarray
+    imu: object | None = None  # an estimator.ImuSample from the robot's IMU, when simulated
 
 
 @dataclass

@@ -42,6 +42,7 @@ PLANNER_RATE_HZ = 125.0
 PREVIEW_S = 2.0
 STYLE_FADE_S = 0.3
 START_PHASE = PHI_RTD  # start in double support, right foot just down: the left lifts first
+START_HOLD_S = 0.6  # the clock eases in over this time: a longer first double support to shift the weight
 CONTACT_TOL_M = 1e-3
 MIN_HEEL_TOE_TRANSITION_S = 0.08
 TARGET_SETTLE_FRACTION = 0.4
@@ -93,6 +94,18 @@ class GaitReference:
         return quat_from_matrix(self.foot_rot[i])
 
 
+def _remaining_ease_delay(hold_s: float) -> float:
+    """Extra time the slow start adds before future events: ∫ (1 − smoothstep) over the rest of the ease-in."""
+    if hold_s <= 0.0:
+        return 0.0
+    u0 = 1.0 - hold_s / START_HOLD_S
+
+    def antiderivative(u: float) -> float:  # ∫ (1 − 3u² + 2u³) du
+        return u - u ** 3 + 0.5 * u ** 4
+
+    return START_HOLD_S * (antiderivative(1.0) - antiderivative(u0))
+
+
 def _angular_velocity(r0: np.ndarray, r1: np.ndarray, dt: float) -> np.ndarray:
     """World angular velocity taking r0 to r1 in dt (small-angle)."""
     d = r1 @ r0.T
@@ -115,6 +128,7 @@ class GaitPlanner:
         hl, hw = 0.5 * sole_length_m, 0.5 * sole_width_m
         self.sole_corners_local = np.array([[hl, hw, 0.0], [hl, -hw, 0.0], [-hl, -hw, 0.0], [-hl, hw, 0.0]])
         self.region = SafeRegion.for_sole(sole_length_m, sole_width_m)
+        self.preview_margin_m = 0.0  # shrink the preview's soles: the MPC plans the CoP this far inside
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -155,6 +169,7 @@ class GaitPlanner:
         self.swing_start = dict(self.latched)
         self.target = dict(self.latched)
         self.landed = {side: False for side in SIDES}  # no touchdown transition before the first step
+        self.hold_s = START_HOLD_S
         self._raw_target: dict[str, Foothold] = {}
         self._last_pose = None
 
@@ -219,10 +234,16 @@ class GaitPlanner:
         kappa = float(kappa) if math.isfinite(kappa) and kappa > 0 else 1.0
 
         # Exact phase clock: advance the gait time of the current blend by κ·dt, map back to φ.
+        # At the start the clock holds in double support (the weight shift before the first step).
         phi_old = self.phi
-        self.phi = max(blend.phase_of_time(blend.time_at(phi_old) + kappa * dt_s), phi_old)
-        self.path.advance(self.command, kappa * dt_s)
         self.t_s += dt_s
+        rate = kappa
+        if self.hold_s > 0.0:  # the clock eases in from rest (C1 start)
+            self.hold_s = max(self.hold_s - dt_s, 0.0)
+            rate *= smoothstep(1.0 - self.hold_s / START_HOLD_S)
+        if rate > 0.0:
+            self.phi = max(blend.phase_of_time(blend.time_at(phi_old) + rate * dt_s), phi_old)
+            self.path.advance(self.command, rate * dt_s)
         self._handle_events(phi_old, self.phi)
         adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
         for side in SIDES:
@@ -232,6 +253,23 @@ class GaitPlanner:
         if with_preview:
             ref.preview = self.preview(kappa)
         return ref
+
+    def relatch(self, side: str, measured: Foothold, max_shift_m: float = 0.05) -> bool:
+        """Move a support foot's latched foothold to where the foot actually landed.
+
+        The contact preview (and so the CoM MPC) then plans on the real support; the
+        reference of a foot flat on the ground is held by damping only, so nothing jumps.
+        Refused (False) for swinging feet or implausible shifts.
+        """
+        if self.in_swing(side, self.phi):
+            return False
+        old = self.latched[side]
+        if math.hypot(measured.x - old.x, measured.y - old.y) > max_shift_m:
+            return False
+        self.latched[side] = measured
+        if self._last_pose is not None:
+            self._last_pose = None  # no spurious rates from the shift
+        return True
 
     def _track_target(self, side: str, raw: Foothold) -> None:
         """Follow the re-evaluated foothold's increments, easing them out before touchdown.
@@ -391,15 +429,21 @@ class GaitPlanner:
         k = math.floor(self.phi)
         boundaries = [k + c + e for c in range(4) for e in events if k + c + e > self.phi]
         prev_phi = self.phi
+        # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
+        hold = _remaining_ease_delay(self.hold_s)
         for b in boundaries:
             t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
             t1 = (blend.event_time(b) - t_now) / kappa
+            if prev_phi != self.phi:
+                t0 += hold
+            t1 += hold
             down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
+            length = self.sole_length_m - 2.0 * self.preview_margin_m
+            width = self.sole_width_m - 2.0 * self.preview_margin_m
             if len(down) == 1:
-                polygon = footholds[down[0]].corners(self.sole_length_m, self.sole_width_m)
+                polygon = footholds[down[0]].corners(length, width)
             else:
-                polygon = convex_hull_2d(np.vstack([footholds[s].corners(self.sole_length_m, self.sole_width_m)
-                                                    for s in down]))
+                polygon = convex_hull_2d(np.vstack([footholds[s].corners(length, width) for s in down]))
             phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
             if t1 >= horizon_s:
                 break

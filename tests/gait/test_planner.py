@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine.gait.planner import GaitPlanner
+from engine.gait.planner import START_HOLD_S, GaitPlanner
 from engine.gait.style import load_style
 from tests.conftest import REPO
 from tests.gait.strategies import g1_context, smooth_commands, styles
@@ -126,13 +126,14 @@ def test_sample_weights_are_convex(style, command):
 def test_path_frame_follows_the_command():
     style = load_style(REPO / "styles/g1/neutral.json")
     planner, refs = run(style, lambda t: np.array([0.3, 0.0, 0.0]), 10.0)
-    assert refs[-1].path_pose[0] == pytest.approx(3.0, abs=1e-6)
+    ease = 0.5 * START_HOLD_S  # the clock eases in from rest over the first START_HOLD_S
+    assert refs[-1].path_pose[0] == pytest.approx(0.3 * (10.0 - ease), abs=5e-3)
     feet_x = refs[-1].foot_pos[:, 0].mean()
     assert 2.6 < feet_x < 3.4
     planner, refs = run(style, lambda t: np.array([0.0, 0.0, 0.5]), 6.0)
-    assert refs[-1].path_pose[2] == pytest.approx(3.0, abs=1e-6)
+    assert refs[-1].path_pose[2] == pytest.approx(0.5 * (6.0 - ease), abs=5e-3)
     yaws = [math.atan2(r[1, 0], r[0, 0]) for r in refs[-1].foot_rot]
-    assert abs(math.remainder(yaws[0] - 3.0, 2 * math.pi)) < 0.7
+    assert abs(math.remainder(yaws[0] - refs[-1].path_pose[2], 2 * math.pi)) < 0.7
 
 
 def test_impossible_command_is_clamped():

@@ -1,0 +1,111 @@
+"""Gait feedback (paper §7.1): velocity adjustment, step adjustment and time scaling.
+
+All three act on the horizontal CoM error e = x̂_com − r_com (estimate minus MPC reference):
+
+* velocity adjustment Δ_vel — a deadband and a 0.15 Hz low-pass on a combination of the
+  position and velocity errors, added to the command: persistent errors accelerate the
+  robot toward them ("buying time at the expense of drift");
+* step adjustment Δ_step — the upcoming foothold moves toward the error (capture-point-like
+  combination), so the next support catches the CoM;
+* time scaling κ = exp(k_p ε + k_d ε̇), with ε, ε̇ the errors along the axis from the current
+  to the next foothold, bounded separately in single and double support: κ > 1 speeds the
+  reference up so it catches a CoM that runs ahead.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.control.com_mpc import GRAVITY_MPS2
+
+
+@dataclass(frozen=True)
+class GaitFeedbackGains:
+    velocity_kp_per_s: float = 0.8  # Δ_vel from position error (1/s)
+    velocity_kd: float = 0.4  # Δ_vel from velocity error
+    velocity_deadband_mps: float = 0.04
+    velocity_cutoff_hz: float = 0.15
+    velocity_max_mps: float = 0.4
+    step_gain: float = 0.8  # × capture-point error
+    step_deadband_m: float = 0.01
+    step_max_m: float = 0.15
+    time_kp_per_m: float = 4.0
+    time_kd_s_per_m: float = 1.0
+    kappa_single: tuple[float, float] = (0.75, 1.35)
+    kappa_double: tuple[float, float] = (0.5, 2.0)
+
+    @classmethod
+    def for_robot(cls, name: str) -> "GaitFeedbackGains":
+        if name == "talos":
+            return cls(time_kp_per_m=3.0, time_kd_s_per_m=0.9, step_gain=0.7)
+        return cls()
+
+
+@dataclass
+class FeedbackOutput:
+    velocity_adjust_mps: np.ndarray  # (2,) path frame, added to the command's [vx, vy]
+    step_adjust_m: np.ndarray  # (2,) world, added to the upcoming foothold
+    kappa: float
+    epsilon_m: float
+    epsilon_rate_mps: float
+    error_m: np.ndarray  # (2,) world CoM position error
+
+
+def _deadband(x: np.ndarray, width: float) -> np.ndarray:
+    norm = float(np.linalg.norm(x))
+    if norm <= width:
+        return np.zeros_like(x)
+    return x * (1.0 - width / norm)
+
+
+class GaitFeedback:
+    def __init__(self, gains: GaitFeedbackGains | None = None, enabled: bool = True):
+        self.gains = gains or GaitFeedbackGains()
+        self.enabled = enabled
+        self.velocity_adjust = np.zeros(2)
+        self.last = FeedbackOutput(np.zeros(2), np.zeros(2), 1.0, 0.0, 0.0, np.zeros(2))
+
+    def reset(self) -> None:
+        self.velocity_adjust = np.zeros(2)
+        self.last = FeedbackOutput(np.zeros(2), np.zeros(2), 1.0, 0.0, 0.0, np.zeros(2))
+
+    def update(self, dt_s: float, com_xy: np.ndarray, com_vel_xy: np.ndarray, ref_com_xy: np.ndarray,
+               ref_com_vel_xy: np.ndarray, com_height_m: float, path_yaw_rad: float,
+               stance_xy: np.ndarray | None, next_xy: np.ndarray | None, single_support: bool) -> FeedbackOutput:
+        g = self.gains
+        e = np.asarray(com_xy, dtype=float) - np.asarray(ref_com_xy, dtype=float)
+        ed = np.asarray(com_vel_xy, dtype=float) - np.asarray(ref_com_vel_xy, dtype=float)
+        if not self.enabled or not (np.all(np.isfinite(e)) and np.all(np.isfinite(ed))):
+            self.last = FeedbackOutput(np.zeros(2), np.zeros(2), 1.0, 0.0, 0.0, np.where(np.isfinite(e), e, 0.0))
+            return self.last
+        # Velocity adjustment: deadband, then a first-order low-pass at 0.15 Hz; path frame.
+        raw = _deadband(g.velocity_kp_per_s * e + g.velocity_kd * ed, g.velocity_deadband_mps)
+        alpha = 1.0 - math.exp(-2.0 * math.pi * g.velocity_cutoff_hz * dt_s)
+        self.velocity_adjust += alpha * (raw - self.velocity_adjust)
+        norm = float(np.linalg.norm(self.velocity_adjust))
+        if norm > g.velocity_max_mps:
+            self.velocity_adjust *= g.velocity_max_mps / norm
+        c, s = math.cos(path_yaw_rad), math.sin(path_yaw_rad)
+        vel_path = np.array([c * self.velocity_adjust[0] + s * self.velocity_adjust[1],
+                             -s * self.velocity_adjust[0] + c * self.velocity_adjust[1]])
+        # Step adjustment toward the capture-point error.
+        omega = math.sqrt(GRAVITY_MPS2 / max(com_height_m, 0.2))
+        step = _deadband(g.step_gain * (e + ed / omega), g.step_deadband_m)
+        norm = float(np.linalg.norm(step))
+        if norm > g.step_max_m:
+            step *= g.step_max_m / norm
+        # Time scaling along the axis from the current to the next foothold.
+        eps = eps_rate = 0.0
+        if stance_xy is not None and next_xy is not None:
+            axis = np.asarray(next_xy, dtype=float) - np.asarray(stance_xy, dtype=float)
+            length = float(np.linalg.norm(axis))
+            if length > 1e-3:
+                u = axis / length
+                eps, eps_rate = float(e @ u), float(ed @ u)
+        lo, hi = g.kappa_single if single_support else g.kappa_double
+        kappa = float(np.clip(math.exp(np.clip(g.time_kp_per_m * eps + g.time_kd_s_per_m * eps_rate, -5, 5)), lo, hi))
+        self.last = FeedbackOutput(vel_path, step, kappa, eps, eps_rate, e)
+        return self.last

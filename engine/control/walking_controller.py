@@ -1,0 +1,362 @@
+"""The walking controller: the paper's control stack in the simulation's controller slot.
+
+Per 500 Hz tick: estimator → (every 4th tick, 125 Hz: gait feedback → sampler/planner →
+CoM MPC) → task-space inverse dynamics → joint servo set-points. Between planner ticks the
+reference is extrapolated with its rates and the CoM follows the MPC's exact trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from engine.control.com_mpc import ComMpc, ComMpcSolution, SupportInterval
+from engine.control.controller import JointCommand, RobotState
+from engine.control.estimator import StateEstimator
+from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
+from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
+from engine.gait.footsteps import Foothold
+from engine.gait.offline_plan import planner_for
+from engine.gait.planner import PLANNER_RATE_HZ, GaitReference
+from engine.gait.style import SIDES, Style, StyleContext
+from engine.robot.model import RobotModel
+from engine.sim import CONTROL_PERIOD_S
+
+TICKS_PER_PLAN = int(round(1.0 / (PLANNER_RATE_HZ * CONTROL_PERIOD_S)))  # 4
+PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
+COMMAND_ACCEL_LIMITS = np.array([0.25, 0.3, 1.5])  # joystick rate limits: m/s², m/s², rad/s² (G1 cannot accelerate its gait faster)
+RELATCH_AFTER_PLAN_TICKS = 2  # re-latch a landed foot this many planner ticks (16 ms) after touchdown
+COP_MARGIN_M = 0.01
+COM_Z_FILTER = 0.05  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
+MPC_STATE_PULL = 0.0  # per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0)
+
+
+@dataclass
+class StepTimings:
+    """Wall-clock cost of each stage (s) in the last tick; None when the stage did not run."""
+
+    planner: float | None = None
+    mpc: float | None = None
+    wbc: float | None = None
+    estimator: float | None = None
+
+
+@dataclass
+class WalkingTelemetry:
+    """What the studio's overlays and plots need, refreshed every planner tick."""
+
+    t_s: float = 0.0
+    com_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    com_ref_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    cop_ref_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    com_path_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    cop_path_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    support_polygon: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    preview_polygons: list[np.ndarray] = field(default_factory=list)
+    footholds: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # planned (x, y, yaw)
+    sample_weights: np.ndarray = field(default_factory=lambda: np.zeros(9))
+    feedback: FeedbackOutput | None = None
+    command: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    command_clamped: bool = False
+    mpc_status: str = ""
+    wbc_status: str = ""
+
+
+class WalkingController:
+    """Walks a biped in a style, steered by a velocity command."""
+
+    name = "walking"
+
+    def __init__(self, robot: RobotModel, style: Style, wbc: str = "paper", state_source: str = "truth",
+                 feedback: bool = True, ctx: StyleContext | None = None):
+        if robot.kind != "biped":
+            raise ValueError(f"{robot.name} is a {robot.kind}: the walking controller needs a biped")
+        self.robot = robot
+        self.ctx = ctx or StyleContext.for_robot(robot.name)
+        self.style = style
+        self.planner = planner_for(robot, style, self.ctx)
+        self.planner.preview_margin_m = COP_MARGIN_M
+        self.mpc = ComMpc(preview_s=2.0)
+        self.feedback = GaitFeedback(GaitFeedbackGains.for_robot(robot.name), enabled=feedback)
+        if wbc == "paper":
+            self.wbc = TaskSpaceInverseDynamics(robot, upper_body_joints=self.ctx.upper_joints)
+        elif wbc == "placo":
+            from engine.control.placo_wbc import PlacoWbc
+
+            self.wbc = PlacoWbc(robot, upper_body_joints=self.ctx.upper_joints)
+        else:
+            raise ValueError(f"wbc: expected 'paper' or 'placo', got {wbc!r}")
+        self.wbc_name = wbc
+        self.estimator = StateEstimator(robot, mode="estimated" if state_source == "estimated" else "truth")
+        self.state_source = state_source
+        self.model = robot.pin_model
+        self.data = self.model.createData()
+        data = self.model.createData()
+        self.com_offset_m = float(pin.centerOfMass(self.model, data, robot.q_standing)[2] - robot.q_standing[2])
+        self.command = np.zeros(3)
+        self.command_filtered = np.zeros(3)
+        self.tick = 0
+        self.ref: GaitReference | None = None
+        self.plan: ComMpcSolution | None = None
+        self._plan_t0 = 0.0
+        self.estimate: RobotState | None = None
+        self.timings = StepTimings()
+        self._telemetry = WalkingTelemetry()
+        self._telemetry_stale = False
+        self._last_com = np.zeros(2)
+        self._last_fb: FeedbackOutput | None = None
+        self._pending_style: Style | None = None
+
+    # ------------------------------------------------------------------ inputs
+    def set_command(self, v: np.ndarray) -> None:
+        self.command = np.asarray(v, dtype=float).copy()
+
+    def set_style(self, style: Style) -> None:
+        """Live edit: the planner cross-fades to the new style."""
+        self.style = style
+        self.planner.set_style(style)
+
+    # ------------------------------------------------------------------ lifecycle
+    def reset(self, state: RobotState) -> None:
+        q = state.q
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, q)
+        feet = []
+        for side in SIDES:
+            m = data.oMf[self.model.getFrameId(f"{side}_foot")]
+            feet.append(Foothold(float(m.translation[0]), float(m.translation[1]),
+                                 float(math.atan2(m.rotation[1, 0], m.rotation[0, 0]))))
+        base_yaw = math.atan2(2 * (q[6] * q[5] + q[3] * q[4]), 1 - 2 * (q[4] ** 2 + q[5] ** 2))
+        mid = 0.5 * (np.array([feet[0].x, feet[0].y]) + np.array([feet[1].x, feet[1].y]))
+        self.planner.reset(np.array([mid[0], mid[1], base_yaw]), feet[0], feet[1])
+        self.estimator.reset(state)
+        self.wbc.reset(state)
+        self.feedback.reset()
+        self.mpc.reset()
+        self.command_filtered = np.zeros(3)
+        self.tick = 0
+        self.ref = None
+        self.plan = None
+        self._foot_acc = np.zeros((2, 3))
+        self._foot_ang_acc = np.zeros((2, 3))
+        self._since_touchdown = [-1, -1]
+        self._com_z = None
+        com = pin.centerOfMass(self.model, data, q)
+        self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
+
+    # ------------------------------------------------------------------ one tick
+    def compute(self, state: RobotState) -> JointCommand:
+        t_start = time.perf_counter()
+        contact = self.ref.contact if self.ref is not None else np.ones(2, dtype=bool)
+        if self.state_source == "estimated":
+            est = self.estimator.update(state.t_s, getattr(state, "imu", None), state.q[7:], state.v[6:], contact, truth=state)
+        else:
+            est = state
+        self.estimate = est
+        t_est = time.perf_counter()
+        self.timings = StepTimings(estimator=t_est - t_start)
+        if self.tick % TICKS_PER_PLAN == 0:
+            self._plan_tick(est)
+        dt_since = (self.tick % TICKS_PER_PLAN) * CONTROL_PERIOD_S
+        t_wbc = time.perf_counter()
+        cmd = self.wbc.compute(est, self._wbc_reference(dt_since))
+        self.timings.wbc = time.perf_counter() - t_wbc
+        self.tick += 1
+        return cmd
+
+    def _com_state(self, est: RobotState) -> tuple[np.ndarray, np.ndarray]:
+        pin.centerOfMass(self.model, self.data, est.q, est.v)
+        return self.data.com[0][:2].copy(), self.data.vcom[0][:2].copy()
+
+    def _plan_tick(self, est: RobotState) -> None:
+        t0 = time.perf_counter()
+        com, com_vel = self._com_state(est)
+        planner = self.planner
+        if self.plan is not None:
+            t_now = planner.t_s
+            ref_pos, ref_vel, _ = self.plan.com_at(t_now)
+        else:
+            ref_pos, ref_vel = self._init_com[0], self._init_com[1]
+        fb = self._feedback(com, com_vel, ref_pos, ref_vel)
+        target = np.where(np.isfinite(self.command), self.command, 0.0)
+        step = np.clip(target - self.command_filtered, -COMMAND_ACCEL_LIMITS * PLAN_DT_S, COMMAND_ACCEL_LIMITS * PLAN_DT_S)
+        self.command_filtered = self.command_filtered + step
+        command = self.command_filtered.copy()
+        command[:2] += fb.velocity_adjust_mps
+        contact_before = self.ref.contact.copy() if self.ref is not None else np.ones(2, dtype=bool)
+        ref = planner.step(PLAN_DT_S, command, kappa=fb.kappa, step_adjustment_xy=fb.step_adjust_m)
+        self._feet_feedforward(ref)
+        self.ref = ref
+        self._relatch_landed_feet(est, contact_before)
+        t1 = time.perf_counter()
+        self.timings.planner = t1 - t0
+        # CoM MPC over the planner's contact preview; initial conditions continue the last plan.
+        supports = [SupportInterval(p.t_start_s, p.t_end_s, p.polygon) for p in ref.preview]
+        # LIP height: the measured CoM height, low-passed (the walking posture differs from standing).
+        com_z = float(self.data.com[0][2])
+        self._com_z = com_z if self._com_z is None else self._com_z + COM_Z_FILTER * (com_z - self._com_z)
+        z_com = self._com_z
+        if self.plan is None:
+            com0, vel0, cop0 = self._init_com
+        else:
+            # Continue the last plan (continuity of the reference), pulled a little toward the
+            # estimate so the plan never drifts away from the robot.
+            com0, vel0, _ = self.plan.com_at(ref.t_s)
+            com0 = com0 + MPC_STATE_PULL * (com - com0)
+            vel0 = vel0 + MPC_STATE_PULL * (com_vel - vel0)
+            cop0 = self.plan.cop_at(ref.t_s)
+        # The only infeasible part of the QP is an initial CoP outside today's support (time
+        # scaling and touchdowns move contact switches relative to the last plan): clip it in.
+        cop0 = _clip_to_polygon(cop0, supports[0].polygon)
+        plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
+        if not plan.ok:  # the plan cannot be continued (a push, a sudden change): restart it from the robot
+            cop_now = self.plan.cop_at(ref.t_s) if self.plan is not None else cop0
+            plan = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(cop_now, supports[0].polygon), z_com, supports)
+        if plan.ok or self.plan is None:
+            self.plan = plan
+        self.timings.mpc = time.perf_counter() - t1
+        self._last_com, self._last_fb = com, fb
+        self._telemetry_stale = True
+
+    def _feet_feedforward(self, ref: GaitReference) -> None:
+        """Swing-foot acceleration feed-forward from consecutive reference rates."""
+        prev = self.ref
+        if prev is None:
+            self._foot_acc = np.zeros((2, 3))
+            self._foot_ang_acc = np.zeros((2, 3))
+            return
+        self._foot_acc = (ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S
+        self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
+        for i in range(2):
+            if ref.contact[i]:
+                self._foot_acc[i] = 0.0
+                self._foot_ang_acc[i] = 0.0
+
+    def _relatch_landed_feet(self, est: RobotState, contact_before: np.ndarray) -> None:
+        """A few ticks after touchdown, latch the foothold where the foot really is."""
+        for i, side in enumerate(SIDES):
+            if not self.ref.contact[i]:
+                self._since_touchdown[i] = -1
+                continue
+            if not contact_before[i]:
+                self._since_touchdown[i] = 0
+            elif self._since_touchdown[i] >= 0:
+                self._since_touchdown[i] += 1
+            if self._since_touchdown[i] == RELATCH_AFTER_PLAN_TICKS:
+                pin.framesForwardKinematics(self.model, self.data, est.q)
+                m = self.data.oMf[self.model.getFrameId(f"{side}_foot")]
+                measured = Foothold(float(m.translation[0]), float(m.translation[1]),
+                                    float(math.atan2(m.rotation[1, 0], m.rotation[0, 0])))
+                if abs(m.translation[2]) < 0.01:  # really down
+                    self.planner.relatch(side, measured)
+
+    def _feedback(self, com: np.ndarray, com_vel: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray) -> FeedbackOutput:
+        planner = self.planner
+        swinging = [s for s in SIDES if planner.in_swing(s, planner.phi)]
+        if swinging:
+            side = swinging[0]
+            stance = "right" if side == "left" else "left"
+            stance_xy = np.array([planner.latched[stance].x, planner.latched[stance].y])
+            next_xy = np.array([planner.target[side].x, planner.target[side].y])
+        else:
+            # Double support: weight moves from the foot about to lift to the one just landed.
+            f = planner.phi - math.floor(planner.phi)
+            leaving = "left" if f >= 0.6 or f < 0.0 else "right"
+            landed = "right" if leaving == "left" else "left"
+            stance_xy = np.array([planner.latched[leaving].x, planner.latched[leaving].y])
+            next_xy = np.array([planner.latched[landed].x, planner.latched[landed].y])
+        z = (self.ref.pelvis_z if self.ref is not None else self.robot.q_standing[2]) + self.com_offset_m
+        return self.feedback.update(PLAN_DT_S, com, com_vel, ref_pos, ref_vel, z, planner.path.yaw,
+                                    stance_xy, next_xy, single_support=bool(swinging))
+
+    def _wbc_reference(self, dt_since: float) -> WbcReference:
+        ref = self.ref
+        assert ref is not None and self.plan is not None
+        t = ref.t_s + dt_since
+        com, com_vel, com_acc = self.plan.com_at(t)
+        foot_pos = ref.foot_pos + ref.foot_lin_vel * dt_since
+        foot_rot = np.array([_rotate(ref.foot_rot[i], ref.foot_ang_vel[i], dt_since) for i in range(2)])
+        contact = ref.corner_contact & ref.contact[:, None]
+        return WbcReference(
+            com_xy_m=com, com_xy_vel_mps=com_vel, com_xy_acc_mps2=com_acc,
+            pelvis_height_m=ref.pelvis_z + ref.pelvis_z_rate * dt_since, pelvis_height_rate_mps=ref.pelvis_z_rate,
+            pelvis_rotation=_rotate(ref.pelvis_rot, ref.pelvis_ang_vel, dt_since), pelvis_ang_vel_radps=ref.pelvis_ang_vel,
+            foot_pos_m=foot_pos, foot_rotation=foot_rot, foot_lin_vel_mps=ref.foot_lin_vel,
+            foot_ang_vel_radps=ref.foot_ang_vel, contact=contact,
+            upper_body_q_rad=ref.upper_q + ref.upper_qd * dt_since, upper_body_qd_radps=ref.upper_qd,
+            foot_lin_acc_mps2=self._foot_acc, foot_ang_acc_radps2=self._foot_ang_acc,
+        )
+
+    @property
+    def telemetry(self) -> WalkingTelemetry:
+        """Overlay/plot signals, assembled on demand (the studio reads them at 20 Hz)."""
+        if self._telemetry_stale and self.ref is not None and self._last_fb is not None:
+            self._update_telemetry(self.ref, self._last_com, self._last_fb)
+            self._telemetry_stale = False
+        return self._telemetry
+
+    def _update_telemetry(self, ref: GaitReference, com: np.ndarray, fb: FeedbackOutput) -> None:
+        plan = self.plan
+        tel = self._telemetry
+        tel.t_s = ref.t_s
+        tel.com_xy = com
+        if plan is not None:
+            tel.com_ref_xy = plan.com_at(ref.t_s)[0]
+            tel.cop_ref_xy = plan.cop_at(ref.t_s)
+            _, tel.com_path_xy = plan.com_path(0.04)
+            tel.cop_path_xy = plan.waypoints_xy_m
+            tel.mpc_status = plan.status
+        tel.support_polygon = ref.preview[0].polygon if ref.preview else np.zeros((0, 2))
+        tel.preview_polygons = [p.polygon for p in ref.preview]
+        holds = []
+        for p in ref.preview:
+            for hold in p.footholds.values():
+                row = hold.as_array()
+                if not holds or np.abs(np.asarray(holds[-1]) - row).max() > 1e-9:
+                    holds.append(row)
+        tel.footholds = np.unique(np.round(np.array(holds), 6), axis=0) if holds else np.zeros((0, 3))
+        tel.sample_weights = ref.sample_weights
+        tel.feedback = fb
+        tel.command = ref.command
+        tel.command_clamped = self.planner.command_clamped
+        tel.wbc_status = getattr(self.wbc.diagnostics, "status", "")
+
+
+def _clip_to_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """``p`` if inside the convex polygon, else its centroid-ward projection onto it."""
+    from engine.control.com_mpc import polygon_centroid, polygon_halfplanes
+
+    normals, offsets = polygon_halfplanes(polygon)
+    if len(offsets) == 0 or np.all(normals @ p <= offsets + 1e-9):
+        return p
+    c = polygon_centroid(polygon)
+    lo, hi = 0.0, 1.0  # bisection on the segment centroid → p
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        if np.all(normals @ (c + mid * (p - c)) <= offsets + 1e-9):
+            lo = mid
+        else:
+            hi = mid
+    return c + lo * (p - c)
+
+
+def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
+    """rot advanced by a world angular velocity for dt (Rodrigues, closed form on floats)."""
+    if dt == 0.0:
+        return rot
+    wx, wy, wz = float(omega[0]) * dt, float(omega[1]) * dt, float(omega[2]) * dt
+    angle = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if angle < 1e-12:
+        return rot
+    kx, ky, kz = wx / angle, wy / angle, wz / angle
+    s, c = math.sin(angle), 1.0 - math.cos(angle)
+    r = np.array([
+        [1 - c * (ky * ky + kz * kz), c * kx * ky - s * kz, c * kx * kz + s * ky],
+        [c * kx * ky + s * kz, 1 - c * (kx * kx + kz * kz), c * ky * kz - s * kx],
+        [c * kx * kz - s * ky, c * ky * kz + s * kx, 1 - c * (kx * kx + ky * ky)],
+    ])
+    return r @ rot

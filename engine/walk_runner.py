@@ -1,0 +1,213 @@
+"""Headless closed-loop walking (``studio walk``): the full stack in MuJoCo, as fast as it goes.
+
+Records the run and measures what an animator and a controls engineer care about: did it
+fall, real-time factor, velocity tracking, stance slip, CoP inside the support polygon and
+the cost of every stage.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from engine.control.walking_controller import WalkingController
+from engine.gait.command_schedule import CommandSchedule
+from engine.gait.style import SIDES, Style
+from engine.geometry import convex_hull_2d
+from engine.robot.model import RobotModel
+from engine.sim import Simulation
+
+SLIP_SETTLE_S = 0.02  # ignore the first moments of a contact (the landing itself)
+COP_MARGIN_M = 0.005
+
+
+@dataclass(frozen=True)
+class PushSpec:
+    t_s: float
+    force_n: tuple[float, float, float]
+    duration_s: float
+
+    @classmethod
+    def parse(cls, text: str) -> "PushSpec":
+        parts = text.split(",")
+        if len(parts) != 5:
+            raise ValueError(f"--push: expected t,fx,fy,fz,dur, got {text!r}")
+        try:
+            t, fx, fy, fz, dur = (float(p) for p in parts)
+        except ValueError:
+            raise ValueError(f"--push: expected five numbers t,fx,fy,fz,dur, got {text!r}") from None
+        if not all(math.isfinite(v) for v in (t, fx, fy, fz, dur)) or t < 0 or dur <= 0:
+            raise ValueError(f"--push: expected finite numbers with t ≥ 0 and dur > 0, got {text!r}")
+        return cls(t, (fx, fy, fz), dur)
+
+
+def _point_in_polygon(p: np.ndarray, poly: np.ndarray, margin: float) -> bool:
+    if len(poly) < 3:
+        if len(poly) == 2:  # a line contact: distance to the segment
+            a, b = poly
+            d = b - a
+            s = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-12), 0, 1)
+            return float(np.linalg.norm(p - (a + s * d))) <= margin
+        return len(poly) == 1 and float(np.linalg.norm(p - poly[0])) <= margin
+    for i in range(len(poly)):
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        edge = b - a
+        cross = edge[0] * (p[1] - a[1]) - edge[1] * (p[0] - a[0])
+        if cross < -margin * float(np.linalg.norm(edge)):
+            return False
+    return True
+
+
+class ContactMeter:
+    """Measured CoP from MuJoCo's floor contacts."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
+        self.floor = model.geom("floor").id
+        self._force = np.zeros(6)
+
+    def cop(self, data: mujoco.MjData) -> tuple[np.ndarray | None, float]:
+        total, moment = 0.0, np.zeros(2)
+        for i in range(data.ncon):
+            c = data.contact[i]
+            if c.geom1 != self.floor and c.geom2 != self.floor:
+                continue
+            mujoco.mj_contactForce(self.model, data, i, self._force)
+            fn = self._force[0]  # normal component in the contact frame
+            if fn <= 0:
+                continue
+            total += fn
+            moment += fn * c.pos[:2]
+        return (moment / total if total > 1e-6 else None), total
+
+
+def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duration_s: float,
+             pushes: list[PushSpec] = (), wbc: str = "paper", state_source: str = "truth",
+             feedback: bool = True, record: bool = True) -> tuple[dict, dict[str, np.ndarray]]:
+    controller = WalkingController(robot, style, wbc=wbc, state_source=state_source, feedback=feedback)
+    sim = Simulation(robot, controller)
+    if state_source == "estimated":
+        sim.enable_imu()
+    sim.reset()
+    meter = ContactMeter(robot.mj_model)
+    dt = float(robot.mj_model.opt.timestep)
+    n = int(round(duration_s / dt))
+    root = robot.mj_model.body(robot.config.root_link).id
+    site_ids = [robot.mj_model.site(f"{s}_foot").id for s in SIDES]
+    corner_geoms = [[g for g in robot.contact_geom_ids if robot.mj_model.body(int(robot.mj_model.geom_bodyid[g])).name
+                     == robot.config.soles[s].link] for s in SIDES]
+    pending = sorted(pushes, key=lambda p: p.t_s)
+    rec: dict[str, list] = {k: [] for k in ("t", "qpos", "qvel", "command", "contact", "com", "com_ref", "cop",
+                                            "foot_pos", "foot_ref", "kappa", "step_adjust", "velocity_adjust",
+                                            "sample_weights", "base_vel_body")}
+    timings: dict[str, list[float]] = {"planner": [], "mpc": [], "wbc": [], "sim": [], "estimator": []}
+    slip_start: list[np.ndarray | None] = [None, None]
+    contact_since = [0.0, 0.0]
+    max_slip = 0.0
+    cop_checks = cop_inside = 0
+    fell, fall_time = False, None
+    path_len, last_xy = 0.0, sim.data.qpos[:2].copy()
+    vel_window: list[np.ndarray] = []
+    cmd_window: list[np.ndarray] = []
+    vel_err: list[np.ndarray] = []
+    wall0 = time.perf_counter()
+    for k in range(n):
+        t = k * dt
+        while pending and pending[0].t_s <= t:
+            p = pending.pop(0)
+            sim.push(np.array(p.force_n), p.duration_s)
+        controller.set_command(schedule(t))
+        t0 = time.perf_counter()
+        sim.step()
+        step_s = time.perf_counter() - t0
+        tm = controller.timings
+        for key in ("planner", "mpc", "wbc", "estimator"):
+            value = getattr(tm, key)
+            if value is not None:
+                timings[key].append(value)
+        timings["sim"].append(max(step_s - sum(v for v in (tm.planner, tm.mpc, tm.wbc, tm.estimator) if v), 0.0))
+        if sim.fallen:
+            fell, fall_time = True, sim.time_s
+            break
+        ref = controller.ref
+        data = sim.data
+        xy = data.qpos[:2]
+        path_len += float(np.linalg.norm(xy - last_xy))
+        last_xy = xy.copy()
+        # Velocity tracking: body-frame base velocity averaged over ~1 s against the command.
+        yaw = math.atan2(data.xmat[root][3], data.xmat[root][0])
+        c, s = math.cos(yaw), math.sin(yaw)
+        v_world = data.qvel[0:3]
+        wz = float(data.qvel[5]) if False else float((data.xmat[root].reshape(3, 3) @ data.qvel[3:6])[2])
+        v_body = np.array([c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1], wz])
+        vel_window.append(v_body)
+        cmd_window.append(ref.command.copy())
+        window = int(1.0 / dt)
+        if len(vel_window) > window:
+            vel_window.pop(0)
+            cmd_window.pop(0)
+            if t > 2.0:
+                vel_err.append(np.mean(vel_window, axis=0) - np.mean(cmd_window, axis=0))
+        # Stance slip: sole centre drift while the reference holds the foot flat on the ground.
+        for i in range(2):
+            flat = bool(ref.contact[i] and not ref.sole_corners[i, :, 2].any())
+            pos = data.site_xpos[site_ids[i]][:2].copy()
+            if flat:
+                contact_since[i] += dt
+                if contact_since[i] >= SLIP_SETTLE_S:
+                    if slip_start[i] is None:
+                        slip_start[i] = pos
+                    max_slip = max(max_slip, float(np.linalg.norm(pos - slip_start[i])))
+            else:
+                contact_since[i] = 0.0
+                slip_start[i] = None
+        # CoP inside the support polygon of the feet the plan has on the ground.
+        cop, fz = meter.cop(data)
+        if cop is not None and fz > 0.2 * robot.mass_kg * 9.81:
+            corners = [data.geom_xpos[g][:2] for i in range(2) if ref.contact[i] for g in corner_geoms[i]]
+            if corners:
+                cop_checks += 1
+                cop_inside += _point_in_polygon(cop, convex_hull_2d(np.array(corners)), COP_MARGIN_M)
+        if record and k % 4 == 0:
+            tel = controller.telemetry
+            fb = tel.feedback
+            rec["t"].append(t)
+            rec["qpos"].append(data.qpos.copy())
+            rec["qvel"].append(data.qvel.copy())
+            rec["command"].append(ref.command.copy())
+            rec["contact"].append(ref.contact.copy())
+            com = data.subtree_com[root].copy()
+            rec["com"].append(com)
+            rec["com_ref"].append(tel.com_ref_xy.copy())
+            rec["cop"].append(cop if cop is not None else np.full(2, np.nan))
+            rec["foot_pos"].append(np.array([data.site_xpos[sid].copy() for sid in site_ids]))
+            rec["foot_ref"].append(ref.foot_pos.copy())
+            rec["kappa"].append(fb.kappa if fb else 1.0)
+            rec["step_adjust"].append(fb.step_adjust_m.copy() if fb else np.zeros(2))
+            rec["velocity_adjust"].append(fb.velocity_adjust_mps.copy() if fb else np.zeros(2))
+            rec["sample_weights"].append(tel.sample_weights.copy())
+            rec["base_vel_body"].append(v_body)
+    wall = time.perf_counter() - wall0
+    sim_time = sim.time_s
+    err = np.array(vel_err) if vel_err else np.zeros((1, 3))
+
+    def pct(values: list[float]) -> dict[str, float]:
+        arr = np.asarray(values) * 1e6 if values else np.zeros(1)
+        return {"median": round(float(np.median(arr)), 1), "p99": round(float(np.percentile(arr, 99)), 1)}
+
+    summary = {
+        "robot": robot.name, "style": style.name, "wbc": wbc, "state": state_source,
+        "fell": fell, "fall_time_s": fall_time, "sim_time_s": round(sim_time, 3), "wall_time_s": round(wall, 3),
+        "real_time_factor": round(sim_time / wall, 2) if wall > 0 else None,
+        "distance_m": round(path_len, 3),
+        "velocity_rmse": [round(float(x), 4) for x in np.sqrt(np.mean(err ** 2, axis=0))],
+        "max_stance_slip_mm": round(1000 * max_slip, 2),
+        "cop_inside_fraction": round(cop_inside / cop_checks, 5) if cop_checks else None,
+        "timing_us": {k: pct(v) for k, v in timings.items()},
+    }
+    arrays = {k: np.asarray(v) for k, v in rec.items()}
+    return summary, arrays

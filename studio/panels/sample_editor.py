@@ -1,0 +1,159 @@
+"""Sample editor: pick one of the nine samples, edit its time intervals and attributes.
+
+The timeline is a multi-slider over the cycle with the four event handles (t_LTD, t_RLO,
+t_RTD, T_S; t_LLO is 0) and a bar showing swing and support phases. Every edit goes through
+the style session: one that breaks a constraint (event order, minimum single/double
+support, attribute ranges) is refused with the validator's message and the controls snap
+back (as in the paper's Fig. 10). Curve knots rescale with their interval.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING, Callable
+
+import viser
+
+from engine.gait.style import ATTRIBUTE_NAMES, Intervals
+from engine.gait.velocity_sampler import SAMPLE_DISPLAY_NAMES, SAMPLE_NAMES
+
+if TYPE_CHECKING:
+    from studio.style_session import StyleSession
+
+ATTRIBUTE_LABELS = {
+    "stance_width_m": "Stance width (m)", "stance_splay_rad": "Splay (rad)", "stance_x_bias_m": "X-bias (m)",
+    "liftoff_transition_s": "Toe/heel-off Δt (s)", "touchdown_transition_s": "Heel/toe-strike Δt (s)",
+    "pelvis_height_m": "Pelvis height (m)",
+}
+
+
+def phase_bar_html(iv: Intervals) -> str:
+    """The walk cycle as coloured blocks: left swing, double support, right swing, double support."""
+    t_ltd, t_rlo, t_rtd, cycle = iv.events_s
+    parts = [("LS", 0.0, t_ltd, "#4c8bf5"), ("DS", t_ltd, t_rlo, "#bbbbbb"), ("RS", t_rlo, t_rtd, "#f5a04c"),
+             ("DS", t_rtd, cycle, "#bbbbbb")]
+    cells = "".join(
+        f'<div title="{name} {a:.2f}–{b:.2f} s" style="flex:{max(b - a, 1e-3):.4f};background:{c};color:#fff;'
+        f'font-size:11px;text-align:center;overflow:hidden">{name} {b - a:.2f}</div>'
+        for name, a, b, c in parts)
+    return (f'<div style="display:flex;height:20px;border-radius:4px;overflow:hidden;margin:2px 0">{cells}</div>'
+            f'<div style="font-size:11px;color:#666">cycle {cycle:.2f} s · LLO 0 · LTD {t_ltd:.2f} · '
+            f'RLO {t_rlo:.2f} · RTD {t_rtd:.2f}</div>')
+
+
+class SampleEditor:
+    def __init__(self, server: viser.ViserServer, session: "StyleSession", notify: Callable[[str, str], None],
+                 on_sample: Callable[[str], None] = lambda name: None):
+        self.server = server
+        self.session = session
+        self.notify = notify
+        self.on_sample = on_sample
+        self.sample_name = "in_place"
+        self._syncing = False
+        ctx = session.ctx
+        labels = dict(zip(SAMPLE_NAMES, SAMPLE_DISPLAY_NAMES))
+        self.dropdown = server.gui.add_dropdown("Sample", options=SAMPLE_NAMES, initial_value=self.sample_name,
+                                                hint=" · ".join(f"{n} = {labels[n]}" for n in SAMPLE_NAMES))
+        self.velocity = server.gui.add_markdown("")
+        self.phase_bar = server.gui.add_html("")
+        iv = self._sample().intervals
+        self.timeline = server.gui.add_multi_slider(
+            "Events (s)", min=0.0, max=ctx.max_cycle_s, step=0.01, initial_value=(*iv.events_s,),
+            min_range=min(ctx.min_double_support_s, ctx.min_single_support_s),
+            hint="t_LTD, t_RLO, t_RTD, cycle T_S (left liftoff is 0)")
+        self.message = server.gui.add_markdown("")
+        ranges = {
+            "stance_width_m": ctx.stance_width_range_m, "stance_splay_rad": (-0.6, 0.6), "stance_x_bias_m": (-0.2, 0.2),
+            "liftoff_transition_s": (0.0, 0.5), "touchdown_transition_s": (0.0, 0.5),
+            "pelvis_height_m": ctx.pelvis_height_range_m,
+        }
+        self.attributes: dict[str, viser.GuiSliderHandle] = {}
+        a = self._sample().attributes
+        for name in ATTRIBUTE_NAMES:
+            lo, hi = ranges[name]
+            self.attributes[name] = server.gui.add_slider(ATTRIBUTE_LABELS[name], min=lo, max=hi, step=0.005,
+                                                          initial_value=min(max(getattr(a, name), lo), hi))
+        self.copy_target = server.gui.add_dropdown("Copy sample to", options=SAMPLE_NAMES, initial_value="in_place")
+        self.copy_button = server.gui.add_button("Copy", icon=viser.Icon.COPY)
+
+        self.dropdown.on_update(lambda _: self.select(self.dropdown.value))
+        self.timeline.on_update(lambda _: self._guard(self.set_events, tuple(self.timeline.value)))
+        for name, slider in self.attributes.items():
+            slider.on_update(lambda _, n=name: self._guard(self.set_attribute, n, self.attributes[n].value))
+        self.copy_button.on_click(lambda _: self._guard(self.copy_to, self.copy_target.value))
+        session.subscribe(lambda style, reason: self.refresh())
+        self.refresh()
+
+    # ------------------------------------------------------------------ edits
+    def _sample(self):
+        return self.session.style.samples[self.sample_name]
+
+    def _guard(self, fn, *args) -> None:
+        if self._syncing:
+            return
+        try:
+            fn(*args)
+        except Exception as exc:  # a panel bug must not break the session
+            self.notify("error", f"{fn.__name__}: {exc}")
+            self.refresh()
+
+    def select(self, name: str) -> None:
+        if name not in SAMPLE_NAMES:
+            return
+        self.sample_name = name
+        self.refresh()
+        self.on_sample(name)
+
+    def set_events(self, events: tuple[float, ...]) -> bool:
+        """New (t_LTD, t_RLO, t_RTD, T_S); refused if it breaks the cycle's constraints."""
+        t_ltd, t_rlo, t_rtd, cycle = (float(e) for e in events)
+        sample = self._sample()
+        new = sample.with_intervals(Intervals(cycle, (0.0, t_ltd), (t_rlo, t_rtd)))
+        result = self.session.apply(self.session.style.with_sample(self.sample_name, new),
+                                    f"{self.sample_name} intervals")
+        return self._result(result)
+
+    def set_attribute(self, name: str, value: float) -> bool:
+        sample = self._sample()
+        new = replace(sample, attributes=replace(sample.attributes, **{name: float(value)}))
+        result = self.session.apply(self.session.style.with_sample(self.sample_name, new), f"{self.sample_name} {name}")
+        return self._result(result)
+
+    def copy_to(self, target: str) -> bool:
+        """Duplicate the current sample onto another one (its curves and intervals)."""
+        if target == self.sample_name:
+            return False
+        result = self.session.apply(self.session.style.with_sample(target, self._sample()),
+                                    f"copy {self.sample_name} → {target}")
+        return self._result(result)
+
+    def _result(self, result) -> bool:
+        if not result.ok:
+            self.message.content = f"⚠️ {result.message}"
+            self.notify("warning", result.message)
+            self.refresh()  # snap the controls back to the (still valid) style
+        else:
+            self.message.content = ""
+        return result.ok
+
+    # ------------------------------------------------------------------ view
+    def refresh(self) -> None:
+        if self.session.style is None:
+            return
+        self._syncing = True
+        try:
+            sample = self._sample()
+            v = self.session.style.velocities.velocity_of(self.sample_name)
+            self.velocity.content = f"velocity vx {v[0]:+.2f} m/s · vy {v[1]:+.2f} m/s · wz {v[2]:+.2f} rad/s"
+            self.phase_bar.content = phase_bar_html(sample.intervals)
+            events = tuple(round(e, 4) for e in sample.intervals.events_s)
+            if tuple(self.timeline.value) != events:
+                self.timeline.value = events
+            for name, slider in self.attributes.items():
+                value = min(max(getattr(sample.attributes, name), slider.min), slider.max)
+                if abs(slider.value - value) > 1e-9:
+                    slider.value = value
+            if self.dropdown.value != self.sample_name:
+                self.dropdown.value = self.sample_name
+        finally:
+            self._syncing = False

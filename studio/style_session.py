@@ -1,0 +1,232 @@
+"""The style being edited: current document, file, undo/redo, autosave, validation.
+
+Panels never change a style directly: they call :meth:`StyleSession.apply` with a new
+(immutable) style built by the engine's editing operations. Every edit is validated with
+the robot's rules first — an edit that would break a constraint is refused with the
+validator's one-line message and the style stays valid. Accepted edits go on the undo
+stack, mark the session dirty, are written to a recovery file (autosave) and are pushed to
+listeners (the engine link, the panels).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from engine.gait.style import (
+    Style,
+    StyleContext,
+    StyleError,
+    atomic_write_text,
+    dumps_style,
+    load_style,
+    style_from_dict,
+    styles_dir,
+    validate_style,
+)
+
+UNDO_LIMIT = 200
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_\-]{0,63}$")
+
+
+@dataclass(frozen=True)
+class EditResult:
+    ok: bool
+    message: str = ""
+
+
+class StyleSession:
+    """One robot's style being edited in the studio (thread-safe)."""
+
+    def __init__(self, robot: str, ctx: StyleContext | None = None, folder: Path | None = None):
+        self.robot = robot
+        self.ctx = ctx or StyleContext.for_robot(robot)
+        self.folder = Path(folder) if folder is not None else styles_dir(robot)
+        self.style: Style | None = None
+        self.path: Path | None = None
+        self.dirty = False
+        self._undo: list[tuple[Style, str]] = []
+        self._redo: list[tuple[Style, str]] = []
+        self._listeners: list[Callable[[Style, str], None]] = []
+        self._lock = threading.RLock()
+        self.last_error = ""
+
+    # ------------------------------------------------------------------ listeners
+    def subscribe(self, callback: Callable[[Style, str], None]) -> None:
+        """``callback(style, reason)`` after every change (edit, undo, open, ...)."""
+        self._listeners.append(callback)
+
+    def _notify(self, reason: str) -> None:
+        style = self.style
+        if style is None:
+            return
+        for callback in list(self._listeners):
+            callback(style, reason)
+
+    # ------------------------------------------------------------------ files
+    def style_names(self) -> list[str]:
+        return sorted(p.stem for p in self.folder.glob("*.json"))
+
+    def path_for(self, name: str) -> Path:
+        """``styles/<robot>/<name>.json`` — names only, so pickers never leave the folder."""
+        if not NAME_PATTERN.match(name or ""):
+            raise StyleError("name", f"expected letters, digits, '-' or '_' (max 64), got {name!r}", "style")
+        path = (self.folder / f"{name}.json").resolve()
+        if path.parent != self.folder.resolve():
+            raise StyleError("name", "expected a style inside the robot's styles folder", "style")
+        return path
+
+    def recovery_path(self, name: str) -> Path:
+        return self.folder / ".autosave" / f"{name}.json"
+
+    def open(self, name: str) -> EditResult:
+        try:
+            path = self.path_for(name)
+            style = load_style(path, self.ctx, expected_robot=self.robot)
+        except StyleError as exc:
+            return self._refuse(str(exc))
+        with self._lock:
+            self.style, self.path, self.dirty = style, path, False
+            self._undo.clear()
+            self._redo.clear()
+        self._notify("open")
+        return EditResult(True, f"opened {name}")
+
+    def recovery_available(self, name: str) -> bool:
+        rec = self.recovery_path(name)
+        target = self.folder / f"{name}.json"
+        return rec.is_file() and (not target.is_file() or rec.stat().st_mtime > target.stat().st_mtime)
+
+    def recover(self, name: str) -> EditResult:
+        """Open the autosaved (unsaved) edits of ``name``; the session is dirty afterwards."""
+        rec = self.recovery_path(name)
+        try:
+            style = load_style(rec, self.ctx, expected_robot=self.robot)
+        except StyleError as exc:
+            return self._refuse(str(exc))
+        with self._lock:
+            self.style, self.path, self.dirty = style, self.path_for(name), True
+            self._undo.clear()
+            self._redo.clear()
+        self._notify("recover")
+        return EditResult(True, f"recovered unsaved edits of {name}")
+
+    def save(self) -> EditResult:
+        with self._lock:
+            if self.style is None or self.path is None:
+                return self._refuse("nothing to save")
+            atomic_write_text(self.path, dumps_style(self.style))
+            self.dirty = False
+            self.recovery_path(self.path.stem).unlink(missing_ok=True)
+        self._notify("save")
+        return EditResult(True, f"saved {self.path.name}")
+
+    def save_as(self, name: str) -> EditResult:
+        try:
+            path = self.path_for(name)
+        except StyleError as exc:
+            return self._refuse(str(exc))
+        with self._lock:
+            if self.style is None:
+                return self._refuse("nothing to save")
+            from dataclasses import replace
+
+            self.style = replace(self.style, name=name)
+            self.path = path
+        return self.save()
+
+    def new_from(self, template: str, name: str) -> EditResult:
+        """A new style file ``name`` starting as a copy of ``template`` (e.g. neutral)."""
+        try:
+            path = self.path_for(name)
+        except StyleError as exc:
+            return self._refuse(str(exc))
+        if path.exists():
+            return self._refuse(f"{path.name} exists already")
+        result = self.open(template)
+        if not result.ok:
+            return result
+        return self.save_as(name)
+
+    # ------------------------------------------------------------------ editing
+    def apply(self, new_style: Style, label: str) -> EditResult:
+        """Validate and commit an edit; refused edits leave the style untouched."""
+        try:
+            validate_style(new_style, self.ctx)
+        except StyleError as exc:
+            return self._refuse(str(exc))
+        with self._lock:
+            if self.style is None:
+                return self._refuse("no style open")
+            self._undo.append((self.style, label))
+            del self._undo[:-UNDO_LIMIT]
+            self._redo.clear()
+            self.style = new_style
+            self.dirty = True
+            self._autosave()
+        self._notify(f"edit: {label}")
+        return EditResult(True, label)
+
+    def undo(self) -> EditResult:
+        with self._lock:
+            if not self._undo:
+                return EditResult(False, "nothing to undo")
+            previous, label = self._undo.pop()
+            self._redo.append((self.style, label))
+            self.style = previous
+            self.dirty = True
+            self._autosave()
+        self._notify(f"undo: {label}")
+        return EditResult(True, f"undid {label}")
+
+    def redo(self) -> EditResult:
+        with self._lock:
+            if not self._redo:
+                return EditResult(False, "nothing to redo")
+            following, label = self._redo.pop()
+            self._undo.append((self.style, label))
+            self.style = following
+            self.dirty = True
+            self._autosave()
+        self._notify(f"redo: {label}")
+        return EditResult(True, f"redid {label}")
+
+    @property
+    def can_undo(self) -> bool:
+        return bool(self._undo)
+
+    @property
+    def can_redo(self) -> bool:
+        return bool(self._redo)
+
+    def undo_labels(self) -> list[str]:
+        return [label for _, label in self._undo]
+
+    def _autosave(self) -> None:
+        if self.style is None or self.path is None:
+            return
+        rec = self.recovery_path(self.path.stem)
+        try:
+            atomic_write_text(rec, dumps_style(self.style))
+        except OSError as exc:  # a full disk must not lose the edit in memory
+            self.last_error = f"autosave failed: {exc}"
+
+    def _refuse(self, message: str) -> EditResult:
+        self.last_error = message
+        return EditResult(False, message)
+
+    # ------------------------------------------------------------------ engine
+    def as_document(self) -> dict:
+        """The style as its JSON document (what travels to the engine)."""
+        assert self.style is not None
+        return json.loads(dumps_style(self.style))
+
+
+def style_from_document(doc: dict, ctx: StyleContext) -> Style:
+    return style_from_dict(doc, ctx, expected_robot=ctx.robot)

@@ -1,0 +1,171 @@
+"""Studio panels driven headless through viser handles (setting values runs their callbacks)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+
+import numpy as np
+import pytest
+import viser
+
+from engine import protocol as msg
+from engine.gait.style import load_style
+from studio.panels.drive_panel import DrivePanel
+from studio.panels.sample_editor import SampleEditor
+from studio.panels.style_browser import StyleBrowser
+from studio.style_session import StyleSession
+from tests.conftest import REPO, free_port
+
+
+@pytest.fixture(scope="module")
+def server():
+    srv = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    yield srv
+    srv.stop()
+
+
+@pytest.fixture
+def session(tmp_path):
+    folder = tmp_path / "g1"
+    folder.mkdir()
+    for p in (REPO / "styles/g1").glob("*.json"):
+        shutil.copy(p, folder / p.name)
+    s = StyleSession("g1", folder=folder)
+    assert s.open("neutral").ok
+    return s
+
+
+class Notes(list):
+    def __call__(self, level, text):
+        self.append((level, text))
+
+
+def test_style_session_undo_redo_autosave_and_recovery(session):
+    style = session.style
+    sample = style.samples["in_place"]
+    from dataclasses import replace
+
+    wider = replace(sample, attributes=replace(sample.attributes, stance_width_m=0.3))
+    assert session.apply(style.with_sample("in_place", wider), "wider").ok
+    assert session.dirty and session.recovery_path("neutral").is_file()
+    # A crash now: a new session offers the autosaved edits.
+    again = StyleSession("g1", folder=session.folder)
+    assert again.recovery_available("neutral")
+    assert again.recover("neutral").ok and again.style.samples["in_place"].attributes.stance_width_m == 0.3
+    assert session.undo().ok and session.style.samples["in_place"].attributes.stance_width_m == 0.24
+    assert session.redo().ok and session.style.samples["in_place"].attributes.stance_width_m == 0.3
+    assert session.save().ok and not session.dirty and not session.recovery_path("neutral").exists()
+    assert load_style(session.folder / "neutral.json").samples["in_place"].attributes.stance_width_m == 0.3
+    # Invalid edits are refused and change nothing.
+    too_wide = replace(sample, attributes=replace(sample.attributes, stance_width_m=2.0))
+    result = session.apply(style.with_sample("in_place", too_wide), "too wide")
+    assert not result.ok and "stance_width_m" in result.message
+    assert session.style.samples["in_place"].attributes.stance_width_m == 0.3
+
+
+def test_session_paths_stay_inside_the_styles_folder(session):
+    for name in ("../../etc/passwd", "a/b", "", ".hidden", "x" * 100):
+        result = session.save_as(name)
+        assert not result.ok
+    assert session.new_from("neutral", "my-walk").ok
+    assert (session.folder / "my-walk.json").is_file() and session.style.name == "my-walk"
+
+
+def test_style_browser(server, session):
+    notes = Notes()
+    with server.gui.add_folder("browser"):
+        browser = StyleBrowser(server, session, notes)
+    browser.name.value = "bouncy"
+    assert browser.new("bouncy")
+    assert "bouncy" in browser.dropdown.options and browser.dropdown.value == "bouncy"
+    assert "bouncy" in browser.title.content and "unsaved" not in browser.title.content
+    assert browser.open("neutral")
+    assert "neutral" in browser.title.content
+
+
+def test_sample_editor_edits_intervals_and_attributes_and_refuses_bad_ones(server, session):
+    notes = Notes()
+    picked = []
+    with server.gui.add_folder("sample"):
+        editor = SampleEditor(server, session, notes, on_sample=picked.append)
+    editor.dropdown.value = "forward_slow"
+    assert picked == ["forward_slow"] and editor.sample_name == "forward_slow"
+    before = session.style.samples["forward_slow"]
+    t_ltd, t_rlo, t_rtd, cycle = before.intervals.events_s
+    # Longer cycle through the timeline: the knots of the swing curves rescale with it.
+    editor.timeline.value = (t_ltd + 0.04, t_rlo + 0.04, t_rtd + 0.08, cycle + 0.08)
+    after = session.style.samples["forward_slow"]
+    assert after.intervals.cycle_s == pytest.approx(cycle + 0.08)
+    assert after.curves["left_foot.z"].duration_s == pytest.approx(t_ltd + 0.04)
+    # An interval dragged past its neighbour (too little double support) is refused; the slider snaps back.
+    editor.timeline.value = (t_ltd + 0.04, t_ltd + 0.045, t_rtd + 0.08, cycle + 0.08)
+    assert session.style.samples["forward_slow"].intervals == after.intervals
+    assert tuple(editor.timeline.value) == tuple(round(e, 4) for e in after.intervals.events_s)
+    assert "double support" in editor.message.content and notes[-1][0] == "warning"
+    # Attributes.
+    editor.attributes["pelvis_height_m"].value = 0.65
+    assert session.style.samples["forward_slow"].attributes.pelvis_height_m == pytest.approx(0.65)
+    # Duplicate a sample onto another.
+    editor.copy_target.value = "reverse_slow"
+    assert editor.copy_to("reverse_slow")
+    assert session.style.samples["reverse_slow"].intervals == session.style.samples["forward_slow"].intervals
+    assert session.undo().ok and session.style.samples["reverse_slow"].intervals != session.style.samples["forward_slow"].intervals
+
+
+class FakeLink:
+    def __init__(self):
+        self.sent = []
+
+    def send(self, command):
+        self.sent.append(command)
+        return True
+
+
+class FakeStudio:
+    def __init__(self):
+        self.link = FakeLink()
+        self.mode = "stand"
+        self.modes = []
+
+        class O:
+            def set_visible(self, v):
+                pass
+
+        self.overlays = O()
+
+    def set_mode(self, mode):
+        self.mode = mode
+        self.modes.append(mode)
+
+    def set_ghost_visible(self, v):
+        pass
+
+    def velocity_limits(self):
+        return np.array([0.5, 0.15, 1.0])
+
+    def robot_position(self):
+        return np.zeros(3)
+
+
+def test_drive_panel_joystick_springs_back_and_stops(server):
+    studio = FakeStudio()
+    with server.gui.add_folder("drive"):
+        drive = DrivePanel(server, studio)
+    try:
+        drive.set_mode("test")
+        assert studio.mode == "test"
+        drive.hold(0, 1.0)
+        drive.hold(2, -1.0)
+        np.testing.assert_allclose(drive.command(), [0.5, 0.0, -1.0])
+        time.sleep(0.35)  # no more hold repeats: the stick springs back
+        np.testing.assert_allclose(drive.command(), [0.0, 0.0, 0.0])
+        drive.hold(1, 1.0)
+        drive.stop_now()
+        np.testing.assert_allclose(drive.command(), 0.0)
+        assert isinstance(studio.link.sent[-1], msg.SetVelocityCommand) and studio.link.sent[-1].vx_mps == 0.0
+        drive.speed.value = 0.25
+        assert isinstance(studio.link.sent[-1], msg.SetPlaybackSpeed) and studio.link.sent[-1].speed == 0.25
+    finally:
+        drive._stop.set()
