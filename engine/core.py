@@ -51,6 +51,7 @@ class EngineCore:
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
         self.style_revision = 0
+        self._pending_revision: int | None = None
         self.load(robot)
 
     # ------------------------------------------------------------------ robot
@@ -121,7 +122,10 @@ class EngineCore:
             self.velocity_command = v
         elif isinstance(command, msg.SetStyle):
             if self._set_style(command.style):
-                self.style_revision = int(command.revision)
+                if self.walker is None:
+                    self.style_revision = int(command.revision)
+                else:  # frames report it once a planner tick has run with the new style
+                    self._pending_revision = int(command.revision)
         elif isinstance(command, msg.SetMode):
             self._set_mode(command.mode, command.options)
         elif isinstance(command, msg.SetPlaybackSpeed):
@@ -200,6 +204,8 @@ class EngineCore:
             self.walker.set_command(self.command_now())
         self.sim.step()
         self._ticks += 1
+        if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
+            self.style_revision, self._pending_revision = self._pending_revision, None
         if self.walker is not None and self._ticks % GHOST_EVERY_TICKS == 0:
             self._update_ghost()
         if self.sim.fallen:

@@ -21,6 +21,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 PUBLISH_HZ = 60.0
 TELEMETRY_HZ = 20.0
 MAX_CATCH_UP_TICKS = 25  # never run more than 50 ms of simulation in one go; drop time instead
+COMMAND_POLL_TICKS = 4  # read commands every planner tick, even inside a catch-up batch
 
 
 def engine_main(conn: Connection, robot: str) -> None:
@@ -46,17 +47,29 @@ def engine_main(conn: Connection, robot: str) -> None:
     next_publish = wall0
     rtf_wall, rtf_ticks = wall0, 0
     parent = os.getppid()
+    publish_now = False
+
+    def read_commands() -> bool:
+        """Apply pending commands; True when the clock must restart or a frame should go out now."""
+        nonlocal publish_now
+        restart = False
+        while conn.poll():
+            command = conn.recv()
+            if isinstance(command, msg.Shutdown):
+                raise _ShutdownRequested
+            robot_before = core.robot.name
+            core.handle(command)
+            if core.robot.name != robot_before or isinstance(command, msg.SetPlaybackSpeed):
+                restart = True
+            if isinstance(command, (msg.SetStyle, msg.SetMode, msg.Reset)):
+                publish_now = True  # show edits at once (edit latency)
+        return restart
+
     try:
         while True:
-            while conn.poll():
-                command = conn.recv()
-                if isinstance(command, msg.Shutdown):
-                    return
-                robot_before = core.robot.name
-                core.handle(command)
-                if core.robot.name != robot_before or isinstance(command, msg.SetPlaybackSpeed):
-                    wall0, ticks = time.perf_counter(), 0
-                    rtf_wall, rtf_ticks = wall0, 0
+            if read_commands():
+                wall0, ticks = time.perf_counter(), 0
+                rtf_wall, rtf_ticks = wall0, 0
             period = 1.0 / (CONTROL_RATE_HZ * core.playback_speed)
             now = time.perf_counter()
             if core.running:
@@ -64,9 +77,13 @@ def engine_main(conn: Connection, robot: str) -> None:
                 if due > MAX_CATCH_UP_TICKS:  # too slow: let simulated time fall behind
                     wall0 += (due - MAX_CATCH_UP_TICKS) * period
                     due = MAX_CATCH_UP_TICKS
-                for _ in range(max(due, 0)):
+                for i in range(max(due, 0)):
                     core.tick()
                     ticks += 1
+                    if i % COMMAND_POLL_TICKS == COMMAND_POLL_TICKS - 1:
+                        read_commands()
+                        if publish_now:
+                            break
             else:
                 wall0 = now - ticks * period
             now = time.perf_counter()
@@ -78,7 +95,8 @@ def engine_main(conn: Connection, robot: str) -> None:
                 if telemetry is not None:
                     conn.send(telemetry)
                 next_telemetry = max(next_telemetry + telemetry_period, now)
-            if now >= next_publish:
+            if now >= next_publish or publish_now:
+                publish_now = False
                 conn.send(core.frame())
                 next_publish = max(next_publish + publish_period, now)
                 if os.getppid() != parent:
@@ -87,8 +105,12 @@ def engine_main(conn: Connection, robot: str) -> None:
             sleep = min(next_tick, next_publish) - time.perf_counter()
             if sleep > 0:
                 conn.poll(min(sleep, 0.05))
-    except (EOFError, BrokenPipeError, ConnectionResetError, KeyboardInterrupt):
+    except (EOFError, BrokenPipeError, ConnectionResetError, KeyboardInterrupt, _ShutdownRequested):
         return
+
+
+class _ShutdownRequested(Exception):
+    pass
 
 
 class EngineProcess:

@@ -25,7 +25,8 @@ from studio.robot_view import RobotView
 from studio.style_session import StyleSession
 
 STATUS_PERIOD_S = 0.25
-GHOST_OFFSET = (0.0, 0.9, 0.0)  # the reference ghost walks beside the simulated robot
+GHOST_OFFSET = (0.0, -0.9, 0.0)  # the reference ghost walks beside the simulated robot (camera side)
+GRAPH_OFFSET = (-2.4, 0.6, 0.15)  # the curve graph stands well left of the robot: nothing occludes it
 LIMIT_RED = np.array([230, 40, 40])
 
 
@@ -149,6 +150,7 @@ class Studio:
             self.server.gui.add_markdown("The curve editor is not available in this build.")
             return None
         editor = CurveEditor(self.server, session)
+        editor.root_frame.position = GRAPH_OFFSET
         editor.set_sample(self.sample_editor.sample_name if self.sample_editor else "in_place")
         return editor
 
@@ -222,7 +224,9 @@ class Studio:
             try:
                 iv = self.session.style.samples[self.sample_editor.sample_name].intervals
                 phi = float(s["phase"][0]) % 1.0
-                self.curve_editor.set_playhead(float(iv.phase_map().time_at(phi)) if self.mode == "edit" else None)
+                t_cycle = float(iv.phase_map().time_at(phi))
+                self.curve_editor.set_playhead(self.curve_editor.playhead_from_cycle_time(t_cycle)
+                                               if self.mode == "edit" else None)
             except Exception:  # noqa: BLE001 - the playhead is cosmetic
                 pass
 
@@ -290,6 +294,16 @@ class Studio:
         self.ghost_visible = visible
         self.ghost_root.visible = visible and self.mode != "stand"
 
+    def follow_robot(self, position: np.ndarray) -> None:
+        """Keep the curve graph beside the robot (not while the user drags on it)."""
+        editor = self.curve_editor
+        if editor is None or getattr(editor, "_drag", None) is not None:
+            return
+        target = np.array([position[0] + GRAPH_OFFSET[0], position[1] + GRAPH_OFFSET[1], GRAPH_OFFSET[2]])
+        current = np.asarray(editor.root_frame.position, dtype=float)
+        if np.linalg.norm(target - current) > 0.05:
+            editor.root_frame.position = tuple(current + 0.3 * (target - current))
+
     def velocity_limits(self) -> np.ndarray:
         if self.session is None or self.session.style is None:
             return np.zeros(3)
@@ -325,8 +339,9 @@ class Studio:
                 text = f"Engine running · pid {pid} · {self.robot_name} is a source skeleton: shown, not simulated"
             else:
                 state = "paused" if frame.paused else ("fallen" if frame.fallen else "running")
+                x, y = (float(v) for v in frame.body_pos[0][:2])
                 text = (f"Engine {state} · pid {pid} · {frame.mode} mode · t = {frame.sim_time_s:.1f} s · "
-                        f"real-time factor {frame.real_time_factor:.2f}")
+                        f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m")
             self.robot_panel.show_status(text)
             try:
                 self.plots.render()

@@ -53,6 +53,7 @@ class StyleSession:
         self.dirty = False
         self._undo: list[tuple[Style, str]] = []
         self._redo: list[tuple[Style, str]] = []
+        self._merge_key: object | None = None  # edits with the newest entry's key coalesce into it
         self._listeners: list[Callable[[Style, str], None]] = []
         self._lock = threading.RLock()
         self.last_error = ""
@@ -61,6 +62,10 @@ class StyleSession:
     def subscribe(self, callback: Callable[[Style, str], None]) -> None:
         """``callback(style, reason)`` after every change (edit, undo, open, ...)."""
         self._listeners.append(callback)
+
+    def unsubscribe(self, callback: Callable[[Style, str], None]) -> None:
+        if callback in self._listeners:
+            self._listeners.remove(callback)
 
     def _notify(self, reason: str) -> None:
         style = self.style
@@ -93,6 +98,7 @@ class StyleSession:
             return self._refuse(str(exc))
         with self._lock:
             self.style, self.path, self.dirty = style, path, False
+            self._merge_key = None
             self._undo.clear()
             self._redo.clear()
         self._notify("open")
@@ -155,8 +161,12 @@ class StyleSession:
         return self.save_as(name)
 
     # ------------------------------------------------------------------ editing
-    def apply(self, new_style: Style, label: str) -> EditResult:
-        """Validate and commit an edit; refused edits leave the style untouched."""
+    def apply(self, new_style: Style, label: str, merge_key: object | None = None) -> EditResult:
+        """Validate and commit an edit; refused edits leave the style untouched.
+
+        Consecutive edits with the same ``merge_key`` (e.g. the live updates of one mouse drag)
+        share one undo entry: undo returns to the style before the first of them.
+        """
         try:
             validate_style(new_style, self.ctx)
         except StyleError as exc:
@@ -164,8 +174,10 @@ class StyleSession:
         with self._lock:
             if self.style is None:
                 return self._refuse("no style open")
-            self._undo.append((self.style, label))
-            del self._undo[:-UNDO_LIMIT]
+            if merge_key is None or merge_key != self._merge_key or not self._undo:
+                self._undo.append((self.style, label))
+                del self._undo[:-UNDO_LIMIT]
+            self._merge_key = merge_key
             self._redo.clear()
             self.style = new_style
             self.dirty = True
@@ -178,6 +190,7 @@ class StyleSession:
             if not self._undo:
                 return EditResult(False, "nothing to undo")
             previous, label = self._undo.pop()
+            self._merge_key = None
             self._redo.append((self.style, label))
             self.style = previous
             self.dirty = True
@@ -190,6 +203,7 @@ class StyleSession:
             if not self._redo:
                 return EditResult(False, "nothing to redo")
             following, label = self._redo.pop()
+            self._merge_key = None
             self._undo.append((self.style, label))
             self.style = following
             self.dirty = True

@@ -20,7 +20,7 @@ from engine import protocol as msg
 if TYPE_CHECKING:
     from studio.app import Studio
 
-HOLD_TIMEOUT_S = 0.2  # a hold button stops counting this long after its last repeat (spring back)
+HOLD_TIMEOUT_S = 0.5  # a hold button stops counting this long after its last repeat (spring back)
 PAD_RADIUS_M = 0.12
 SEND_PERIOD_S = 0.05
 
@@ -113,6 +113,9 @@ class DrivePanel:
         if pos is None:
             return
         self.pads_root.position = (pos[0] + 0.5, pos[1] + 0.45, 0.0)
+        follow = getattr(self.studio, "follow_robot", None)
+        if follow is not None:
+            follow(pos)
         if self.follow.value and self.studio.mode != "stand":
             for client in self.server.get_clients().values():
                 cam = client.camera

@@ -41,6 +41,8 @@ def test_test_mode_follows_the_joystick_and_style_updates_apply_live():
         core.tick()
     doc["samples"]["left_turn"]["attributes"]["pelvis_height_m"] = 0.65
     core.handle(msg.SetStyle(doc, revision=7))
+    for _ in range(4):  # the next planner tick runs with it
+        core.tick()
     assert core.frame().style_revision == 7
     for _ in range(int(2.0 / 0.002)):
         core.tick()

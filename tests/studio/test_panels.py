@@ -159,7 +159,7 @@ def test_drive_panel_joystick_springs_back_and_stops(server):
         drive.hold(0, 1.0)
         drive.hold(2, -1.0)
         np.testing.assert_allclose(drive.command(), [0.5, 0.0, -1.0])
-        time.sleep(0.35)  # no more hold repeats: the stick springs back
+        time.sleep(0.65)  # no more hold repeats: the stick springs back
         np.testing.assert_allclose(drive.command(), [0.0, 0.0, 0.0])
         drive.hold(1, 1.0)
         drive.stop_now()

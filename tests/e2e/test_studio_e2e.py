@@ -1,0 +1,134 @@
+"""An animator drives the studio in the browser: test mode with the joystick moves the robot."""
+
+from __future__ import annotations
+
+import re
+import time
+
+import pytest
+
+from tests.e2e.browser import open_page, wait_for_text
+
+pytestmark = pytest.mark.e2e
+
+
+def pelvis_x(page) -> float:
+    match = re.search(r"pelvis at x ([+-]\d+\.\d+) m", page.inner_text("body"))
+    assert match, "no robot position in the status line"
+    return float(match.group(1))
+
+
+def test_joystick_drives_the_robot(served_studio, artifacts):
+    with open_page(served_studio.url, 1100, 720) as page:
+        wait_for_text(page, "Engine running")
+        x0 = pelvis_x(page)
+        page.get_by_role("button", name="Test").click()
+        wait_for_text(page, "test mode", timeout_ms=30_000)
+        time.sleep(1.5)  # the weight shift before the first step
+        forward = page.get_by_role("button", name="▲ forward")
+        forward.hover()
+        page.mouse.down()
+        deadline = time.monotonic() + 12.0
+        moved = 0.0
+        while time.monotonic() < deadline:
+            time.sleep(1.0)
+            moved = pelvis_x(page) - x0
+            if moved > 0.3:
+                break
+        page.screenshot(path=str(artifacts / "studio_test_mode_joystick.png"))
+        page.mouse.up()
+        assert moved > 0.3, f"the robot moved only {moved:.2f} m while the stick was held forward"
+        assert "Engine running" in page.inner_text("body")  # it did not fall
+        page.get_by_role("button", name="■ Stop").click()
+
+
+def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path, artifacts):
+    """Edit mode, Curves: drag the swing-height knot up in the browser; the style changes and the
+    simulated robot lifts its foot higher."""
+    import shutil
+    import threading
+
+    import numpy as np
+
+    from studio.app import Studio
+    from studio.panels.curve_editor import KnotRef, project_to_screen
+    from tests.conftest import REPO, free_port
+
+    styles = tmp_path / "styles"
+    (styles / "g1").mkdir(parents=True)
+    for p in (REPO / "styles" / "g1").glob("*.json"):
+        shutil.copy(p, styles / "g1" / p.name)
+    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
+    heights: list[tuple[float, float]] = []
+    lock = threading.Lock()
+    original_update = studio.view.update
+
+    def record(frame):
+        original_update(frame)
+        names = studio.view.body_names
+        if "left_ankle_roll_link" in names:
+            with lock:
+                heights.append((frame.sim_time_s, float(frame.body_pos[names.index("left_ankle_roll_link")][2])))
+
+    studio.view.update = record
+    try:
+        assert studio.loaded.wait(60)
+        with open_page(studio.url, 1100, 720) as page:
+            wait_for_text(page, "Engine running")
+            studio.drive.follow.value = False
+            page.get_by_role("button", name="Edit").click()
+            wait_for_text(page, "edit mode", timeout_ms=30_000)
+            editor = studio.curve_editor
+            editor.set_sample("in_place")
+            editor.set_active_channel("left_foot.z")
+            editor.frame_all()
+            apex = KnotRef("left_foot.z", 1)
+            editor.handle_knot_click(apex)
+
+            def swing_apex(t_from: float, t_to: float) -> float:
+                with lock:
+                    zs = [z for t, z in heights if t_from <= t <= t_to]
+                return max(zs) if zs else float("nan")
+
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and (not heights or heights[-1][0] < 4.0):
+                time.sleep(0.5)
+            t_edit = heights[-1][0]
+            apex_before = swing_apex(t_edit - 2.0, t_edit)
+            before = studio.session.style.sample("in_place").curve("left_foot.z")
+
+            page.get_by_text("Curves", exact=True).first.click()
+            client = next(iter(studio.server.get_clients().values()))
+            editor.look_at_graph(client)
+            time.sleep(2.0)
+            cam = client.camera
+            box = page.locator("canvas").first.bounding_box()
+            u, v = project_to_screen(editor.knot_world_position(apex), cam.position, cam.wxyz, cam.fov, cam.aspect)
+            x, y = box["x"] + u * box["width"], box["y"] + v * box["height"]
+            u2, v2 = project_to_screen(editor.world_position("left_foot.z", before.knots[1].t_s, before.knots[1].value + 0.03),
+                                       cam.position, cam.wxyz, cam.fov, cam.aspect)
+            dy = (v - v2) * box["height"]
+            assert dy > 15, "the graph is too small on screen to drag"
+            page.mouse.move(x, y)
+            page.mouse.down()
+            for i in range(1, 5):
+                page.mouse.move(x, y - dy * i / 4)
+                time.sleep(0.4)
+            page.mouse.up()
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline and studio.session.style.sample("in_place").curve("left_foot.z") == before:
+                time.sleep(0.2)
+            after = studio.session.style.sample("in_place").curve("left_foot.z")
+            assert after.knots[1].value > before.knots[1].value + 0.015, "the style did not change"
+            assert "unsaved" in page.inner_text("body") or studio.session.dirty
+            # The simulated robot now lifts its left foot higher (give it two cycles).
+            with lock:
+                t_after = heights[-1][0]
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and heights[-1][0] < t_after + 3.0:
+                time.sleep(0.5)
+            apex_after = swing_apex(t_after + 1.0, t_after + 3.0)
+            page.screenshot(path=str(artifacts / "studio_edit_mode_curve_drag.png"))
+            assert apex_after > apex_before + 0.01, (apex_before, apex_after)
+    finally:
+        studio.stop()
