@@ -8,6 +8,7 @@ studio's edit latency.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Callable
 
 import mujoco
@@ -157,9 +158,16 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
                 if event.style_revision not in seen:
                     seen[event.style_revision] = time.perf_counter()
 
+    import shutil
+    import tempfile
+
+    from engine.gait.style import styles_dir
+
+    scratch = Path(tempfile.mkdtemp(prefix="motion-studio-bench-"))
+    shutil.copy(styles_dir("g1") / "neutral.json", scratch / "neutral.json")
     link = EngineLink("g1", on_event)
     link.start()
-    session = StyleSession("g1")
+    session = StyleSession("g1", folder=scratch)  # never autosave into the user's styles
     session.open("neutral")
     sent: dict[int, float] = {}
     revision = [0]
@@ -187,6 +195,7 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
             time.sleep(0.25)
     finally:
         link.stop()
+        shutil.rmtree(scratch, ignore_errors=True)
     latencies = [seen[r] - sent[r] for r in sent if r in seen and seen[r] >= sent[r]]
     row = {"section": "edit", "robot": "g1", "edits": len(sent), "reflected": len(latencies), **percentiles_us(latencies),
            "goal_median_us": 100_000}
