@@ -7,36 +7,67 @@ Model (Eq. 11 with constant CoM height ``z`` and constant angular momentum)::
 
     x'' = omega^2 (x - p(t)),   omega^2 = g / z
 
-Decision variables (Eqs. 12-13): CoP waypoints ``z_0 .. z_N`` (``N = 2K``: one at
-the midpoint and one at the end of each of the ``K`` support intervals, the CoP
-being linear in between) and the final CoM state ``xi_T = [x_T, v_T]``.
-``z_0`` equals the current CoP, midpoints lie in their polygon ``C_k``, end points in
-``C_k ∩ C_k+1`` (both polygons' half-planes stacked; the last one in ``C_K``).
+Decision variables (Eq. 12): CoP waypoints ``p_0 .. p_N`` (``N = 2K``: one at the
+midpoint and one at the end of each of the ``K`` support intervals, the CoP being
+linear in between).  ``p_0`` equals the current CoP, midpoints lie in their polygon
+``C_k``, end points in ``C_k ∩ C_k+1`` (the last one in ``C_K``).
 
-Cost (Eq. 14): ``W_T |x_T + v_T / omega - c_T|^2 + sum_n W_c |z_n - c_n|^2 +
-sum_n W_v |(z_n+1 - z_n) / dt_n|^2`` with ``c_n`` the centroid of waypoint ``n``'s
-region (clipped intersection polygon for end points) and ``c_T`` the last polygon's.
+Cost (Eq. 14)::
 
-Discretisation
---------------
-The paper integrates Eq. 11 backwards with a 0.02 s step.  Here the CoP is exactly
-piecewise linear, so the LIP is integrated *exactly* in closed form: with the
-divergent / convergent components ``zeta = x + v/omega`` and ``eta = x - v/omega``
-(``zeta' = omega (zeta - p)``, ``eta' = -omega (eta - p)``), a segment of duration
-``h`` with CoP going linearly from ``p_j`` to ``p_j+1`` gives, with ``E = exp(-omega h)``
-and ``r = (1 - E) / (omega h)``::
+    W_T |CP_T - c_T|^2 + sum_n W_c |p_n - c_n|^2 + sum_n W_v |(p_n+1 - p_n) / dt_n|^2
 
-    zeta_j   = E zeta_j+1 + (1 - r) p_j + (r - E) p_j+1
-    eta_j+1  = E eta_j    + (r - E) p_j + (1 - r) p_j+1
+with ``CP_T = x_T + v_T / omega`` the final capture point, ``c_n`` the centroid of
+waypoint ``n``'s region (the intersection polygon for end points) and ``c_T`` the
+last polygon's.
 
-Chaining these gives the initial-state equality constraints of Eq. 14 (``A_p, A_v,
-b_p, b_v``; the ``b`` terms vanish since tau = 0) pre-multiplied by the invertible
-modal transform ``[1, 1/omega; 1, -1/omega]`` -- the same feasible set.  The DCM
-row is scaled by ``exp(-omega T / 2)`` and the QP is posed in a frame centred on the
-current capture point, which keeps its coefficients and residuals well scaled.
-The returned trajectory is re-propagated from the given initial state with the
-optimised CoP, so ``com_at`` is exactly consistent with ``cop_at`` and the initial
-state; ``final_com_*`` is that propagated final state.
+Well-conditioned, condensed form
+--------------------------------
+The paper optimises the final CoM state ``xi_T`` too, tied to the initial state by
+reverse-time integration (Eq. 14's equalities).  Their coefficients, and those of
+the capture-point cost expressed in the CoP, grow like ``exp(omega T)`` (~3000 for
+z = 0.6 m, T = 2 s), which made the ADMM solver need hundreds to thousands of
+iterations on closed-loop problems.  Here the final state is eliminated: with the
+divergent component of motion ``zeta = x + v / omega`` and the exact LIP solution for
+a piecewise-linear CoP (segment ``j`` of duration ``h_j``, ``E_j = exp(-omega h_j)``,
+``r_j = (1 - E_j) / (omega h_j)``, ``a_j = 1 - r_j``, ``b_j = r_j - E_j``)::
+
+    CP_T - c_T = exp(omega T) * r,
+    r = zeta_0 - exp(-omega T) c_T - sum_n beta_n p_n,
+    beta_n = exp(-omega tau_n) a_n + exp(-omega tau_n-1) b_n-1      (tau_n = t_n - t_0)
+
+The "stability residual" ``r`` (IS-MPC's boundedness condition, Scianca et al. 2020)
+has coefficients ``0 <= beta_n <= 1`` summing to ``1 - exp(-omega T)``, and the
+capture-point term becomes ``W_s |r|^2`` with ``W_s = W_T exp(2 omega T)`` -- the
+*same* objective as Eq. 14, so the optimum is unchanged (``ComMpcWeights.stability``
+may set another ``W_s``; note that a residual ``r`` moves the final capture point by
+``exp(omega T) r``, so "moderate" weights such as 1e4 let it drift by decimetres to
+metres on walking problems).  The Hessian per axis is ``D + W_s beta beta^T`` (``D``
+tridiagonal, eigenvalues within ``[W_c, W_c + 4 W_v / dt^2]``); the stiff rank-one
+term is handled exactly with the Sherman-Morrison formula
+(``H^-1 = D^-1 - kappa u u^T``, ``u = D^-1 beta``, ``kappa = W_s / (1 + W_s beta.u)``),
+so ``W_s`` never enters a factorisation.  The CoM trajectory follows in closed form
+from the initial state and the CoP (exact LIP integration), so ``com_at`` is
+consistent with ``cop_at`` and the initial state by construction.
+
+QP solver
+---------
+After elimination the QP has ``2N`` variables (~16-26 waypoints x 2 axes) and ~100
+polygon rows (4-6 per waypoint), each touching one waypoint.  It is solved by a dense
+dual active-set method (Goldfarb-Idnani, as in ``quadprog``): start from the
+unconstrained optimum and add the most violated polygon row until none is violated,
+dropping rows whose multiplier would turn negative (see :func:`_dual_active_set`).
+Columns of the dual Hessian ``G = A H^-1 A^T`` are computed on demand from ``H^-1``.
+Calls warm start from the active sets of the previous two solutions (rows matched by
+waypoint time, kind and edge normal, so that shifted timings and moved footholds keep
+them; two, because the controller alternates between plan continuations and
+restarts from the measured state after a failed solve), and large changes of the
+active set are made in blocks.  Closed-loop problems need 0-3 steps, restarts after
+large pushes up to ~70.  The result is exact up to rounding (no tolerance-driven
+polishing).  An iteration cap (``max_iter``) or time limit returns the current
+iterate with its waypoints pulled into their regions (``"solved_inaccurate"``)
+instead of a fallback.  ``solver="osqp"`` solves the same condensed QP with OSQP
+(kept for cross-checking: ADMM still needs hundreds to thousands of iterations with
+the exact ``W_s``).
 
 Long supports (e.g. standing) are split into equal pieces of at most
 ``max_interval_s`` (anchored at the support's start, same polygon), each with its
@@ -44,15 +75,11 @@ two waypoints.  Without this a 2 s stance is steered by a single CoP ramp per se
 which cannot stabilise the capture point in closed loop; ``max_interval_s=inf``
 gives the paper's literal two waypoints per support.
 
-QP layout (fixed sparsity)
---------------------------
-Variables and rows are padded to ``max_intervals`` intervals and ``max_halfplanes``
-half-planes per polygon (end waypoints stack both polygons: ``2 * max_halfplanes``
-rows).  Unused rows keep their structural non-zeros with value 0 and bounds
-(-inf, +inf); unused waypoints are decoupled and pinned to 0 by a unit diagonal
-cost.  Consecutive calls only ``update`` the numeric values (``q, l, u, Px, Ax``) and
-warm start from the previous primal/dual solution shifted by the elapsed intervals;
-``setup`` is re-run only when the padded shape must grow (``setup_count`` counts it).
+Polygon geometry (half-planes, centroids, intersections of consecutive supports) is
+computed vectorised for all polygons of a call (footholds move a little every call,
+so caching by contents rarely hits); in walking the intersection of consecutive
+supports is one of them (a foot inside the double-support hull), which a containment
+test detects without clipping.
 """
 
 from __future__ import annotations
@@ -60,13 +87,19 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import pickle
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
+from scipy.linalg.lapack import dgetrf as _dgetrf
+from scipy.linalg.lapack import dgetri as _dgetri
+from scipy.linalg.lapack import dpotrf as _dpotrf
+from scipy.linalg.lapack import dpotrs as _dpotrs
+from scipy.linalg.lapack import dtrtrs as _dtrtrs
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
@@ -75,8 +108,10 @@ __all__ = [
     "ComMpcSolution",
     "ComMpcWeights",
     "SupportInterval",
+    "benchmark_captured",
     "benchmark_solve",
     "clip_convex_polygons",
+    "closed_loop_like_problems",
     "convex_hull",
     "example_walking_supports",
     "polygon_area",
@@ -90,13 +125,16 @@ GRAVITY_MPS2 = 9.81
 FALLBACK_COM_HEIGHT_M = 0.8
 #: Polygons with a smaller (convex hull) area are considered degenerate.
 MIN_POLYGON_AREA_M2 = 1e-6
-#: Tolerance used to accept an OSQP solution's polygon constraints.
+#: Tolerance used to accept a QP solution's polygon constraints.
 CONSTRAINT_TOL_M = 1e-4
+#: Upper bound on the stability weight W_s (the default W_T exp(2 omega T) overflows for tiny heights).
+MAX_STABILITY_WEIGHT = 1e12
 
 FloatArray = NDArray[np.float64]
 
 
 # --------------------------------------------------------------------------- data
+
 
 
 @dataclass(frozen=True)
@@ -120,11 +158,16 @@ class ComMpcWeights:
         ``W_c`` on each CoP waypoint minus the centroid of its constraint region [1/m^2].
     cop_velocity : float
         ``W_v`` on the CoP velocity between consecutive waypoints [s^2/m^2].
+    stability : float or None
+        ``W_s`` on the stability residual ``r = exp(-omega T) (CP_T - c_T)`` [1/m^2].
+        ``None`` (default): ``W_T exp(2 omega T)``, i.e. exactly Eq. 14's capture-point
+        term.  A smaller value softens the final capture-point target.
     """
 
     final_capture_point: float = 100.0
     cop_centroid: float = 1.0
     cop_velocity: float = 0.01
+    stability: float | None = None
 
 
 @dataclass(frozen=True)
@@ -138,10 +181,14 @@ class ComMpcSolution:
     ``"_centroid_fallback"`` (CoP from the current CoP to the region centroids, CoM
     integrated) or ``"_hold_fallback"`` (CoP held).  Arrays are always finite.
     Times outside the waypoint range hold the end CoP (the CoM follows the LIP).
+    ``"solved_inaccurate"`` is also returned when the iteration cap or time limit
+    stopped the solver: the waypoints are then its last iterate pulled into their regions.
     ``region_centroids_xy_m`` holds the centroid target of each waypoint's region and
-    ``qp_final_state`` the QP's decision variable ``xi_T = [x_T, y_T, vx_T, vy_T]``
-    (equal to the propagated final state up to the solver tolerance; for fallbacks it
-    is the propagated final state).
+    ``qp_final_state`` the final CoM state ``xi_T = [x_T, y_T, vx_T, vy_T]`` (the
+    condensed QP eliminates it: it is the exactly propagated final state).
+    ``osqp_iterations`` counts the QP solver's iterations (active-set steps for the
+    default solver, ADMM iterations for ``solver="osqp"``) and ``osqp_time_s`` the
+    time spent in the QP solver proper; the names are kept for compatibility.
     """
 
     waypoint_times_s: FloatArray  # (N+1,)
@@ -339,34 +386,145 @@ def clip_convex_polygons(subject: ArrayLike, clip: ArrayLike, tol_m: float = 1e-
     return out
 
 
+
+#: Tolerance of the containment test between consecutive supports [m].
+_CONTAIN_TOL_M = 1e-9
+
+
 @dataclass(frozen=True)
 class _Region:
-    """Cached geometry of one support polygon."""
+    """Geometry of one support polygon (reference path; used by the fallback plan)."""
 
     valid: bool
     normals: FloatArray  # (H, 2)
     offsets: FloatArray  # (H,)
     centroid: FloatArray  # (2,)
     hull: FloatArray  # (M, 2)
-    serial: int  # unique id, used as cache key
-
-
-_REGION_SERIAL = itertools.count()
 
 
 def _make_region(polygon: np.ndarray) -> _Region:
+    """Reference (slow) path: convex hull, half-planes, centroid."""
     try:
         v = np.asarray(polygon, dtype=float)
     except (TypeError, ValueError):
         v = np.zeros((0, 2))
-    serial = next(_REGION_SERIAL)
     if v.ndim != 2 or v.shape[1] != 2 or len(v) < 3 or not np.isfinite(v).all():
-        return _Region(False, np.zeros((0, 2)), np.zeros(0), np.zeros(2), np.zeros((0, 2)), serial)
+        return _Region(False, np.zeros((0, 2)), np.zeros(0), np.zeros(2), np.zeros((0, 2)))
     hull = convex_hull(v)
     if len(hull) < 3 or polygon_area(hull) < MIN_POLYGON_AREA_M2:
-        return _Region(False, np.zeros((0, 2)), np.zeros(0), np.zeros(2), hull, serial)
+        return _Region(False, np.zeros((0, 2)), np.zeros(0), np.zeros(2), hull)
     normals, offsets = polygon_halfplanes(hull)
-    return _Region(True, normals, offsets, polygon_centroid(hull), hull, serial)
+    return _Region(True, normals, offsets, polygon_centroid(hull), hull)
+
+
+@dataclass
+class _SupportGeometry:
+    """Half-planes and centroids of a call's support polygons, padded to ``V`` slots.
+
+    Points are complex numbers ``x + iy``.  ``hull`` (S, V) vertices (padded with the
+    first one), ``normals`` (S, V) unit outward normals (zero for padding and for an
+    edge that continues the previous one), ``offsets`` (S, V) (+inf for those),
+    ``centroids`` (S,).
+    """
+
+    hull: NDArray[np.complex128]
+    normals: NDArray[np.complex128]
+    offsets: FloatArray
+    centroids: NDArray[np.complex128]
+
+
+def _support_geometry(polygons: list[object]) -> _SupportGeometry | None:
+    """Geometry of all polygons at once; None if one is empty or degenerate.
+
+    Convex polygons (either orientation, collinear vertices allowed) are processed
+    vectorised; others (non-convex, repeated vertices, non-finite) are replaced by their
+    convex hull first (reference path: :func:`_make_region`).
+    """
+    arrays: list[FloatArray] = []
+    for poly in polygons:
+        if type(poly) is np.ndarray and poly.dtype == np.float64 and poly.ndim == 2 and poly.shape[1] == 2:
+            v = poly
+        else:
+            try:
+                v = np.asarray(poly, dtype=float)
+            except (TypeError, ValueError):
+                return None
+            if v.ndim != 2 or v.shape[1] != 2:
+                return None
+        if len(v) < 3:
+            return None
+        arrays.append(v)
+    geom = _geometry_padded(arrays)
+    bad = geom[-1]
+    if bad.any():  # non-convex, repeated vertices or non-finite: use the hull (reference path)
+        for k in np.flatnonzero(bad):
+            region = _make_region(arrays[k])
+            if not region.valid:
+                return None
+            arrays[k] = region.hull
+        geom = _geometry_padded(arrays)
+        if geom[-1].any():
+            return None
+    if not (geom[4] >= MIN_POLYGON_AREA_M2).all():
+        return None
+    return _SupportGeometry(*geom[:4])
+
+
+#: Index arrays of the padded layout, per tuple of vertex counts (few distinct ones occur).
+_PAD_LAYOUTS: dict[tuple[int, ...], tuple] = {}
+
+
+def _pad_layout(lens: tuple[int, ...]) -> tuple:
+    layout = _PAD_LAYOUTS.get(lens)
+    if layout is None:
+        n = np.array(lens)
+        n_v = int(n.max())
+        starts = np.cumsum(n) - n
+        slot = np.arange(n_v)
+        real = slot < n[:, None]
+        nxt = np.where(slot + 1 < n[:, None], slot + 1, 0)  # next real vertex (padding: vertex 0)
+        prv = np.where(slot > 0, slot - 1, n[:, None] - 1)  # previous edge (for real slots)
+        row = np.arange(len(n))[:, None] * n_v
+        idx = starts[:, None] + np.where(real, slot, 0)  # vertices, padded with vertex 0
+        layout = (idx, starts[:, None] + nxt, row + prv, real)
+        if len(_PAD_LAYOUTS) > 256:
+            _PAD_LAYOUTS.clear()
+        _PAD_LAYOUTS[lens] = layout
+    return layout
+
+
+def _geometry_padded(arrays: list[FloatArray]) -> tuple:
+    """Vectorised geometry of polygons (n_k, 2), with complex numbers ``x + iy``.
+
+    Returns ``(hull (S, V), normals (S, V) complex, offsets (S, V), centroids (S,)
+    complex, area (S,), not-convex mask (S,))``; vertices are padded with the first
+    one, so padded edges have zero length (no half-plane, no area).
+    """
+    idx, idx_next, flat_prev, real = _pad_layout(tuple(len(a) for a in arrays))
+    zf = np.concatenate(arrays).view(np.complex128)[:, 0]
+    if not np.isfinite(zf).all():
+        bad = np.array([not np.isfinite(a).all() for a in arrays])
+        return None, None, None, None, None, bad
+    z = zf[idx]
+    zn = zf[idx_next]
+    z0 = z[:, :1]
+    w, wn = z - z0, zn - z0
+    cross = (w.conj() * wn).imag  # shoelace terms about vertex 0 (padding: zero)
+    area2 = cross.sum(axis=1)
+    orient = np.where(area2 < 0.0, -1.0, 1.0)[:, None]
+    edges = zn - z
+    length = np.abs(edges)
+    normals = edges * (-1j * orient) / np.maximum(length, 1e-300)  # outward: -i e (CCW), +i e (CW)
+    # Convex: the outward normal turns the way of the orientation at every vertex (no
+    # repeated vertex); an edge continuing the previous one (collinear vertex) repeats
+    # its half-plane, which is dropped.
+    rel = normals.ravel()[flat_prev].conj() * normals  # rotation from the previous edge's normal
+    bad = ((length <= 1e-9) & real).any(axis=1) | (rel.imag * orient < -1e-9).any(axis=1)
+    use = (length > 1e-9) & (rel.real < 1.0 - 1e-12)
+    normals = np.where(use, normals, 0.0)
+    offsets = np.where(use, (normals.conj() * z).real, np.inf)
+    centroids = z0[:, 0] + ((w + wn) * cross).sum(axis=1) / (3.0 * np.where(area2 == 0.0, 1.0, area2))
+    return z, normals, offsets, centroids, 0.5 * np.abs(area2), bad
 
 
 # ------------------------------------------------------------------ LIP dynamics
@@ -426,17 +584,8 @@ def propagate_lip(
     )
 
 
+
 # ------------------------------------------------------------------------- MPC
-
-
-@dataclass(frozen=True)
-class _Block:
-    """Padded constraint rows of one support interval: H rows (midpoint) + 2H rows (end)."""
-
-    normals: FloatArray  # (3H, 2), zero rows for padding
-    offsets: FloatArray  # (3H,), +inf for padding
-    end_centroid: FloatArray  # (2,) centroid of the end waypoint's region
-    empty_intersection: bool
 
 
 @dataclass
@@ -445,15 +594,259 @@ class _Problem:
 
     times_s: FloatArray  # (N+1,) waypoint times
     ends_s: FloatArray  # (K,) interval ends (truncated to the window)
-    normals: FloatArray  # (K * 3H, 2) stacked block rows
-    offsets: FloatArray  # (K * 3H,)
+    normals: FloatArray  # (m, 2) polygon rows, grouped by waypoint
+    normals_c: NDArray[np.complex128]  # (m,) the same as complex numbers (shared memory)
+    row_key: FloatArray  # (m,) waypoint time + 1000 s for midpoints (warm-start matching)
+    offsets: FloatArray  # (m,)
+    row_wp: NDArray[np.intp]  # (m,) waypoint index 1..N of each row
     centroids: FloatArray  # (N+1, 2) centroid targets (row 0: first region's centroid)
     final_centroid: FloatArray  # (2,) c_T
     empty_intersection: bool
 
 
+@dataclass
+class _Condensed:
+    """Condensed QP of one axis pair, in a frame centred on ``origin`` (the current CoP).
+
+    Per axis: ``min 1/2 p^T (D + W_s beta beta^T) p - (g + W_s r0 beta)^T p`` over the
+    waypoints ``p_1..p_N``; ``H^-1 = D^-1 - kappa u u^T`` (Sherman-Morrison, ``u = D^-1 beta``).
+    Rows: ``normals[i] . p[row_var[i]] <= rhs[i]``.
+    """
+
+    origin: FloatArray  # (2,) world position of the frame origin
+    d_mat: FloatArray  # (N, N) tridiagonal D
+    d_inv: FloatArray  # (N, N)
+    g: FloatArray  # (N, 2) linear term (W_c-weighted centroids)
+    stability_weight: float  # W_s
+    beta: FloatArray  # (N,)
+    u: FloatArray  # (N,)
+    kappa: float
+    r0: FloatArray  # (2,) stability residual with p_1..p_N = 0
+    p_free: FloatArray  # (N, 2) unconstrained optimum
+    hess_inv: FloatArray  # (N, N) H^-1 = D^-1 - kappa u u^T
+    normals: FloatArray  # (m, 2)
+    rhs: FloatArray  # (m,)
+    row_var: NDArray[np.intp]  # (m,) waypoint variable index 0..N-1
+
+    def h_inv(self, g: FloatArray) -> FloatArray:
+        """``H^-1 g`` for ``g`` (N, 2)."""
+        return self.hess_inv @ g
+
+    def row_values(self, p: FloatArray) -> FloatArray:
+        return np.einsum("ij,ij->i", self.normals, p[self.row_var])
+
+    def dual_columns(self) -> Callable[[Sequence[int]], FloatArray]:
+        """``cols(J) = G[:, J]`` of the dual Hessian ``G = A H^-1 A^T`` (m, len(J)).
+
+        ``G_ij = (n_i . n_j) H^-1[v_i, v_j]`` (``v_i``: waypoint of row ``i``; the same
+        ``H^-1`` for both axes); columns are computed on demand (only rows that enter
+        the active set need them).
+        """
+        rv, nrm = self.row_var, self.normals
+        h_rows = self.hess_inv[rv]  # (m, N)
+
+        def cols(j: Sequence[int]) -> FloatArray:
+            return h_rows[:, rv[j]] * (nrm @ nrm[j].T)
+
+        return cols
+
+
+#: Active-set outcomes.
+_AS_OPTIMAL, _AS_CAPPED, _AS_INFEASIBLE = 0, 1, 2
+
+
+def _inverse(mat: FloatArray) -> FloatArray:
+    """Inverse of a small well-conditioned matrix (LAPACK getrf/getri: less overhead than numpy)."""
+    lu, piv, info = _dgetrf(mat)
+    if info == 0:
+        inv, info = _dgetri(lu, piv)
+        if info == 0:
+            return inv
+    return np.linalg.inv(mat)
+
+
+def _chol(mat: FloatArray) -> FloatArray | None:
+    """Lower Cholesky factor of a symmetric matrix, None unless it is safely positive definite."""
+    if len(mat) == 0:
+        return mat
+    c, info = _dpotrf(mat, lower=1, clean=1)
+    if info != 0 or c.diagonal().min() ** 2 <= 1e-13 * mat.diagonal().max():  # (nearly) dependent rows
+        return None
+    return c
+
+
+def _dual_active_set(
+    cols: Callable[[Sequence[int]], FloatArray],
+    s: FloatArray,
+    warm_sets: Iterable[Sequence[int]],
+    row_var: NDArray[np.intp],
+    tol: float,
+    max_iter: int,
+    deadline: float,
+    block_rounds: int = 4,
+) -> tuple[list[int], FloatArray, int, int]:
+    """Dual active-set QP solver on ``min 1/2 x'Hx + q'x s.t. A x <= b``.
+
+    Works on the dual data only: columns ``cols(J) = G[:, J]`` of ``G = A H^-1 A^T``
+    and the slacks ``s = b - A x_free`` of the unconstrained optimum; the slacks of the
+    iterate ``x = x_free - H^-1 A_W' lam`` are ``s + G[:, W] lam``.  Phases (each
+    factorisation / step counts as one iteration):
+
+    1. Warm start: each candidate set of rows guessed active (e.g. the previous two
+       solutions' active rows) is solved as equalities; an exact guess ends here, else
+       the candidate with the fewest violated rows and negative multipliers is kept.
+    2. Block steps (primal-dual active set, Hintermüller et al. 2002): keep the rows
+       with positive multipliers, add the violated ones (at most two per waypoint
+       ``row_var``, most violated first); many rows change per step.
+    3. Dual-feasible start: drop rows with negative multipliers until none is left.
+    4. Goldfarb-Idnani (as in ``quadprog``): add the most violated row, dropping rows
+       whose multiplier reaches zero on the way, until no row is violated by more than
+       ``tol``.  Finite; the Cholesky factor of ``G_WW`` is extended by one row per
+       added row (two triangular solves) and refactored when a row is dropped.
+
+    Returns ``(W, lam, iterations, outcome)``.
+    """
+    n_var = int(row_var.max()) + 1 if len(row_var) else 0
+    it = 0
+
+    def evaluate(rows: list[int]) -> tuple | None:
+        gw = cols(rows)
+        c = _chol(gw[rows])
+        if c is None:
+            return None
+        lam = _dpotrs(c, -s[rows], lower=1)[0] if rows else np.zeros(0)
+        slack = s + gw @ lam if rows else s
+        viol = np.flatnonzero(slack < -tol)
+        positive = lam > 0.0
+        return rows, gw, lam, slack, viol, positive, len(viol) + len(lam) - int(positive.sum())
+
+    best = None
+    for cand in itertools.chain(warm_sets, [[]]):
+        rows = list(dict.fromkeys(cand))
+        if best is not None and not rows:
+            break
+        it += 1
+        ev = evaluate(rows)
+        if ev is None:
+            continue
+        if ev[-1] == 0:
+            return ev[0], ev[2], it, _AS_OPTIMAL
+        if best is None or ev[-1] < best[-1]:
+            best = ev
+    assert best is not None  # the empty set always evaluates
+    W, gw, lam, slack, viol, positive, _ = best
+    for _ in range(block_rounds):
+        if it >= max_iter or time.perf_counter() > deadline:
+            break
+        kept = [j for j, k in zip(W, positive) if k]
+        count = np.bincount(row_var[kept], minlength=n_var) if kept else np.zeros(n_var, int)
+        added: list[int] = []
+        for i in viol[np.argsort(slack[viol])]:
+            v = row_var[i]
+            if count[v] < 2:
+                count[v] += 1
+                added.append(int(i))
+        if not added and len(kept) == len(W):
+            break
+        it += 1
+        ev = evaluate(kept + added)
+        if ev is None:
+            break
+        W, gw, lam, slack, viol, positive, score = ev
+        if score == 0:
+            return W, lam, it, _AS_OPTIMAL
+    # Dual-feasible start: positive multipliers on W, slack 0 on W.
+    chol = _chol(gw[W])
+    while W:
+        if chol is None:
+            W, gw, lam = [], gw[:, :0], np.zeros(0)
+            break
+        lam = _dpotrs(chol, -s[W], lower=1)[0]
+        keep = lam > 0.0
+        if keep.all():
+            break
+        it += 1
+        W = [j for j, k in zip(W, keep) if k]
+        gw = gw[:, keep]
+        chol = _chol(gw[W])
+    if not W:
+        lam, chol = np.zeros(0), np.zeros((0, 0))
+    while True:
+        if W:
+            slack = s + gw @ lam
+            slack[W] = np.inf  # active rows hold with equality (up to rounding)
+        else:
+            slack = s
+        p = int(np.argmin(slack))
+        wp = float(slack[p])
+        if wp >= -tol:
+            return W, lam, it, _AS_OPTIMAL
+        if it >= max_iter or time.perf_counter() > deadline:
+            return W, lam, it, _AS_CAPPED
+        lam_p = 0.0
+        gp = cols([p])[:, 0]
+        gpp = gp[p]
+        while True:  # add row p, dropping rows whose multiplier reaches zero on the way
+            it += 1
+            k = len(W)
+            if k:
+                gwp = gp[W]
+                ell = _dtrtrs(chol, gwp, lower=1)[0]
+                d = -_dtrtrs(chol, ell, lower=1, trans=1)[0]
+                z = gpp - float(ell @ ell)
+            else:
+                ell = d = lam
+                z = gpp
+            t_full = -wp / z if z > 1e-12 * gpp else math.inf
+            t_part, j_block = math.inf, -1
+            if k:
+                neg = np.flatnonzero(d < 0.0)
+                if len(neg):
+                    ratios = lam[neg] / -d[neg]
+                    jj = int(np.argmin(ratios))
+                    t_part, j_block = float(ratios[jj]), int(neg[jj])
+            if t_full == math.inf and t_part == math.inf:
+                return W, lam, it, _AS_INFEASIBLE
+            if t_full <= t_part:
+                lam = np.append(lam + t_full * d, lam_p + t_full) if k else np.array([lam_p + t_full])
+                grown = np.zeros((k + 1, k + 1))
+                grown[:k, :k] = chol
+                grown[k, :k] = ell
+                grown[k, k] = math.sqrt(z)
+                chol = grown
+                W.append(p)
+                gw = np.column_stack([gw, gp])
+                break
+            lam = lam + t_part * d
+            lam_p += t_part
+            wp += t_part * z
+            del W[j_block]
+            lam = np.delete(lam, j_block)
+            gw = np.delete(gw, j_block, axis=1)
+            chol = _chol(gw[W]) if W else np.zeros((0, 0))
+            if chol is None:  # numerically dependent after all: restart from this row set
+                return W, lam, it, _AS_CAPPED
+            if it >= max_iter or time.perf_counter() > deadline:
+                W.append(p)
+                lam = np.append(lam, lam_p)
+                return W, lam, it, _AS_CAPPED
+
+
+_ROW_WAYPOINTS: dict[tuple[int, int], NDArray[np.intp]] = {}
+
+
+def _row_waypoints(n_int: int, n_v: int) -> NDArray[np.intp]:
+    """Waypoint index of each row slot: per interval ``n_v`` midpoint slots, ``2 n_v`` end slots."""
+    key = (n_int, n_v)
+    out = _ROW_WAYPOINTS.get(key)
+    if out is None:
+        out = (2 * np.arange(n_int)[:, None] + np.repeat([1, 2], [n_v, 2 * n_v])[None, :]).ravel()
+        _ROW_WAYPOINTS[key] = out
+    return out
+
+
 class ComMpc:
-    """CoM/CoP MPC over a preview window, solved with OSQP on a fixed sparsity pattern.
+    """CoM/CoP MPC over a preview window (condensed, well-conditioned QP; dense dual active set).
 
     Parameters
     ----------
@@ -462,7 +855,8 @@ class ComMpc:
     weights : ComMpcWeights, optional
         Objective weights.
     max_intervals, max_halfplanes : int
-        Initial padding (support intervals per window, half-planes per polygon); grown on demand.
+        Initial workspace size (support intervals per window, half-planes per polygon);
+        grown on demand.  For ``solver="osqp"`` this is the padded sparsity pattern.
     max_interval_s : float
         Supports longer than this are split into equal pieces (same polygon) [s].
     min_velocity_dt_s : float
@@ -470,16 +864,24 @@ class ComMpc:
         cost bounded when an interval has almost elapsed.
     min_interval_s : float
         Intervals (or truncated remainders) shorter than this are skipped [s].
-    eps_abs, eps_rel, max_iter, time_limit_s, polish
-        OSQP settings (``time_limit_s=None``: no limit).  The QP is posed in metres around
-        the current capture point, so ``eps_abs`` is about the CoP constraint tolerance [m].
-        ``max_iter`` bounds the solve time (~3 us per iteration): capturable states need
-        tens of iterations, hopeless (falling) states thousands; those return a fallback.
+    eps_abs, eps_rel, polish
+        OSQP settings, used by ``solver="osqp"`` only (the active-set solution is exact).
+    max_iter : int or None
+        Iteration cap (``None``: 100 active-set steps -- closed-loop problems need 0-3,
+        cold starts after large pushes up to ~70, ~40 us each --, 4000 OSQP
+        iterations).  When it is reached the current iterate, pulled into the polygons,
+        is returned as ``"solved_inaccurate"`` (a finite, feasible, CoM-consistent plan)
+        instead of a fallback.
+    time_limit_s : float or None
+        Same, as a wall-time limit on the QP solve [s] (``None``: no limit).
+    solver : {"active_set", "osqp"}
+        QP solver of the condensed problem.
 
     Attributes
     ----------
     setup_count : int
-        Number of OSQP ``setup`` calls so far (1 + the number of padding growths).
+        Number of solver workspace setups so far (1 + the number of workspace growths;
+        for OSQP the ``setup`` calls).
 
     Notes
     -----
@@ -499,53 +901,61 @@ class ComMpc:
         max_interval_s: float = 0.5,
         min_velocity_dt_s: float = 0.02,
         min_interval_s: float = 1e-3,
-        eps_abs: float = 1e-5,
-        eps_rel: float = 1e-5,
-        max_iter: int = 1000,
+        eps_abs: float = 1e-6,
+        eps_rel: float = 1e-6,
+        max_iter: int | None = None,
         time_limit_s: float | None = None,
         polish: bool = True,
+        solver: str = "active_set",
     ) -> None:
         if not (preview_s > 0.0 and math.isfinite(preview_s)):
             raise ValueError("preview_s must be positive")
+        if solver not in ("active_set", "osqp"):
+            raise ValueError(f"solver: expected 'active_set' or 'osqp', got {solver!r}")
         self.preview_s = float(preview_s)
         self.weights = weights if weights is not None else ComMpcWeights()
         w = self.weights
-        if not all(math.isfinite(v) and v >= 0.0 for v in (w.final_capture_point, w.cop_centroid, w.cop_velocity)):
+        values = [w.final_capture_point, w.cop_centroid, w.cop_velocity]
+        if w.stability is not None:
+            values.append(w.stability)
+        if not all(math.isfinite(v) and v >= 0.0 for v in values):
             raise ValueError(f"weights must be finite and non-negative: {w}")
+        self.solver = solver
         self.max_interval_s = float(max_interval_s) if max_interval_s > 0.0 else math.inf
         self.min_velocity_dt_s = float(min_velocity_dt_s)
         self.min_interval_s = max(float(min_interval_s), 1e-6)
+        default_iter = 100 if solver == "active_set" else 4000
+        self.max_iter = max(int(max_iter), 1) if max_iter is not None else default_iter
+        self.time_limit_s = float(time_limit_s) if time_limit_s else math.inf
         self._osqp_settings: dict[str, float | int | bool] = dict(
             eps_abs=eps_abs,
             eps_rel=eps_rel,
-            max_iter=max_iter,
-            time_limit=time_limit_s if time_limit_s else 1e10,
+            max_iter=self.max_iter,
+            time_limit=self.time_limit_s if math.isfinite(self.time_limit_s) else 1e10,
             polishing=polish,
             verbose=False,
             warm_starting=True,
-            adaptive_rho_interval=50,  # fixed interval: deterministic (the default is time based)
+            adaptive_rho_interval=25,  # fixed interval: deterministic (the default is time based)
             check_termination=5,
         )
         self._max_intervals = max(int(max_intervals), 1)
         self._max_halfplanes = max(int(max_halfplanes), 3)
         self.setup_count = 0
-        self._region_cache: dict[tuple[tuple[int, ...], bytes], _Region] = {}
-        self._block_cache: dict[tuple[int, int], _Block] = {}
-        self._schedule_cache: dict[tuple[int, ...], tuple[FloatArray, FloatArray, FloatArray, bool]] = {}
         self._last_good: ComMpcSolution | None = None
-        self._build_pattern()
+        self._warm_history: list[tuple[FloatArray, NDArray[np.complex128]]] = []
+        self._setup()
 
     # ------------------------------------------------------------ public API
 
     @property
     def padded_shape(self) -> tuple[int, int]:
-        """Current padding ``(max_intervals, max_halfplanes)``."""
+        """Current workspace size ``(max_intervals, max_halfplanes)``."""
         return self._max_intervals, self._max_halfplanes
 
     def reset(self) -> None:
         """Forget the previous solution: the next solve starts cold."""
         self._last_good = None
-        self._prev = None
+        self._warm_history = []
 
     def solve(
         self,
@@ -562,6 +972,10 @@ class ComMpc:
         ``status`` says so (see :class:`ComMpcSolution`).
         """
         t_start = time.perf_counter()
+        try:
+            supports = list(supports)  # iterated more than once (problem, fallback)
+        except TypeError:
+            pass
         args = (t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports)
         solution: ComMpcSolution | None = None
         try:
@@ -602,32 +1016,39 @@ class ComMpc:
             return self._fallback(*args, reason="invalid_input", message=error, t_start=t_start)
 
         seg = _Segments.build(problem.times_s, math.sqrt(GRAVITY_MPS2 / height))
-        origin = com + vel / seg.omega  # QP frame origin: the current capture point
-        self._fill(problem, seg, origin, com - origin, vel, cop - origin)
-        self._warm_start(problem, origin, t_now)
-        result = self._solver.solve(raise_error=False)
-        accepted, violation = self._accept(result)
-        if not accepted:  # keep self._prev: the last good solution is the better warm start
+        origin = cop  # QP frame: centred on the current CoP, so p_0 = 0
+        qp = self._condense(problem, seg, origin, com + vel / seg.omega - origin)
+        t_qp = time.perf_counter()
+        deadline = t_qp + self.time_limit_s
+        if self.solver == "osqp":
+            wps, iterations, outcome, message = self._solve_osqp(problem, qp, deadline)
+        else:
+            wps, iterations, outcome, message = self._solve_active_set(problem, qp, deadline)
+        qp_time = time.perf_counter() - t_qp
+        if outcome == _AS_CAPPED:  # best iterate: pull each waypoint into its region
+            wps = _pull_into_regions(wps, qp, problem.centroids[1:] - origin)
+        violation = 0.0
+        if len(qp.rhs):
+            violation = max(float((qp.row_values(wps) - qp.rhs).max()), 0.0) if np.isfinite(wps).all() else math.inf
+        if outcome == _AS_INFEASIBLE or not violation <= CONSTRAINT_TOL_M:
+            self._warm_history = []
             return self._fallback(
                 *args,
                 reason="solver_failed",
-                message=f"osqp: {result.info.status}"
-                + (f", max constraint violation {violation:.2e} m" if math.isfinite(violation) else ""),
+                message=message + (f", max constraint violation {violation:.2e} m" if math.isfinite(violation) else ""),
                 t_start=t_start,
             )
-        self._prev = (problem.ends_s, origin, result.x.copy(), result.y.copy())
 
         n_wp = len(problem.times_s)
-        wps_local = result.x[: 2 * n_wp].reshape(n_wp, 2).copy()
-        wps_local[0] = cop - origin  # exactly the equality-constrained value
+        wps_local = np.zeros((n_wp, 2))
+        wps_local[1:] = wps  # wps_local[0] = 0: exactly the current CoP
         pos, vel_wp = seg.propagate(wps_local, com - origin, vel)
-        if result.info.status_val == osqp.SolverStatus.OSQP_SOLVED_INACCURATE:
+        if outcome == _AS_CAPPED:
             status = "solved_inaccurate"
         elif problem.empty_intersection:
             status = "solved_empty_intersection"
         else:
             status = "solved"
-        message = f"osqp: {result.info.status}"
         if problem.empty_intersection:
             message += "; empty support intersection: end waypoint constrained to the closing interval's polygon"
         solution = ComMpcSolution(
@@ -639,284 +1060,345 @@ class ComMpc:
             status=status,
             solve_time_s=time.perf_counter() - t_start,
             message=message,
-            osqp_iterations=int(result.info.iter),
-            osqp_time_s=float(result.info.run_time),
+            osqp_iterations=int(iterations),
+            osqp_time_s=qp_time,
             region_centroids_xy_m=problem.centroids,
-            qp_final_state=result.x[self._ix_xi : self._ix_xi + 4] + np.concatenate([origin, np.zeros(2)]),
+            qp_final_state=np.concatenate([pos[-1] + origin, vel_wp[-1]]),
         )
-        if not _is_finite(solution):
+        if not math.isfinite(float(pos.sum() + vel_wp.sum())):
             return self._fallback(*args, reason="solver_failed", message="non-finite CoM", t_start=t_start)
         self._last_good = solution
         return solution
 
-    def _region(self, polygon: object) -> _Region:
-        try:
-            arr = np.asarray(polygon, dtype=float)
-        except (TypeError, ValueError):
-            return _make_region(np.zeros((0, 2)))
-        key = (arr.shape, arr.tobytes())
-        region = self._region_cache.get(key)
-        if region is None:
-            if len(self._region_cache) >= 512:
-                self._region_cache.clear()
-                self._block_cache.clear()
-                self._schedule_cache.clear()
-            region = _make_region(arr)
-            self._region_cache[key] = region
-        return region
+    # ------------------------------------------------------------ geometry
 
-    def _block(self, r0: _Region, r1: _Region | None) -> _Block:
-        key = (r0.serial, -1 if r1 is None else r1.serial)
-        block = self._block_cache.get(key)
-        if block is not None:
-            return block
-        h = self._max_halfplanes
-        normals = np.zeros((3 * h, 2))
-        offsets = np.full(3 * h, np.inf)
-        m0 = len(r0.offsets)
-        normals[:m0], offsets[:m0] = r0.normals, r0.offsets  # midpoint: C_k
-        normals[h : h + m0], offsets[h : h + m0] = r0.normals, r0.offsets  # end: C_k ...
-        empty = False
-        end_centroid = r0.centroid
-        if r1 is not None and r1 is not r0:
-            inter = clip_convex_polygons(r0.hull, r1.hull)
-            if len(inter) == 0:
-                empty = True  # fall back to C_k alone
-            else:
-                m1 = len(r1.offsets)
-                normals[h + m0 : h + m0 + m1], offsets[h + m0 : h + m0 + m1] = r1.normals, r1.offsets  # ... and C_k+1
-                end_centroid = polygon_centroid(inter)
-        block = _Block(normals, offsets, end_centroid, empty)
-        if len(self._block_cache) >= 2048:
-            self._block_cache.clear()
-            self._schedule_cache.clear()
-        self._block_cache[key] = block
-        return block
+    def _region(self, polygon: object) -> _Region:
+        """Geometry of one polygon (reference path, used by the fallback plan)."""
+        return _make_region(polygon)  # type: ignore[arg-type]
 
     def _build_problem(self, t_now: float, supports: Sequence[SupportInterval]) -> tuple[_Problem | None, str]:
         t_horizon = t_now + self.preview_s
-        ends: list[float] = []
-        regions: list[_Region] = []
-        prev_end = t_now
+        min_int = self.min_interval_s
         try:
-            for s in supports:
-                t0, t1 = float(s.t_start_s), float(s.t_end_s)
-                if not (math.isfinite(t0) and math.isfinite(t1)) or t1 < t0:
-                    return None, f"invalid support interval times ({t0}, {t1})"
-                if t1 <= prev_end + self.min_interval_s:
-                    continue  # elapsed (or nearly elapsed)
-                if prev_end >= t_horizon - self.min_interval_s:
-                    break
-                region = self._region(s.polygon)
-                if not region.valid:
-                    return None, "empty or degenerate support polygon"
-                # Long supports are split into equal pieces anchored at their start time.
-                n_pieces = max(1, math.ceil((t1 - t0) / self.max_interval_s - 1e-9))
-                piece_s = (t1 - t0) / n_pieces
-                first = max(0, int((prev_end + self.min_interval_s - t0) // piece_s))
-                for j in range(first, n_pieces):
-                    end = t1 if j == n_pieces - 1 else t0 + (j + 1) * piece_s
-                    if end <= prev_end + self.min_interval_s:
+            t_start = np.array([s.t_start_s for s in supports], dtype=float)
+            t_end = np.array([s.t_end_s for s in supports], dtype=float)
+        except (TypeError, ValueError, AttributeError) as exc:
+            return None, f"malformed supports: {exc!r}"
+        if t_start.ndim != 1 or t_end.shape != t_start.shape:
+            return None, "malformed supports: support times must be scalars"
+        invalid = ~(np.isfinite(t_start) & np.isfinite(t_end) & (t_end >= t_start))
+        # Supports in use: not elapsed, starting before the window ends (chronological order).
+        used: list[int] = []
+        prev_end = t_now
+        ends_list = t_end.tolist()
+        for k, t1 in enumerate(ends_list):
+            if invalid[k]:
+                return None, f"invalid support interval times ({t_start[k]}, {t1})"
+            if t1 <= prev_end + min_int:
+                continue  # elapsed (or nearly elapsed)
+            if prev_end >= t_horizon - min_int:
+                break
+            used.append(k)
+            prev_end = t1 if t1 < t_horizon else t_horizon
+        if not used:
+            return None, "no support interval covers the preview window"
+        try:
+            polygons = [supports[k].polygon for k in used]
+        except (TypeError, AttributeError, IndexError) as exc:
+            return None, f"malformed supports: {exc!r}"
+        geom = _support_geometry(polygons)
+        if geom is None:
+            return None, "empty or degenerate support polygon"
+
+        # Intervals: the supports, long ones split into equal pieces anchored at their start.
+        t0_used, t1_used = t_start[used], t_end[used]
+        n_pieces = np.maximum(np.ceil((t1_used - t0_used) / self.max_interval_s - 1e-9), 1.0)
+        if (n_pieces == 1.0).all():
+            ends_arr = np.minimum(t1_used, t_horizon)
+            own = np.arange(len(used))
+        else:
+            ends: list[float] = []
+            owner: list[int] = []
+            prev_end = t_now
+            for k, (t0, t1, n_k) in enumerate(zip(t0_used.tolist(), t1_used.tolist(), n_pieces.astype(int).tolist())):
+                piece_s = (t1 - t0) / n_k
+                first = max(0, int((prev_end + min_int - t0) // piece_s)) if n_k > 1 else 0
+                for j in range(first, n_k):
+                    end = t1 if j == n_k - 1 else t0 + (j + 1) * piece_s
+                    if end <= prev_end + min_int:
                         continue
-                    if prev_end >= t_horizon - self.min_interval_s:
+                    if prev_end >= t_horizon - min_int:
                         break
                     prev_end = min(end, t_horizon)
                     ends.append(prev_end)
-                    regions.append(region)
-        except (TypeError, ValueError, AttributeError) as exc:
-            return None, f"malformed supports: {exc!r}"
-        if not regions:
-            return None, "no support interval covers the preview window"
-
-        n_int = len(regions)
-        max_h = max(len(r.offsets) for r in regions)
+                    owner.append(k)
+            ends_arr = np.array(ends)
+            own = np.array(owner)
+        n_int = len(own)
+        max_h = int((geom.offsets < np.inf).sum(axis=1).max())
         if n_int > self._max_intervals or max_h > self._max_halfplanes:
             # Grow with some headroom so that the window's usual fluctuation does not re-grow it.
             self._max_intervals = max(self._max_intervals, n_int + 2)
             self._max_halfplanes = max(self._max_halfplanes, max_h)
-            self._build_pattern()
-        blocks = [self._block(regions[k], regions[k + 1] if k + 1 < n_int else None) for k in range(n_int)]
+            self._setup()
 
-        ends_arr = np.array(ends)
+        # End waypoints: C_k ∩ C_k+1.  Consecutive supports nest in walking (a foot inside
+        # the double-support hull): the intersection is the inner polygon.  Otherwise both
+        # polygons' rows are stacked (clipped only for the centroid and the empty check).
+        n_sup = len(used)
+        nrm, off, hull, cent = geom.normals, geom.offsets, geom.hull, geom.centroids
+        nxt = np.append(own[1:], own[-1])
+        switch = nxt != own  # the interval closes its support
+        if n_sup > 1:
+            # max over (half-plane of one polygon, vertex of the other) of the signed distance
+            inner_b = ((nrm[:-1, :, None].conj() * hull[1:, None, :]).real - off[:-1, :, None]).max(axis=(1, 2))
+            inner_a = ((nrm[1:, :, None].conj() * hull[:-1, None, :]).real - off[1:, :, None]).max(axis=(1, 2))
+            pair = np.minimum(own, n_sup - 2)
+            in_a = inner_a[pair] <= _CONTAIN_TOL_M  # C_k ⊂ C_k+1: the intersection is C_k
+            in_b = inner_b[pair] <= _CONTAIN_TOL_M  # C_k+1 ⊂ C_k: it is C_k+1
+            use_b = switch & ~in_a
+            use_a = ~(use_b & in_b)
+        else:
+            use_a, use_b = np.ones(n_int, bool), np.zeros(n_int, bool)
+        end_centroids = np.where(use_a, cent[own], cent[nxt])
+        empty = False
+        for i in np.flatnonzero(use_a & use_b):  # general overlap (rare)
+            k = own[i]
+            hull_a = convex_hull(np.stack([hull[k].real, hull[k].imag], axis=1))
+            hull_b = convex_hull(np.stack([hull[k + 1].real, hull[k + 1].imag], axis=1))
+            inter = clip_convex_polygons(hull_a, hull_b)
+            if len(inter) == 0:  # fall back to C_k alone
+                use_b[i] = False
+                empty = True
+            else:
+                c = polygon_centroid(inter)
+                end_centroids[i] = c[0] + 1j * c[1]
+
+        # Rows, per interval: V midpoint slots (C_k), then 2V end slots (C_k, C_k+1);
+        # unused slots (+inf offsets) are dropped.
+        n_v = off.shape[1]
+        off_all = np.concatenate(
+            [off[own], np.where(use_a[:, None], off[own], np.inf), np.where(use_b[:, None], off[nxt], np.inf)], axis=1
+        ).ravel()
+        nrm_all = np.concatenate([nrm[own], nrm[own], nrm[nxt]], axis=1).ravel()
+        keep = off_all < np.inf
+        wp_all = _row_waypoints(n_int, n_v)
+
         times = np.empty(2 * n_int + 1)
         times[0] = t_now
         times[2::2] = ends_arr
         times[1::2] = 0.5 * (times[0:-1:2] + ends_arr)
-        key = tuple(map(id, blocks))  # blocks live in _block_cache; both caches are cleared together
-        cached = self._schedule_cache.get(key)
-        if cached is None:
-            centroids = np.empty((2 * n_int + 1, 2))
-            centroids[0] = regions[0].centroid
-            centroids[1::2] = [r.centroid for r in regions]
-            centroids[2::2] = [b.end_centroid for b in blocks]
-            normals = np.concatenate([blk.normals for blk in blocks])
-            offsets = np.concatenate([blk.offsets for blk in blocks])
-            empty = any(b.empty_intersection for b in blocks)
-            if len(self._schedule_cache) >= 256:
-                self._schedule_cache.clear()
-            cached = self._schedule_cache[key] = (normals, offsets, centroids, empty)
-        normals, offsets, centroids, empty = cached
-        return _Problem(times, ends_arr, normals, offsets, centroids, regions[-1].centroid, empty), ""
-
-    def _build_pattern(self) -> None:
-        """Create the padded sparsity pattern and run OSQP setup (only when the shape grows)."""
-        k_max, h_max = self._max_intervals, self._max_halfplanes
-        self._n_wp_max = n_wp = 2 * k_max + 1
-        self._n_var = n_var = 2 * n_wp + 4
-        self._ix_xi = ix = 2 * n_wp  # x_T, y_T at ix, ix+1; vx_T, vy_T at ix+2, ix+3
-        self._rows_per_interval = 3 * h_max
-        self._n_con = n_con = 6 + k_max * 3 * h_max
-        self._block_cache.clear()
-        self._schedule_cache.clear()
-
-        # A, canonical order: initial CoP (2 rows), dynamics (4 rows), polygon rows.
-        # Polygon rows of interval k: h_max for waypoint 2k+1, then 2 h_max for waypoint 2k+2.
-        rows: list[np.ndarray] = [np.array([0, 1])]
-        cols: list[np.ndarray] = [np.array([0, 1])]
-        for d in range(2):
-            for row in (2 + 2 * d, 3 + 2 * d):
-                c = np.concatenate([2 * np.arange(n_wp) + d, [ix + d, ix + 2 + d]])
-                rows.append(np.full(len(c), row))
-                cols.append(c)
-        self._poly_wp = np.tile(np.repeat([1, 2], [h_max, 2 * h_max]), k_max) + np.repeat(
-            2 * np.arange(k_max), 3 * h_max
+        centroids = np.empty(2 * n_int + 1, np.complex128)
+        centroids[0] = cent[own[0]]
+        centroids[1::2] = cent[own]
+        centroids[2::2] = end_centroids
+        final = cent[own[-1]]
+        nrm_c = nrm_all[keep]
+        row_wp = wp_all[keep]
+        problem = _Problem(
+            times,
+            ends_arr,
+            nrm_c.view(np.float64).reshape(-1, 2),
+            nrm_c,
+            times[row_wp] + _WARM_KIND_OFFSET_S * (row_wp & 1),
+            off_all[keep],
+            row_wp,
+            centroids.view(np.float64).reshape(-1, 2),
+            np.array([final.real, final.imag]),
+            empty,
         )
-        rows.append(np.repeat(6 + np.arange(n_con - 6), 2))
-        cols.append(np.stack([2 * self._poly_wp, 2 * self._poly_wp + 1], axis=1).ravel())
-        a_rows, a_cols = np.concatenate(rows), np.concatenate(cols)
-        self._a_val = np.zeros(len(a_rows))
-        self._a_val[:2] = 1.0
-        n_dyn = 4 * (n_wp + 2)
-        self._a_dyn = self._a_val[2 : 2 + n_dyn].reshape(2, 2, n_wp + 2)  # [axis, (dcm, ccm), column]
-        self._a_poly = self._a_val[2 + n_dyn :].reshape(-1, 2)  # (polygon rows, 2)
-        self._a_perm, a_mat = _csc_pattern(a_rows, a_cols, (n_con, n_var))
+        return problem, ""
 
-        # P (upper triangle): waypoint diagonal, consecutive-waypoint coupling, xi_T 2x2 blocks.
-        diag = np.arange(2 * n_wp)
-        off = np.arange(2 * (n_wp - 1))
-        xi_r = [ix + d for d in (0, 0, 2, 1, 1, 3)]
-        xi_c = [ix + d for d in (0, 2, 2, 1, 3, 3)]
-        p_rows = np.concatenate([diag, off, xi_r])
-        p_cols = np.concatenate([diag, off + 2, xi_c])
-        self._p_val = np.zeros(len(p_rows))
-        self._p_diag = self._p_val[: 2 * n_wp].reshape(n_wp, 2)
-        self._p_off = self._p_val[2 * n_wp : 4 * n_wp - 2].reshape(n_wp - 1, 2)
-        self._p_xi = self._p_val[4 * n_wp - 2 :].reshape(2, 3)
-        self._p_perm, p_mat = _csc_pattern(p_rows, p_cols, (n_var, n_var))
+    # ---------------------------------------------------------- condensed QP
 
-        self._q = np.zeros(n_var)
-        self._l = np.full(n_con, -np.inf)
-        self._u = np.full(n_con, np.inf)
-        self._l[:6] = self._u[:6] = 0.0
-        self._p_diag[:] = 1.0  # placeholder values; every solve overwrites them
-        self._p_xi[:] = (1.0, 0.0, 1.0)
-        a_mat.data[:] = self._a_val[self._a_perm]
-        p_mat.data[:] = self._p_val[self._p_perm]
-        self._solver = osqp.OSQP()
-        self._solver.setup(p_mat, self._q, a_mat, self._l, self._u, **self._osqp_settings)
+    def _setup(self) -> None:
+        """(Re)size the solver workspace for the current ``padded_shape``."""
         self.setup_count += 1
-        self._rows_in_use = len(self._a_poly)  # force a full clear on the first fill
-        self._prev: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
+        self._warm_history = []
+        if self.solver == "osqp":
+            self._build_osqp_pattern()
 
-    def _fill(
-        self, pb: _Problem, seg: _Segments, origin: FloatArray, com: FloatArray, vel: FloatArray, cop: FloatArray
-    ) -> None:
-        """Write this problem's numbers (QP frame: positions relative to ``origin``) and update OSQP."""
-        omega = seg.omega
-        n_wp = len(pb.times_s)
-
-        # Dynamics rows (modal form of Eq. 14's initial-state equalities, exact LIP):
-        #   zeta_T + sum_n g_n p_n = e^{w T} zeta_0,   eta_T - sum_n c_n p_n = e^{-w T} eta_0
-        # The DCM row is scaled by e^{-w T / 2}, between the forward (coefficients up to
-        # e^{w T}) and the backward form (zeta_T coefficient e^{-w T}); this balanced form
-        # gave the fewest ADMM iterations.
-        to_end = seg.grow[-1] / seg.grow  # e^{w (t_N - t_n)}
-        dcm_scale = 1.0 / math.sqrt(to_end[0])
-        ga, gb = (dcm_scale * to_end[:-1]) * seg.a, (dcm_scale * to_end[:-1]) * seg.b
-        ca, cb = seg.a / to_end[1:], seg.b / to_end[1:]
-        dyn = self._a_dyn
-        dyn[:, 0, :n_wp] = np.append(ga, 0.0)
-        dyn[:, 0, 1:n_wp] += gb
-        dyn[:, 1, :n_wp] = np.append(-cb, 0.0)
-        dyn[:, 1, 1:n_wp] -= ca
-        if n_wp < self._n_wp_max:
-            dyn[:, :, n_wp:-2] = 0.0
-        dyn[:, 0, -2:] = (dcm_scale, dcm_scale / omega)
-        dyn[:, 1, -2:] = (1.0, -1.0 / omega)
-        lo, up = self._l, self._u
-        lo[0:2] = up[0:2] = cop
-        lo[2:6:2] = up[2:6:2] = (dcm_scale * to_end[0]) * (com + vel / omega)  # zeta_0 = 0 up to rounding
-        lo[3:6:2] = up[3:6:2] = (com - vel / omega) / to_end[0]
-
-        # Polygon rows: A (x + o) <= b  ->  A x <= b - A o.  Unused rows: 0 <= +inf.
-        poly = self._a_poly
-        n_rows = len(pb.ends_s) * self._rows_per_interval
-        poly[:n_rows] = pb.normals
-        up[6 : 6 + n_rows] = pb.offsets - pb.normals @ origin
-        if n_rows < self._rows_in_use:
-            poly[n_rows : self._rows_in_use] = 0.0
-            up[6 + n_rows : 6 + self._rows_in_use] = np.inf
-        self._rows_in_use = n_rows
-
-        # Cost: W_c |z_n - c_n|^2 + W_v |(z_n+1 - z_n) / dt_n|^2 + W_T |x_T + v_T / w - c_T|^2.
+    def _stability_weight(self, omega: float, horizon_s: float) -> float:
         w = self.weights
-        wv = (w.cop_velocity / np.maximum(seg.h, self.min_velocity_dt_s) ** 2)[:, None]
-        diag = self._p_diag
-        diag[0] = 0.0
-        diag[1:n_wp] = w.cop_centroid
-        diag[: n_wp - 1] += wv
-        diag[1:n_wp] += wv
-        diag[n_wp:] = 1.0  # padded waypoints: decoupled, pinned to 0
-        self._p_off[: n_wp - 1] = -wv
-        self._p_off[n_wp - 1 :] = 0.0
-        wt = w.final_capture_point
-        self._p_xi[:] = (wt, wt / omega, wt / (omega * omega))
-        q = self._q
-        q[2 : 2 * n_wp] = (-w.cop_centroid) * (pb.centroids[1:] - origin).ravel()
-        q[2 * n_wp :] = 0.0
-        c_t = pb.final_centroid - origin
-        q[self._ix_xi : self._ix_xi + 2] = -wt * c_t
-        q[self._ix_xi + 2 : self._ix_xi + 4] = (-wt / omega) * c_t
-        self._solver.update(q=q, l=lo, u=up, Px=self._p_val[self._p_perm], Ax=self._a_val[self._a_perm])
+        if w.stability is not None:
+            return min(float(w.stability), MAX_STABILITY_WEIGHT)
+        return min(w.final_capture_point * math.exp(min(2.0 * omega * horizon_s, 700.0)), MAX_STABILITY_WEIGHT)
 
-    def _warm_start(self, pb: _Problem, origin: FloatArray, t_now: float) -> None:
-        """Warm start from the previous primal/dual solution, shifted by the elapsed intervals."""
-        if self._prev is None:
-            self._solver.warm_start(x=np.zeros(self._n_var), y=np.zeros(self._n_con))
-            return
-        prev_ends, prev_origin, x_prev, y_prev = self._prev
-        dropped = int(np.searchsorted(prev_ends, t_now + self.min_interval_s, side="right"))
-        dropped = min(dropped, len(prev_ends))
-        ix = self._ix_xi
-        x = np.zeros(self._n_var)
-        y = np.zeros(self._n_con)
-        shift = prev_origin - origin
-        # Surviving waypoints keep their values; waypoints new to the window start at their centroid.
-        n_wp_now = len(pb.times_s)
-        keep = min(len(prev_ends) * 2 + 1 - 2 * dropped, n_wp_now)
-        x[: 2 * keep] = (x_prev[4 * dropped : 4 * dropped + 2 * keep].reshape(-1, 2) + shift).ravel()
-        x[2 * keep : 2 * n_wp_now] = (pb.centroids[keep:] - origin).ravel()
-        x[ix : ix + 2] = x_prev[ix : ix + 2] + shift
-        x[ix + 2 : ix + 4] = x_prev[ix + 2 : ix + 4]
-        y[:6] = y_prev[:6]
-        rows = self._rows_per_interval * dropped
-        y[6 : self._n_con - rows] = y_prev[6 + rows :]
-        self._solver.warm_start(x=x, y=y)
+    def _condense(self, pb: _Problem, seg: _Segments, origin: FloatArray, zeta0: FloatArray) -> _Condensed:
+        """Eliminate the final state: cost and rows in the waypoints ``p_1..p_N`` (frame at ``origin``)."""
+        w = self.weights
+        n = len(pb.times_s) - 1
+        decay = 1.0 / seg.grow  # exp(-omega tau_n)
+        beta = decay[:-1] * seg.b  # b_{n-1} term of p_n, n = 1..N
+        beta[:-1] += decay[1:-1] * seg.a[1:]  # a_n term, n = 1..N-1 (p_0 = 0 in this frame)
+        wv = w.cop_velocity / np.maximum(seg.h, self.min_velocity_dt_s) ** 2
+        diag = (w.cop_centroid + 1e-9) + wv  # tiny regularisation: D stays definite for zero weights
+        diag[:-1] += wv[1:]
+        d_mat = np.zeros((n, n))
+        d_mat.flat[:: n + 1] = diag
+        d_mat.flat[1 :: n + 1] = -wv[1:]
+        d_mat.flat[n :: n + 1] = -wv[1:]
+        d_inv = _inverse(d_mat)
+        u = d_inv @ beta
+        ws = self._stability_weight(seg.omega, float(pb.times_s[-1] - pb.times_s[0]))
+        kappa = ws / (1.0 + ws * float(beta @ u))
+        g = w.cop_centroid * (pb.centroids[1:] - origin)  # (the p_0 term of the velocity cost vanishes: p_0 = 0)
+        r0 = zeta0 - decay[-1] * (pb.final_centroid - origin)
+        y = d_inv @ g
+        p_free = y + np.outer(u, kappa * (r0 - beta @ y))
+        rhs = pb.offsets - pb.normals @ origin
+        hess_inv = d_inv - np.outer(kappa * u, u)
+        return _Condensed(
+            origin, d_mat, d_inv, g, ws, beta, u, kappa, r0, p_free, hess_inv, pb.normals, rhs, pb.row_wp - 1
+        )
 
-    def _accept(self, result) -> tuple[bool, float]:  # noqa: ANN001 - osqp result namespace
-        """Accept solved / solved-inaccurate results whose CoP constraints hold within tolerance."""
-        status = result.info.status_val
-        if status not in (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE):
-            return False, math.inf
-        x = result.x
-        if x is None or not np.isfinite(x).all():
-            return False, math.inf
-        n_rows = self._rows_in_use
-        wps = x[: 2 * self._n_wp_max].reshape(-1, 2)[self._poly_wp[:n_rows]]
-        slack = (self._a_poly[:n_rows] * wps).sum(axis=1) - self._u[6 : 6 + n_rows]
-        violation = max(float(slack.max()), 0.0) if n_rows else 0.0
-        tol = CONSTRAINT_TOL_M if status == osqp.SolverStatus.OSQP_SOLVED else 10 * CONSTRAINT_TOL_M
-        return violation <= tol, violation
+    def _solve_active_set(
+        self, pb: _Problem, qp: _Condensed, deadline: float
+    ) -> tuple[FloatArray, int, int, str]:
+        s = qp.rhs - qp.row_values(qp.p_free)
+        if len(s) == 0 or s.min() >= -_AS_TOL_M:
+            self._store_warm(pb, [])
+            return qp.p_free, 0, _AS_OPTIMAL, "active set: unconstrained optimum"
+        warm = (self._match_warm(pb, entry) for entry in self._warm_history)  # matched lazily
+        active, lam, iterations, outcome = _dual_active_set(
+            qp.dual_columns(), s, warm, qp.row_var, _AS_TOL_M, self.max_iter, deadline
+        )
+        if outcome == _AS_INFEASIBLE:
+            return qp.p_free, iterations, outcome, "active set: infeasible"
+        g = np.zeros_like(qp.p_free)
+        if active:
+            rows = np.asarray(active)
+            rv, n = qp.row_var[rows], len(g)
+            g[:, 0] = np.bincount(rv, qp.normals[rows, 0] * lam, n)
+            g[:, 1] = np.bincount(rv, qp.normals[rows, 1] * lam, n)
+        wps = qp.p_free - qp.h_inv(g)
+        if outcome == _AS_OPTIMAL:
+            self._store_warm(pb, active)
+            return wps, iterations, outcome, f"active set: optimal, {len(active)} active rows"
+        return wps, iterations, outcome, "active set: iteration cap or time limit reached"
+
+    def _store_warm(self, pb: _Problem, active: list[int]) -> None:
+        """Remember the active rows by waypoint time and kind (encoded together) and normal."""
+        rows = np.asarray(active, dtype=np.intp)
+        entry = (pb.row_key[rows], pb.normals_c[rows])
+        self._warm_history = [entry] + self._warm_history[: _WARM_HISTORY - 1]
+
+    def _match_warm(self, pb: _Problem, entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
+        """Rows of this problem matching a remembered solution's active rows.
+
+        A row matches an active row of the same waypoint kind (midpoint / end) within
+        ``_WARM_TIME_TOL_S`` and with a parallel edge normal, so that shifted timings
+        and moved footholds keep the warm start.
+        """
+        key_prev, n_prev = entry
+        if len(key_prev) == 0:
+            return []
+        match = (np.abs(pb.row_key[:, None] - key_prev) < _WARM_TIME_TOL_S) & (
+            (pb.normals_c[:, None].conj() * n_prev).real > _WARM_NORMAL_COS
+        )
+        return match.argmax(axis=0)[match.any(axis=0)].tolist()
+
+    # ------------------------------------------------------------ OSQP backend
+
+    def _build_osqp_pattern(self) -> None:
+        """Padded sparsity pattern of the condensed QP for OSQP, and ``setup``.
+
+        Variables ``[p_x (N_max), p_y (N_max), r_x, r_y]``; rows: the two stability
+        residual equalities ``beta . p + r = r0`` then ``3 max_halfplanes`` polygon rows
+        per interval (midpoint, then end waypoint).  Unused waypoints are pinned to 0 by
+        a unit cost, unused rows are ``0 <= +inf``.
+        """
+        k_max, h_max = self._max_intervals, self._max_halfplanes
+        nw = 2 * k_max
+        n_var = 2 * nw + 2
+        n_con = 2 + k_max * 3 * h_max
+        self._osqp_nw = nw
+        slot_wp = np.tile(np.repeat([0, 1], [h_max, 2 * h_max]), k_max) + np.repeat(2 * np.arange(k_max), 3 * h_max)
+        self._osqp_slot_base = np.concatenate([[0], np.cumsum(np.bincount(slot_wp, minlength=nw))[:-1]])
+        a_rows = np.concatenate(
+            [np.zeros(nw + 1, int), np.ones(nw + 1, int), np.repeat(2 + np.arange(n_con - 2), 2)]
+        )
+        a_cols = np.concatenate(
+            [np.r_[0:nw, 2 * nw], np.r_[nw : 2 * nw, 2 * nw + 1], np.stack([slot_wp, nw + slot_wp], axis=1).ravel()]
+        )
+        self._osqp_a_val = np.zeros(len(a_rows))
+        self._osqp_a_perm, a_mat = _csc_pattern(a_rows, a_cols, (n_con, n_var))
+        off = np.concatenate([np.arange(nw - 1), nw + np.arange(nw - 1)])
+        p_rows = np.concatenate([np.arange(n_var), off])
+        p_cols = np.concatenate([np.arange(n_var), off + 1])
+        self._osqp_p_val = np.zeros(len(p_rows))
+        self._osqp_p_perm, p_mat = _csc_pattern(p_rows, p_cols, (n_var, n_var))
+        self._osqp_p_val[:n_var] = 1.0
+        p_mat.data[:] = self._osqp_p_val[self._osqp_p_perm]
+        self._osqp_a_val[:] = 1.0
+        a_mat.data[:] = self._osqp_a_val[self._osqp_a_perm]
+        self._osqp_l = np.full(n_con, -np.inf)
+        self._osqp_u = np.full(n_con, np.inf)
+        self._osqp_l[:2] = self._osqp_u[:2] = 0.0
+        self._osqp = osqp.OSQP()
+        self._osqp.setup(p_mat, np.zeros(n_var), a_mat, self._osqp_l, self._osqp_u, **self._osqp_settings)
+
+    def _solve_osqp(self, pb: _Problem, qp: _Condensed, deadline: float) -> tuple[FloatArray, int, int, str]:
+        nw = self._osqp_nw
+        n = len(qp.beta)
+        n_var = 2 * nw + 2
+        # P: per axis D (diagonal, super-diagonal), W_s on r; padded waypoints pinned by a unit cost.
+        d_mat = qp.d_mat
+        pv = self._osqp_p_val
+        pv[:] = 0.0
+        pv[: 2 * nw] = 1.0
+        for ax in (0, nw):
+            pv[ax : ax + n] = np.diag(d_mat)
+            pv[n_var + (ax // nw) * (nw - 1) + np.arange(n - 1)] = np.diag(d_mat, 1)
+        pv[2 * nw : 2 * nw + 2] = qp.stability_weight
+        q = np.zeros(n_var)
+        q[:n] = -qp.g[:, 0]
+        q[nw : nw + n] = -qp.g[:, 1]
+        # A: residual rows then polygon rows in their padded slots.
+        av = self._osqp_a_val
+        av[:] = 0.0
+        av[:n] = qp.beta
+        av[nw] = 1.0
+        av[nw + 1 : nw + 1 + n] = qp.beta
+        av[2 * nw + 1] = 1.0
+        lo, up = self._osqp_l, self._osqp_u
+        lo[:2] = up[:2] = qp.r0
+        up[2:] = np.inf
+        rv = qp.row_var
+        ordinal = np.arange(len(rv)) - np.searchsorted(rv, rv)
+        slots = self._osqp_slot_base[rv] + ordinal
+        poly = av[2 * nw + 2 :].reshape(-1, 2)
+        poly[slots] = qp.normals
+        up[2 + slots] = qp.rhs
+        self._osqp.update(q=q, l=lo, u=up, Px=pv[self._osqp_p_perm], Ax=av[self._osqp_a_perm])
+        time_left = deadline - time.perf_counter()
+        if math.isfinite(time_left):
+            self._osqp.update_settings(time_limit=max(time_left, 1e-6))
+        # Warm start: the previous plan's CoP at the new waypoint times (duals from zero).
+        x0 = np.zeros(n_var)
+        prev = self._last_good
+        if prev is not None and prev.t_start_s <= pb.times_s[0] < prev.t_end_s:
+            p_prev = prev.cop_at(pb.times_s[1:]) - qp.origin
+            x0[:n] = p_prev[:, 0]
+            x0[nw : nw + n] = p_prev[:, 1]
+            x0[2 * nw : 2 * nw + 2] = qp.r0 - qp.beta @ p_prev
+        self._osqp.warm_start(x=x0, y=np.zeros(len(lo)))
+        res = self._osqp.solve(raise_error=False)
+        status = res.info.status_val
+        it = int(res.info.iter)
+        msg = f"osqp: {res.info.status}"
+        if res.x is None or not np.isfinite(res.x).all():
+            return qp.p_free, it, _AS_INFEASIBLE, msg
+        wps = np.stack([res.x[:n], res.x[nw : nw + n]], axis=1)
+        if status == osqp.SolverStatus.OSQP_SOLVED:
+            return wps, it, _AS_OPTIMAL, msg
+        if status in (
+            osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
+            osqp.SolverStatus.OSQP_MAX_ITER_REACHED,
+            osqp.SolverStatus.OSQP_TIME_LIMIT_REACHED,
+        ):
+            return wps, it, _AS_CAPPED, msg
+        return wps, it, _AS_INFEASIBLE, msg
 
     def _fallback(
         self,
@@ -995,7 +1477,33 @@ class ComMpc:
         return ComMpcSolution(t_arr, wps, pos + com, vel_wp, height, "", 0.0)
 
 
+
+
 # ------------------------------------------------------------------ utilities
+
+#: Active-set feasibility tolerance on the polygon rows [m].
+_AS_TOL_M = 1e-9
+#: Warm start: a previous active row matches a row of a waypoint of the same kind
+#: (midpoint / end) within this time [s] and with an edge normal this parallel.
+_WARM_TIME_TOL_S = 0.03
+_WARM_KIND_OFFSET_S = 1e3  # separates midpoints from end points in the matching key
+#: Number of previous solutions whose active rows are tried as warm starts.
+_WARM_HISTORY = 2
+_WARM_NORMAL_COS = 0.999
+
+
+def _pull_into_regions(wps: FloatArray, qp: _Condensed, centroids: FloatArray) -> FloatArray:
+    """Move each waypoint (N, 2) along the segment to its centroid target until its rows hold."""
+    rv = qp.row_var
+    c = centroids[rv]
+    num = np.maximum(qp.rhs - np.einsum("ij,ij->i", qp.normals, c), 0.0)
+    den = np.einsum("ij,ij->i", qp.normals, wps[rv] - c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(den > 0.0, num / den, np.inf)
+    scale = np.ones(len(wps))
+    np.minimum.at(scale, rv, ratio)
+    scale = np.clip(scale, 0.0, 1.0)
+    return centroids + scale[:, None] * (wps - centroids)
 
 
 def _csc_pattern(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, sp.csc_matrix]:
@@ -1007,6 +1515,8 @@ def _csc_pattern(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> 
     indptr = np.concatenate([[0], np.cumsum(np.bincount(c, minlength=shape[1]))])
     mat = sp.csc_matrix((np.zeros(len(r)), r.astype(np.int64), indptr.astype(np.int64)), shape=shape)
     return perm, mat
+
+
 
 
 def _sanitize_state(
@@ -1066,14 +1576,17 @@ def _hold_solution(
 
 
 def _is_finite(sol: ComMpcSolution) -> bool:
-    return bool(
-        np.isfinite(sol.waypoint_times_s).all()
-        and np.isfinite(sol.waypoints_xy_m).all()
-        and np.isfinite(sol.waypoint_com_xy_m).all()
-        and np.isfinite(sol.waypoint_com_vel_xy_mps).all()
-        and np.isfinite(sol.qp_final_state).all()
-        and math.isfinite(sol.com_height_m)
-    )
+    # A sum is finite iff all its terms are (barring overflow, which also means "not usable").
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = (
+            sol.waypoint_times_s.sum()
+            + sol.waypoints_xy_m.sum()
+            + sol.waypoint_com_xy_m.sum()
+            + sol.waypoint_com_vel_xy_mps.sum()
+            + sol.qp_final_state.sum()
+            + sol.com_height_m
+        )
+    return math.isfinite(float(total))
 
 
 def _replace_status(sol: ComMpcSolution, status: str, message: str, solve_time_s: float) -> ComMpcSolution:
@@ -1132,49 +1645,216 @@ def example_walking_supports(
     return out
 
 
-def benchmark_solve(n: int = 500, dt_s: float = 0.008, com_height_m: float = 0.8) -> dict[str, float]:
-    """Receding-horizon solve timing on a representative walk (125 Hz re-planning).
 
-    Walks 0.25 m steps (0.4 s single / 0.1 s double support, 8-10 intervals per 2 s
-    window).  Each call advances ``dt_s`` along the previous plan and re-solves (warm
-    start); the supports overlapping the window are selected outside the timing, as
-    the gait planner would pass them.  Returns wall-time statistics of ``ComMpc.solve``
-    in microseconds (median, p99, max, OSQP-only median), the median OSQP iteration
-    count, the fraction of ``"solved"`` results and the number of OSQP setups.
+
+def _clip_into(point: FloatArray, region: _Region) -> FloatArray:
+    """``point`` if inside ``region``, else the point of the segment centroid -> point on its boundary."""
+    c = region.centroid
+    den = region.normals @ (point - c)
+    num = region.offsets - region.normals @ c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.min(np.where(den > 0.0, num / den, np.inf), initial=1.0)
+    return c + min(max(scale, 0.0), 1.0) * (point - c)
+
+
+def closed_loop_like_problems(
+    n_calls: int = 500,
+    seed: int = 0,
+    *,
+    mpc: ComMpc | None = None,
+    dt_s: float = 0.008,
+    com_height_m: float = 0.6,
+    state_noise: tuple[float, float] = (0.002, 0.01),
+    pull: float = 0.2,
+) -> list[tuple[tuple, dict]]:
+    """A realistic receding-horizon sequence of ``ComMpc.solve`` problems, without a simulator.
+
+    Mimics what the closed-loop walking controller feeds the MPC (G1-like numbers):
+
+    * single / double supports of 0.36 / 0.09 s at a gait time rate ``kappa`` sweeping
+      [0.75, 1.35] (durations / kappa) with per-call jitter; the remaining duration of
+      the current phase is rescaled every call, as gait time scaling does;
+    * a rate-limited speed command (0.3 m/s forward, then 0.2 m/s backward) with some
+      turning; footholds re-targeted every call, with adjustments that random-walk by a
+      few mm per call (up to +-3 cm) plus a capture-point step feedback;
+    * initial states that continue the previous plan, pulled by ``pull`` per call towards
+      a "robot" (an exact LIP tracking the plan with DCM feedback and a centimetre CoP
+      error, its CoP clipped into the support), plus per-call noise of ``state_noise`` =
+      (position [m], velocity [m/s]) standard deviations.  Centimetres make this
+      narrow-footed gait uncapturable within a few steps (still a good solver stress
+      test); the walking controller itself continues its plan exactly (``pull=0``,
+      ``state_noise=(0, 0)``);
+    * the initial CoP clipped into the first support, as the controller does.
+
+    The loop is closed with ``mpc`` (a fresh :class:`ComMpc` by default).  Returns
+    ``[(args, kwargs), ...]`` exactly as :meth:`ComMpc.solve` received them.
     """
-    mpc = ComMpc()
-    n_steps = int(math.ceil((n + 20) * dt_s / 0.5)) + 6
-    supports = example_walking_supports(n_steps=n_steps, single_support_s=0.4, double_support_s=0.1)
+    rng = np.random.default_rng(seed)
+    mpc = mpc if mpc is not None else ComMpc()
+    omega = math.sqrt(GRAVITY_MPS2 / com_height_m)
+    foot_l, foot_w, width = 0.16, 0.06, 0.20
+    ss_s, ds_s = 0.36, 0.09
+
+    def foot(pose: FloatArray) -> FloatArray:
+        return _foot_rectangle(pose[:2], pose[2], foot_l, foot_w)
+
+    def rot(yaw: float) -> FloatArray:
+        return np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+
+    feet = {1: np.array([0.0, 0.5 * width, 0.0]), -1: np.array([0.0, -0.5 * width, 0.0])}
     t = 0.0
-    com = polygon_centroid(supports[0].polygon)
-    vel = np.zeros(2)
-    cop = com.copy()
+    speed = 0.0
+    phase = float(rng.uniform(0.0, 2.0 * math.pi))
+    kappa = float(np.clip(1.05 + 0.32 * math.sin(phase), 0.75, 1.35))
+    phase_ds, phase_end, swing = True, 0.45, -1  # current phase; next (or current) swing foot
+    adjust = walk_noise = dcm_error = np.zeros(2)
+    robot = np.array([0.0, 0.0, 0.0, 0.0])  # x, y, vx, vy
+    plan: ComMpcSolution | None = None
+    problems: list[tuple[tuple, dict]] = []
+    for i in range(n_calls):
+        # Speed command: forward, then backward, rate limited (as the controller filters it).
+        target = 0.3 if t < 0.45 * n_calls * dt_s else -0.2
+        speed += float(np.clip(target - speed, -0.25 * dt_s, 0.25 * dt_s))
+        yaw_rate = 0.25 * math.sin(0.4 * t)
+        # Gait time scale (a rate: durations are nominal / kappa): sweeps [0.75, 1.35] smoothly,
+        # with per-call jitter.
+        kappa_new = float(np.clip(1.05 + 0.32 * math.sin(1.3 * t + phase) + rng.normal(0.0, 0.004), 0.75, 1.35))
+        phase_end = t + max(phase_end - t, 0.0) * kappa / kappa_new
+        kappa = kappa_new
+        # Foothold adjustment: a random walk plus capture-point step feedback (as gait feedback does).
+        walk_noise = np.clip(walk_noise + rng.normal(0.0, 0.002, 2), -0.03, 0.03)
+        adjust = walk_noise + 0.5 * dcm_error
+        while t >= phase_end:  # contact switches
+            if phase_ds:
+                phase_ds, phase_end = False, phase_end + ss_s / kappa
+            else:  # the swing foot lands where it is targeted now
+                stance = feet[-swing]
+                yaw = stance[2] + yaw_rate * (ss_s + ds_s)
+                xy = stance[:2] + rot(yaw) @ [speed * (ss_s + ds_s), swing * width] + adjust
+                feet[swing] = np.array([xy[0], xy[1], yaw])
+                swing = -swing
+                phase_ds, phase_end = True, phase_end + ds_s / kappa
+        # Supports from now to beyond the window, footholds re-targeted from the current state.
+        planned = dict(feet)
+        polys = [convex_hull(np.vstack([foot(planned[1]), foot(planned[-1])])) if phase_ds else foot(planned[-swing])]
+        bounds = [(t, phase_end)]
+        is_ds, sw, t_end = phase_ds, swing, phase_end
+        while t_end < t + mpc.preview_s + 0.2:
+            if is_ds:
+                is_ds, dur = False, ss_s / kappa
+                polys.append(foot(planned[-sw]))
+            else:
+                stance = planned[-sw]
+                yaw = stance[2] + yaw_rate * (ss_s + ds_s)
+                step = [speed * (ss_s + ds_s), sw * width]
+                xy = stance[:2] + rot(yaw) @ step + (adjust if sw == swing else 0.0)
+                planned[sw] = np.array([xy[0], xy[1], yaw])
+                sw = -sw
+                is_ds, dur = True, ds_s / kappa
+                polys.append(convex_hull(np.vstack([foot(planned[1]), foot(planned[-1])])))
+            bounds.append((t_end, t_end + dur))
+            t_end += dur
+        supports = [SupportInterval(a, b, p) for (a, b), p in zip(bounds, polys)]
+        # Initial state: the previous plan, pulled towards the robot (as the walking controller does).
+        if plan is None:
+            com, vel = robot[:2].copy(), robot[2:].copy()
+            cop = com.copy()
+        else:
+            com, vel, _ = plan.com_at(t)
+            com = com + pull * (robot[:2] - com) + rng.normal(0.0, state_noise[0], 2)
+            vel = vel + pull * (robot[2:] - vel) + rng.normal(0.0, state_noise[1], 2)
+            cop = plan.cop_at(t)
+        first_region = _make_region(supports[0].polygon)
+        cop = _clip_into(cop, first_region)
+        args = (t, com, vel, cop, com_height_m, supports)
+        problems.append((args, {}))
+        sol = mpc.solve(*args)
+        if sol.ok:
+            plan = sol
+        # The robot tracks the plan with DCM feedback (its CoP, with a centimetre error, clipped
+        # into the support), over one control period (exact LIP).
+        if plan is not None:
+            ref_pos, ref_vel, _ = plan.com_at(t)
+            dcm_error = (robot[:2] + robot[2:] / omega) - (ref_pos + ref_vel / omega)
+            cop_robot = plan.cop_at(t) + (1.0 + 3.0 / omega) * dcm_error
+        else:
+            cop_robot = cop.copy()
+        cop_robot = _clip_into(cop_robot + rng.normal(0.0, 0.01, 2), first_region)
+        pos, vel_r = propagate_lip([t, t + dt_s], np.vstack([cop_robot, cop_robot]), robot[:2], robot[2:], omega)
+        robot = np.concatenate([pos[-1], vel_r[-1]])
+        t = round(t + dt_s, 9)
+    return problems
+
+
+def _replay(mpc: ComMpc, problems: Sequence[tuple[tuple, dict]], skip: int = 0) -> dict[str, float]:
+    """Solve ``problems`` in order with ``mpc``; statistics of the calls after the first ``skip``."""
     wall_us: list[float] = []
-    osqp_us: list[float] = []
+    qp_us: list[float] = []
     iterations: list[int] = []
-    n_solved = 0
-    for i in range(n + 20):
-        window = [s for s in supports if s.t_end_s > t and s.t_start_s < t + mpc.preview_s]
-        sol = mpc.solve(t, com, vel, cop, com_height_m, window)
-        if i >= 20:  # skip the start-up transient
-            wall_us.append(sol.solve_time_s * 1e6)
-            osqp_us.append(sol.osqp_time_s * 1e6)
+    statuses: list[str] = []
+    for i, (args, kwargs) in enumerate(problems):
+        t0 = time.perf_counter()
+        sol = mpc.solve(*args, **kwargs)
+        wall = time.perf_counter() - t0
+        if i >= skip:
+            wall_us.append(wall * 1e6)
+            qp_us.append(sol.osqp_time_s * 1e6)
             iterations.append(sol.osqp_iterations)
-            n_solved += sol.status == "solved"
-        t += dt_s
-        com, vel, _ = sol.com_at(t)
-        cop = sol.cop_at(t)
+            statuses.append(sol.status)
     wall = np.array(wall_us)
+    its = np.array(iterations)
+    n = len(wall)
     return {
         "n": float(n),
         "median_us": float(np.median(wall)),
         "p99_us": float(np.percentile(wall, 99)),
         "max_us": float(wall.max()),
-        "osqp_median_us": float(np.median(osqp_us)),
-        "median_iterations": float(np.median(iterations)),
-        "solved_fraction": n_solved / n,
+        "mean_us": float(wall.mean()),
+        "osqp_median_us": float(np.median(qp_us)),
+        "median_iterations": float(np.median(its)),
+        "p99_iterations": float(np.percentile(its, 99)),
+        "max_iterations": float(its.max()),
+        "solved_fraction": sum(s == "solved" for s in statuses) / n,
+        "fallback_count": float(sum(not s.startswith("solved") for s in statuses)),
         "setup_count": float(mpc.setup_count),
     }
+
+
+def benchmark_solve(
+    n: int = 500,
+    dt_s: float = 0.008,
+    com_height_m: float = 0.6,
+    seed: int = 2,
+    state_noise: tuple[float, float] = (0.0, 0.0),
+) -> dict[str, float]:
+    """Receding-horizon solve timing on a realistic closed-loop-like walk (125 Hz re-planning).
+
+    The problems come from :func:`closed_loop_like_problems` (varying step timing,
+    moving footholds with feedback); by default the initial states continue the
+    previous plan exactly, as the walking controller does (``MPC_STATE_PULL = 0``), and
+    the walk stays capturable (pass ``state_noise`` for perturbed initial states).  They
+    are generated first (20 start-up calls more than measured), then replayed in order
+    with one fresh :class:`ComMpc` (warm starts across calls).  Returns wall-time
+    statistics of ``ComMpc.solve`` in microseconds (median, p99, max, mean, QP-solver-only
+    median), iteration counts (median, p99, max), the fraction of ``"solved"`` results,
+    the number of fallbacks and of solver setups.
+    """
+    pull = 0.0 if state_noise == (0.0, 0.0) else 0.2
+    problems = closed_loop_like_problems(
+        n + 20, seed, dt_s=dt_s, com_height_m=com_height_m, state_noise=state_noise, pull=pull
+    )
+    return _replay(ComMpc(max_intervals=16), problems, skip=20)  # sized for the walk: one setup
+
+
+def benchmark_captured(path: str, mpc: ComMpc | None = None) -> dict[str, float]:
+    """Replay a pickle of ``[(args, kwargs), ...]`` captured from ``ComMpc.solve`` calls, in order.
+
+    One :class:`ComMpc` (fresh by default) solves them all, as the controller does; the
+    statistics are those of :func:`benchmark_solve`, over every call.
+    """
+    with open(path, "rb") as fh:
+        problems = pickle.load(fh)  # noqa: S301 - a trusted local capture
+    return _replay(mpc if mpc is not None else ComMpc(), problems)
 
 
 if __name__ == "__main__":
