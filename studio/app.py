@@ -151,6 +151,13 @@ class Studio:
             return None
         editor = CurveEditor(self.server, session)
         editor.root_frame.position = GRAPH_OFFSET
+        look_at_graph = editor.look_at_graph
+
+        def look_at_graph_and_stay(client, *args, **kwargs):
+            self.drive.follow.value = False  # the camera stays on the graph
+            return look_at_graph(client, *args, **kwargs)
+
+        editor.look_at_graph = look_at_graph_and_stay
         editor.set_sample(self.sample_editor.sample_name if self.sample_editor else "in_place")
         return editor
 

@@ -214,7 +214,7 @@ def g1_neutral() -> Style:
     rev = with_(slow, arm_swing_rad=0.08, swing_height_m=0.05, swing_toe_pitch_rad=0.35)
     strafe = with_(base, cycle_s=0.75, swing_s=0.3, width_m=0.22, swing_height_m=0.06)
     return make_style("neutral", "g1", "The nominal gait: even timing, modest arm swing, no frills.",
-                      SampleVelocities(0.5, 0.25, 0.15, 1.0),
+                      SampleVelocities(0.5, 0.2, 0.15, 1.0),
                       nine(base, slow, fast, rev, with_(rev, cycle_s=0.75, swing_s=0.3), strafe, base), G1)
 
 

@@ -31,7 +31,8 @@ PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
 COMMAND_ACCEL_LIMITS = np.array([0.25, 0.3, 1.5])  # joystick rate limits: m/s², m/s², rad/s² (G1 cannot accelerate its gait faster)
 RELATCH_AFTER_PLAN_TICKS = 2  # re-latch a landed foot this many planner ticks (16 ms) after touchdown
 COP_MARGIN_M = 0.01
-COM_Z_FILTER = 0.05  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
+COM_Z_FILTER = 0.05
+CAPTURE_TOLERANCE_M = 0.1  # a plan whose final capture point misses the last support by more is re-anchored  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
 MPC_STATE_PULL = 0.0  # per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0)
 
 
@@ -100,6 +101,7 @@ class WalkingController:
         self.command = np.zeros(3)
         self.command_filtered = np.zeros(3)
         self.tick = 0
+        self.replans = 0
         self.ref: GaitReference | None = None
         self.plan: ComMpcSolution | None = None
         self._plan_t0 = 0.0
@@ -213,9 +215,16 @@ class WalkingController:
         # scaling and touchdowns move contact switches relative to the last plan): clip it in.
         cop0 = _clip_to_polygon(cop0, supports[0].polygon)
         plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
-        if not plan.ok:  # the plan cannot be continued (a push, a sudden change): restart it from the robot
-            cop_now = self.plan.cop_at(ref.t_s) if self.plan is not None else cop0
-            plan = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(cop_now, supports[0].polygon), z_com, supports)
+        goal = supports[-1].polygon.mean(axis=0)
+        lost = plan.ok and np.linalg.norm(plan.final_capture_point_xy_m - goal) > CAPTURE_TOLERANCE_M
+        if not plan.ok or lost:
+            # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
+            # on its footholds: restart it from the robot's state and keep the more capturable one.
+            retry = self.mpc.solve(ref.t_s, com, com_vel, cop0, z_com, supports)
+            if retry.ok and (not plan.ok or np.linalg.norm(retry.final_capture_point_xy_m - goal)
+                             < np.linalg.norm(plan.final_capture_point_xy_m - goal)):
+                plan = retry
+                self.replans += 1
         if plan.ok or self.plan is None:
             self.plan = plan
         self.timings.mpc = time.perf_counter() - t1

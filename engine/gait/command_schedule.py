@@ -41,8 +41,9 @@ class CommandSchedule:
         return float(self.times_s[-1])
 
 
-def sweep_keyframes(v: SampleVelocities, ramp_s: float = 1.5, hold_s: float = 4.0) -> list[list[float]]:
-    """Stand, forward fast, reverse, strafe left/right, turn left/right, stop."""
+def sweep_keyframes(v: SampleVelocities, ramp_s: float = 1.5, hold_s: float = 4.0, pause_s: float = 1.5) -> list[list[float]]:
+    """Stand, forward fast, reverse, strafe left/right, turn left/right, stop — with a short stop
+    between legs (as a joystick user changes direction)."""
     legs = [(v.x_max_mps, 0, 0), (-v.x_slow_mps, 0, 0), (0, v.y_max_mps, 0), (0, -v.y_max_mps, 0),
             (0, 0, v.yaw_max_radps), (0, 0, -v.yaw_max_radps)]
     frames, t = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]], 1.0
@@ -53,7 +54,8 @@ def sweep_keyframes(v: SampleVelocities, ramp_s: float = 1.5, hold_s: float = 4.
         frames.append([t, *map(float, target)])
         t += ramp_s
         frames.append([t, 0.0, 0.0, 0.0])
-    frames.append([t + 1.0, 0.0, 0.0, 0.0])
+        t += pause_s
+        frames.append([t, 0.0, 0.0, 0.0])
     return frames
 
 

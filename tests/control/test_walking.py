@@ -1,0 +1,70 @@
+"""Short closed-loop walks of the full stack in MuJoCo (the long sweeps live in `studio walk`)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from engine.gait.command_schedule import from_keyframes
+from engine.gait.style import load_style
+from engine.robot.model import load_robot
+from engine.walk_runner import PushSpec, run_walk
+from tests.conftest import REPO, run_studio
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def g1():
+    return load_robot("g1"), load_style(REPO / "styles/g1/neutral.json")
+
+
+def test_g1_steps_in_place_then_walks_forward(g1):
+    robot, style = g1
+    schedule = from_keyframes([[0, 0, 0, 0], [2, 0, 0, 0], [3.5, 0.3, 0, 0]], "test")
+    summary, rec = run_walk(robot, style, schedule, 7.0)
+    assert not summary["fell"], summary
+    assert summary["distance_m"] > 0.8
+    assert summary["max_stance_slip_mm"] < 10.0
+    assert summary["cop_inside_fraction"] > 0.9
+    assert rec["qpos"][-1][0] > 0.7  # it went forward
+    # The recording has what the closed loop needs for analysis.
+    for key in ("t", "qpos", "qvel", "command", "contact", "com", "cop", "foot_pos"):
+        assert key in rec and len(rec[key]) == len(rec["t"])
+
+
+def test_g1_turns_and_strafes(g1):
+    robot, style = g1
+    schedule = from_keyframes([[0, 0, 0, 0], [1, 0, 0, 0], [2.5, 0, 0.1, 0], [4, 0, 0.1, 0], [5, 0, 0, 0],
+                               [6, 0, 0, 0.8]], "test")
+    summary, rec = run_walk(robot, style, schedule, 8.0)
+    assert not summary["fell"], summary
+    q = rec["qpos"][-1]
+    yaw = np.arctan2(2 * (q[3] * q[6] + q[4] * q[5]), 1 - 2 * (q[5] ** 2 + q[6] ** 2))
+    assert yaw > 0.4 and rec["qpos"][-1][1] > 0.05
+
+
+def test_a_hard_push_is_detected_as_a_fall(g1):
+    robot, style = g1
+    schedule = from_keyframes([[0, 0, 0, 0]], "stand")
+    summary, _ = run_walk(robot, style, schedule, 4.0, pushes=[PushSpec(1.5, (0.0, 600.0, 0.0), 0.5)], record=False)
+    assert summary["fell"] and 1.5 < summary["fall_time_s"] < 4.0
+
+
+def test_walk_cli_json_and_bad_input(tmp_path):
+    out = run_studio("walk", "--command", "50,0,0", "--duration", "3", "--json", "--out", str(tmp_path / "w.npz"))
+    assert out.returncode == 0, out.stderr
+    assert "exceeds the style's limits" in out.stderr  # an impossible command is clamped, with a warning
+    summary = json.loads(out.stdout)
+    for key in ("fell", "fall_time_s", "sim_time_s", "wall_time_s", "real_time_factor", "distance_m", "velocity_rmse",
+                "max_stance_slip_mm", "cop_inside_fraction", "timing_us"):
+        assert key in summary
+    assert set(summary["timing_us"]) >= {"planner", "mpc", "wbc", "sim"}
+    z = np.load(tmp_path / "w.npz")
+    assert np.abs(z["command"][:, 0]).max() <= 0.5 + 1e-9
+    bad = run_studio("walk", "--push", "1,2,3", "--duration", "1")
+    assert bad.returncode == 2 and "--push: expected t,fx,fy,fz,dur" in bad.stderr
+    bad = run_studio("walk", "--robot", "go1", "--duration", "1")
+    assert bad.returncode == 2 and "expected a biped" in bad.stderr
