@@ -114,6 +114,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     vel_window: list[np.ndarray] = []
     cmd_window: list[np.ndarray] = []
     vel_err: list[np.ndarray] = []
+    com_err: list[float] = []
     wall0 = time.perf_counter()
     for k in range(n):
         t = k * dt
@@ -152,6 +153,9 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             cmd_window.pop(0)
             if t > 2.0:
                 vel_err.append(np.mean(vel_window, axis=0) - np.mean(cmd_window, axis=0))
+        # CoM tracking: measured horizontal CoM against the MPC's reference.
+        if k % 4 == 0 and controller.plan is not None:
+            com_err.append(float(np.linalg.norm(data.subtree_com[root][:2] - controller.plan.com_at(ref.t_s)[0])))
         # Stance slip: sole centre drift while the reference holds the foot flat on the ground.
         for i in range(2):
             flat = bool(ref.contact[i] and not ref.sole_corners[i, :, 2].any())
@@ -165,10 +169,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             else:
                 contact_since[i] = 0.0
                 slip_start[i] = None
-        # CoP inside the support polygon of the feet the plan has on the ground.
+        # CoP inside the support polygon of the feet the controller has on the ground (the plan's,
+        # plus a landing foot from the moment it touches down a few ms early).
         cop, fz = meter.cop(data)
         if cop is not None and fz > 0.2 * robot.mass_kg * 9.81:
-            corners = [data.geom_xpos[g][:2] for i in range(2) if ref.contact[i] for g in corner_geoms[i]]
+            support = controller.wbc_contact.any(axis=1)  # the feet the controller stands on
+            corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
             if corners:
                 cop_checks += 1
                 cop_inside += _point_in_polygon(cop, convex_hull_2d(np.array(corners)), COP_MARGIN_M)
@@ -205,6 +211,8 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         "real_time_factor": round(sim_time / wall, 2) if wall > 0 else None,
         "distance_m": round(path_len, 3),
         "velocity_rmse": [round(float(x), 4) for x in np.sqrt(np.mean(err ** 2, axis=0))],
+        "com_error_mm": {"rms": round(1000 * float(np.sqrt(np.mean(np.square(com_err)))), 1) if com_err else None,
+                         "max": round(1000 * max(com_err), 1) if com_err else None},
         "max_stance_slip_mm": round(1000 * max_slip, 2),
         "cop_inside_fraction": round(cop_inside / cop_checks, 5) if cop_checks else None,
         "timing_us": {k: pct(v) for k, v in timings.items()},

@@ -80,12 +80,12 @@ class WbcGains:
     # Horizontal CoM (x, y) PD on the MPC reference; vertical CoM is left to the pelvis task.
     com_kp: float = 40.0
     com_kd: float = 12.0
-    com_weight: float = 10.0
+    com_weight: float = 100.0
     com_z_weight: float = 0.0
     # Pelvis height and orientation.
     pelvis_height_kp: float = 100.0
     pelvis_height_kd: float = 20.0
-    pelvis_height_weight: float = 10.0
+    pelvis_height_weight: float = 100.0
     pelvis_rot_kp: float = 150.0
     pelvis_rot_kd: float = 25.0
     pelvis_rot_weight: float = 10.0
@@ -113,6 +113,8 @@ class WbcGains:
     joint_limit_kl: float = 400.0
     joint_limit_bl: float = 40.0
     max_joint_acc_radps2: float = 400.0
+    # Actuator torque limits (the URDF's efforts), kept with headroom for the servo's PD terms.
+    torque_limit_fraction: float = 0.9
     # Joint set-points: integrated q̈, clipped to a max error from the measured state.
     servo_kp_scale: float = 0.25
     servo_kd_scale: float = 0.5
@@ -244,7 +246,11 @@ def friction_basis(normal: FloatArray, tangent: FloatArray, mu: float) -> FloatA
 class CentroidalQp:
     """The QP of Eqs. 20–25 in dense form, x = [q̈ (nv); ρ (32)]::
 
-        min ½ q̈ᵀ P q̈ + cᵀ q̈ + ½ ρᵀ R ρ   s.t.  A q̈ − G ρ = b,  lo ≤ q̈_j ≤ up,  0 ≤ ρ ≤ ρ_max
+        min ½ q̈ᵀ P q̈ + cᵀ q̈ + ½ ρᵀ R ρ   s.t.  A q̈ − G ρ = b,  lo ≤ q̈_j ≤ up,  0 ≤ ρ ≤ ρ_max,
+                                             τ_lo ≤ M_j q̈ + T ρ + h_j ≤ τ_up
+
+    The last row keeps the joint torques inside the actuators' limits (G1's ankles give 35 N·m:
+    a CoP the QP plans beyond what they can hold is not where the robot's CoP ends up).
     """
 
     p_qq: FloatArray  # (nv, nv)
@@ -256,6 +262,17 @@ class CentroidalQp:
     qdd_joint_lo: FloatArray  # (nv - 6,)
     qdd_joint_up: FloatArray  # (nv - 6,)
     rho_up: FloatArray  # (32,) 0 on inactive corners
+    # Joint torques τ = M_j q̈ + T ρ + h_j (Eq. 15, actuated rows) within the actuators' limits.
+    tau_qdd: FloatArray | None = None  # (n_joints, nv) M_j
+    tau_rho: FloatArray | None = None  # (n_joints, 32) T = −Σ J_c,jᵀ B_c
+    tau_bias: FloatArray | None = None  # (n_joints,) h_j (+ viscous damping)
+    tau_lo: FloatArray | None = None  # (n_joints,)
+    tau_up: FloatArray | None = None  # (n_joints,)
+
+    def torques(self, qdd: FloatArray, rho: FloatArray) -> FloatArray | None:
+        if self.tau_qdd is None:
+            return None
+        return self.tau_qdd @ qdd + self.tau_rho @ rho + self.tau_bias
 
     def objective(self, qdd: FloatArray, rho: FloatArray) -> float:
         """½ q̈ᵀPq̈ + cᵀq̈ + ½ ρᵀRρ (Eq. 20 up to a constant)."""
@@ -273,17 +290,20 @@ class DenseQpSolver:
     q̈ = q̈₀ + Y S⁻¹ (b + Gρ − A q̈₀) and the cost left in ρ is ½ρᵀ(R + GᵀS⁻¹G)ρ +
     ρᵀGᵀS⁻¹(b − A q̈₀): a ≤32-variable box QP, solved by a primal active-set method
     warm-started from the previous tick. Violated joint-acceleration bounds are added to
-    the fixed set (and released by their multiplier sign) in an outer loop. Returns None
+    the fixed set, and violated torque limits to the equality rows (A gains the row M_j,
+    G the row −T_j), both released by their multiplier's sign, in an outer loop. Returns None
     when either loop does not settle; the caller then uses OSQP.
     """
 
-    def __init__(self, nv: int, n_rho: int, max_outer: int = 6, max_box: int = 200):
+    def __init__(self, nv: int, n_rho: int, max_outer: int = 12, max_box: int = 200):
         self.nv, self.n_rho = nv, n_rho
         self.max_outer, self.max_box = max_outer, max_box
         self.rho_at_zero = np.ones(n_rho, dtype=bool)
         self.rho_at_up = np.zeros(n_rho, dtype=bool)
         self.fixed_lo = np.zeros(nv, dtype=bool)
         self.fixed_up = np.zeros(nv, dtype=bool)
+        self.tau_fixed_lo = np.zeros(0, dtype=bool)  # torque limits in the working set
+        self.tau_fixed_up = np.zeros(0, dtype=bool)
         self._base_lo = np.full(6, -np.inf)
         self._base_up = np.full(6, np.inf)
         self.iterations = 0
@@ -296,12 +316,32 @@ class DenseQpSolver:
             g_act, r_act, u_act = qp.g_rho, qp.r_rr, qp.rho_up
         else:
             g_act, r_act, u_act = qp.g_rho[:, active], qp.r_rr[np.ix_(active, active)], qp.rho_up[active]
+        has_tau = qp.tau_qdd is not None
+        if has_tau:
+            n_tau = qp.tau_qdd.shape[0]
+            if self.tau_fixed_lo.size != n_tau:
+                self.tau_fixed_lo = np.zeros(n_tau, dtype=bool)
+                self.tau_fixed_up = np.zeros(n_tau, dtype=bool)
+            tau_rho_act = qp.tau_rho if active.all() else qp.tau_rho[:, active]
+            tau_lo, tau_up = self.tau_fixed_lo.copy(), self.tau_fixed_up.copy()
+        else:
+            tau_lo = tau_up = np.zeros(0, dtype=bool)
         fixed_lo, fixed_up = self.fixed_lo, self.fixed_up
         self.iterations = 0
-        rhs = np.empty((self.nv, 7))
         for _ in range(self.max_outer):
             fixed = fixed_lo | fixed_up
             any_fixed = bool(fixed.any())
+            # Equality rows: the centroidal dynamics, then the torque limits in the working set
+            # (M_j q̈ + T_j ρ = τ_lim − h_j, i.e. rows of A q̈ − G ρ = b with G_j = −T_j).
+            tau_rows = np.flatnonzero(tau_lo | tau_up)
+            if tau_rows.size:
+                lim = np.where(tau_up[tau_rows], qp.tau_up[tau_rows], qp.tau_lo[tau_rows])
+                a_full = np.vstack([qp.a_h, qp.tau_qdd[tau_rows]])
+                g_full = np.vstack([g_act, -tau_rho_act[tau_rows]])
+                b_full = np.concatenate([qp.b, lim - qp.tau_bias[tau_rows]])
+            else:
+                a_full, g_full, b_full = qp.a_h, g_act, qp.b
+            n_eq = a_full.shape[0]
             qdd = np.zeros(self.nv)
             if any_fixed:
                 free = ~fixed
@@ -309,11 +349,11 @@ class DenseQpSolver:
                 qdd[fixed_up] = up[fixed_up]
                 p_ff = qp.p_qq[np.ix_(free, free)]
                 c_f = qp.c_q[free] + qp.p_qq[np.ix_(free, fixed)] @ qdd[fixed]
-                a_f = qp.a_h[:, free]
-                b_f = qp.b - qp.a_h[:, fixed] @ qdd[fixed]
-                rhs_f = np.empty((c_f.size, 7))
+                a_f = a_full[:, free]
+                b_f = b_full - a_full[:, fixed] @ qdd[fixed]
             else:
-                p_ff, c_f, a_f, b_f, rhs_f = qp.p_qq, qp.c_q, qp.a_h, qp.b, rhs
+                p_ff, c_f, a_f, b_f = qp.p_qq, qp.c_q, a_full, b_full
+            rhs_f = np.empty((c_f.size, n_eq + 1))
             rhs_f[:, 0] = -c_f
             rhs_f[:, 1:] = a_f.T
             _, sol, info = _dposv(p_ff, rhs_f)
@@ -321,35 +361,56 @@ class DenseQpSolver:
                 return None
             qdd0, y_mat = sol[:, 0], sol[:, 1:]
             resid0 = b_f - a_f @ qdd0
-            rhs_s = np.empty((6, g_act.shape[1] + 1))
+            rhs_s = np.empty((n_eq, g_full.shape[1] + 1))
             rhs_s[:, 0] = resid0
-            rhs_s[:, 1:] = g_act
+            rhs_s[:, 1:] = g_full
             _, s_sol, info = _dposv(a_f @ y_mat, rhs_s)  # S⁻¹ [r₀, G]
             if info != 0:
                 return None
             s_r, s_g = s_sol[:, 0], s_sol[:, 1:]
-            rho_act = self._box_qp(r_act + g_act.T @ s_g, g_act.T @ s_r, u_act, active)
+            rho_act = self._box_qp(r_act + g_full.T @ s_g, g_full.T @ s_r, u_act, active)
             if rho_act is None:
                 return None
-            mult = s_r + s_g @ rho_act  # the equality's multiplier
+            mult = s_r + s_g @ rho_act  # the equalities' multipliers
             step = qdd0 + y_mat @ mult
             if any_fixed:
                 qdd[free] = step
             else:
                 qdd = step
-            # Outer active set on the joint-acceleration bounds.
+            # Outer active set on the joint-acceleration bounds and the torque limits.
             self.iterations += 1
             viol_lo = qdd < lo - 1e-9
             viol_up = qdd > up + 1e-9
             if any_fixed:
-                grad = qp.p_qq @ qdd + qp.c_q - qp.a_h.T @ mult
+                grad = qp.p_qq @ qdd + qp.c_q - a_full.T @ mult
                 release = (fixed_lo & (grad < 0.0)) | (fixed_up & (grad > 0.0))
                 viol_lo &= free
                 viol_up &= free
             else:
                 release = fixed
-            if not (viol_lo.any() or viol_up.any() or release.any()):
+            tau_changed = False
+            if has_tau:
+                tau = qp.tau_qdd @ qdd + tau_rho_act @ rho_act + qp.tau_bias
+                t_viol_lo = ~(tau_lo | tau_up) & (tau < qp.tau_lo - 1e-6)
+                t_viol_up = ~(tau_lo | tau_up) & (tau > qp.tau_up + 1e-6)
+                lam = np.zeros(tau_lo.size)
+                lam[tau_rows] = mult[6:]
+                # An upper limit holds with λ ≤ 0, a lower one with λ ≥ 0 (∇f = Aᵀλ).
+                t_release = (tau_up & (lam > 1e-12)) | (tau_lo & (lam < -1e-12))
+                if t_viol_lo.any() or t_viol_up.any() or t_release.any():
+                    tau_changed = True
+                    # Add the worst violation only (each changes the others); releases all at once.
+                    over = np.maximum(qp.tau_lo - tau, tau - qp.tau_up)
+                    over[~(t_viol_lo | t_viol_up)] = -np.inf
+                    tau_lo, tau_up = tau_lo & ~t_release, tau_up & ~t_release
+                    if np.isfinite(over.max()):
+                        worst = int(np.argmax(over))
+                        tau_lo[worst] = bool(t_viol_lo[worst])
+                        tau_up[worst] = bool(t_viol_up[worst])
+            if not (viol_lo.any() or viol_up.any() or release.any() or tau_changed):
                 self.fixed_lo, self.fixed_up = fixed_lo, fixed_up
+                if has_tau:
+                    self.tau_fixed_lo, self.tau_fixed_up = tau_lo, tau_up
                 if u_act is qp.rho_up:
                     return qdd, rho_act
                 rho = np.zeros(self.n_rho)
@@ -359,6 +420,9 @@ class DenseQpSolver:
             fixed_up = (fixed_up & ~release) | viol_up
         self.fixed_lo = np.zeros(self.nv, dtype=bool)
         self.fixed_up = np.zeros(self.nv, dtype=bool)
+        if has_tau:
+            self.tau_fixed_lo = np.zeros_like(self.tau_fixed_lo)
+            self.tau_fixed_up = np.zeros_like(self.tau_fixed_up)
         return None
 
     def _box_qp(self, h: FloatArray, f: FloatArray, upper: FloatArray, active: NDArray[np.bool_]) -> FloatArray | None:
@@ -433,11 +497,13 @@ class OsqpQpSolver:
     """:class:`CentroidalQp` in OSQP with a fixed sparsity pattern: values updated each tick, warm started.
 
     P: the full upper triangles of the q̈ and ρ blocks; A: six dense centroidal rows over
-    every variable, then the identity for the bounds (inactive corners: 0 ≤ ρ ≤ 0).
+    every variable, one dense torque row per joint (τ_lo − h ≤ M_j q̈ + T ρ ≤ τ_up − h), then
+    the identity for the bounds (inactive corners: 0 ≤ ρ ≤ 0).
     """
 
     def __init__(self, nv: int, n_rho: int, eps: float = 1e-5, max_iter: int = 4000):
         self.nv, self.n_rho = nv, n_rho
+        self.n_tau = nv - 6
         n = nv + n_rho
         self.n_x = n
         iu_q = np.triu_indices(nv)
@@ -451,14 +517,18 @@ class OsqpQpSolver:
         p_mat = sp.csc_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
         if not np.array_equal(p_mat.indices, rows):
             raise AssertionError("P pattern order")
-        a_rows = np.concatenate([np.tile(np.arange(6), n), 6 + np.arange(n)])
-        a_cols = np.concatenate([np.repeat(np.arange(n), 6), np.arange(n)])
-        a_mat = sp.csc_matrix((np.ones(a_rows.size), (a_rows, a_cols)), shape=(6 + n, n))
-        self._a_vals = np.ones((n, 7))  # per column: 6 centroidal entries, then the bound's 1
-        self._lo = np.zeros(6 + n)
-        self._up = np.zeros(6 + n)
-        self._lo[6:12] = -np.inf
-        self._up[6:12] = np.inf
+        n_dense = 6 + self.n_tau  # dense rows: centroidal, then torques
+        self._n_dense = n_dense
+        a_rows = np.concatenate([np.tile(np.arange(n_dense), n), n_dense + np.arange(n)])
+        a_cols = np.concatenate([np.repeat(np.arange(n), n_dense), np.arange(n)])
+        a_mat = sp.csc_matrix((np.ones(a_rows.size), (a_rows, a_cols)), shape=(n_dense + n, n))
+        self._a_vals = np.ones((n, n_dense + 1))  # per column: the dense entries, then the bound's 1
+        self._lo = np.zeros(n_dense + n)
+        self._up = np.zeros(n_dense + n)
+        self._lo[6:n_dense] = -1e9
+        self._up[6:n_dense] = 1e9
+        self._lo[n_dense:n_dense + 6] = -np.inf
+        self._up[n_dense:n_dense + 6] = np.inf
         self._q = np.zeros(n)
         self._solver = osqp.OSQP()
         self._solver.setup(p_mat, self._q, a_mat, self._lo, self._up, verbose=False, eps_abs=eps, eps_rel=eps,
@@ -468,17 +538,24 @@ class OsqpQpSolver:
         self.iterations = 0
 
     def solve(self, qp: CentroidalQp) -> tuple[FloatArray, FloatArray] | None:
-        nv = self.nv
+        nv, nd = self.nv, self._n_dense
         px = np.concatenate([qp.p_qq.ravel()[self._p_idx_q], qp.r_rr.ravel()[self._p_idx_r]])
         self._a_vals[:nv, :6] = qp.a_h.T
         self._a_vals[nv:, :6] = -qp.g_rho.T
+        if qp.tau_qdd is not None:
+            self._a_vals[:nv, 6:nd] = qp.tau_qdd.T
+            self._a_vals[nv:, 6:nd] = qp.tau_rho.T
+            self._lo[6:nd] = qp.tau_lo - qp.tau_bias
+            self._up[6:nd] = qp.tau_up - qp.tau_bias
+        else:
+            self._a_vals[:, 6:nd] = 0.0
         self._q[:nv] = qp.c_q
         self._lo[:6] = qp.b
         self._up[:6] = qp.b
-        self._lo[12:6 + nv] = qp.qdd_joint_lo
-        self._up[12:6 + nv] = qp.qdd_joint_up
-        self._lo[6 + nv:] = 0.0
-        self._up[6 + nv:] = qp.rho_up
+        self._lo[nd + 6:nd + nv] = qp.qdd_joint_lo
+        self._up[nd + 6:nd + nv] = qp.qdd_joint_up
+        self._lo[nd + nv:] = 0.0
+        self._up[nd + nv:] = qp.rho_up
         self._solver.update(Px=px, Ax=self._a_vals.ravel(), q=self._q, l=self._lo, u=self._up)
         result = self._solver.solve(raise_error=False)
         self.status = str(result.info.status)
@@ -486,7 +563,7 @@ class OsqpQpSolver:
         x = result.x
         ok = result.info.status_val in (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
         if not ok or x is None or not np.all(np.isfinite(x)):
-            self._solver.warm_start(x=np.zeros(self.n_x), y=np.zeros(6 + self.n_x))
+            self._solver.warm_start(x=np.zeros(self.n_x), y=np.zeros(nd + self.n_x))
             return None
         return x[:nv].copy(), np.clip(x[nv:], 0.0, qp.rho_up)
 
@@ -559,6 +636,8 @@ class TaskSpaceInverseDynamics:
         self._joint_damping = damping if np.any(damping > 0.0) else None
         self._joint_lower = robot.joint_lower.copy()
         self._joint_upper = robot.joint_upper.copy()
+        effort = np.asarray(robot.effort_limits, dtype=float)
+        self._torque_limit = np.where(effort > 0.0, g.torque_limit_fraction * effort, 1e6)
         self._servo_kp = g.servo_kp_scale * robot.kp
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
@@ -731,7 +810,13 @@ class TaskSpaceInverseDynamics:
             rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
             self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
         rho_up = self._rho_up_cache[1]
-        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up)
+        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
+        bias = snap.nonlinear_effects[6:].copy()
+        if self._joint_damping is not None:
+            bias += self._joint_damping * snap.v[6:]
+        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
+                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
+                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
 
     def _skew_stack(self, arms: FloatArray) -> FloatArray:
         s = self._skew

@@ -7,6 +7,7 @@ reference is extrapolated with its rates and the CoM follows the MPC's exact tra
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -14,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from engine.control.com_mpc import ComMpc, ComMpcSolution, SupportInterval
+from engine.control.com_mpc import GRAVITY_MPS2, ComMpc, ComMpcSolution, SupportInterval
 from engine.control.controller import JointCommand, RobotState
 from engine.control.estimator import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
@@ -33,6 +34,11 @@ RELATCH_AFTER_PLAN_TICKS = 2  # re-latch a landed foot this many planner ticks (
 COP_MARGIN_M = 0.01
 COM_Z_FILTER = 0.05
 CAPTURE_TOLERANCE_M = 0.1  # a plan whose final capture point misses the last support by more is re-anchored  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
+PATH_FOLLOWS_FEET = 1.0  # the path frame moves with step adjustments and re-latched footholds
+STEP_REACH_SHARE = 0.8  # share of the CoP's reach a step may rely on (rest: margin for tracking)
+LANDING_HEIGHT_M = 0.01  # a descending swing foot this low may touch down early ...
+TOUCHDOWN_HEIGHT_M = 0.001  # ... and its corners this close to the floor carry load
+ANKLE_LOAD_FACTOR = 1.15  # vertical load (× m g) a single-support ankle must hold the CoP under
 MPC_STATE_PULL = 0.0  # per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0)
 
 
@@ -81,6 +87,8 @@ class WalkingController:
         self.style = style
         self.planner = planner_for(robot, style, self.ctx)
         self.planner.preview_margin_m = COP_MARGIN_M
+        self.planner.preview_toe_trim_m = toe_trim_m(robot, COP_MARGIN_M)
+        self.planner.path_follows_feet = PATH_FOLLOWS_FEET
         self.mpc = ComMpc(preview_s=2.0)
         self.feedback = GaitFeedback(GaitFeedbackGains.for_robot(robot.name), enabled=feedback)
         if wbc == "paper":
@@ -112,6 +120,15 @@ class WalkingController:
         self._last_com = np.zeros(2)
         self._last_fb: FeedbackOutput | None = None
         self._pending_style: Style | None = None
+        self._foot_frames = [self.model.getFrameId(f"{side}_foot") for side in SIDES]
+        self._corner_offsets = np.array([[np.subtract(c, robot.config.soles[side].center)
+                                          for c in robot.config.soles[side].corners()] for side in SIDES])
+        self.wbc_contact = np.ones((2, 4), dtype=bool)
+        # How far the CoP reaches from the sole centre toward the heel and the (ankle-held) toe,
+        # less the share kept for the whole-body controller: the band a landing foot keeps around ξ.
+        half = 0.5 * min(robot.config.soles[s].length_m for s in SIDES) - COP_MARGIN_M
+        self._reach_back_m = STEP_REACH_SHARE * half
+        self._reach_forward_m = STEP_REACH_SHARE * max(half - self.planner.preview_toe_trim_m, 0.0)
 
     # ------------------------------------------------------------------ inputs
     def set_command(self, v: np.ndarray) -> None:
@@ -165,7 +182,10 @@ class WalkingController:
             self._plan_tick(est)
         dt_since = (self.tick % TICKS_PER_PLAN) * CONTROL_PERIOD_S
         t_wbc = time.perf_counter()
-        cmd = self.wbc.compute(est, self._wbc_reference(dt_since))
+        reference = self._wbc_reference(dt_since)
+        reference.contact = self._with_early_touchdown(est, reference)
+        self.wbc_contact = reference.contact
+        cmd = self.wbc.compute(est, reference)
         self.timings.wbc = time.perf_counter() - t_wbc
         self.tick += 1
         return cmd
@@ -189,7 +209,12 @@ class WalkingController:
         self.command_filtered = self.command_filtered + step
         command = self.command_filtered.copy()
         command[:2] += fb.velocity_adjust_mps
+        goal = target.copy()
+        goal[:2] += fb.velocity_adjust_mps
+        planner.command_goal = goal
+        planner.command_rate_limits = COMMAND_ACCEL_LIMITS
         contact_before = self.ref.contact.copy() if self.ref is not None else np.ones(2, dtype=bool)
+        fb = self._reachable_steps(fb)
         ref = planner.step(PLAN_DT_S, command, kappa=fb.kappa, step_adjustment_xy=fb.step_adjust_m)
         self._feet_feedforward(ref)
         self.ref = ref
@@ -230,6 +255,38 @@ class WalkingController:
         self.timings.mpc = time.perf_counter() - t1
         self._last_com, self._last_fb = com, fb
         self._telemetry_stale = True
+
+    def _reachable_steps(self, fb: FeedbackOutput) -> FeedbackOutput:
+        """Keep the swing foot's target where the CoM can still get over it.
+
+        A foot that lands ahead of the divergent component of motion ξ = x + ẋ/ω by more than
+        the CoP can reach back (to its heel) stops the CoM and throws it back; one landing
+        behind ξ by more than the CoP reaches forward (to the toe the ankles can hold) cannot
+        stop it. Along the walking direction the target is kept within that band around ξ as
+        the CoM plan predicts it at touchdown; the difference joins the step adjustment.
+        """
+        planner, plan = self.planner, self.plan
+        if plan is None:
+            return fb
+        adjust = fb.step_adjust_m.copy()
+        z = self._com_z if self._com_z is not None else self.robot.q_standing[2] + self.com_offset_m
+        omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
+        heading = np.array([math.cos(planner.path.yaw), math.sin(planner.path.yaw)])
+        for side in SIDES:
+            t_td = planner.time_to_touchdown_s(side, fb.kappa)
+            if t_td is None:
+                continue
+            nominal = planner.nominal_target(side)
+            pos, vel, _ = plan.com_at(planner.t_s + t_td)
+            dcm = pos + vel / omega
+            ahead = float((np.array([nominal.x, nominal.y]) + adjust - dcm) @ heading)
+            if ahead > self._reach_back_m:
+                adjust -= (ahead - self._reach_back_m) * heading
+            elif ahead < -self._reach_forward_m:
+                adjust += (-self._reach_forward_m - ahead) * heading
+        if np.array_equal(adjust, fb.step_adjust_m):
+            return fb
+        return dataclasses.replace(fb, step_adjust_m=adjust)
 
     def _feet_feedforward(self, ref: GaitReference) -> None:
         """Swing-foot acceleration feed-forward from consecutive reference rates."""
@@ -282,6 +339,23 @@ class WalkingController:
         return self.feedback.update(PLAN_DT_S, com, com_vel, ref_pos, ref_vel, z, planner.path.yaw,
                                     stance_xy, next_xy, single_support=bool(swinging))
 
+    def _with_early_touchdown(self, est: RobotState, reference: WbcReference) -> np.ndarray:
+        """Sole corners the whole-body QP may push on: the plan's, plus the corners of a landing
+        foot that are already on the ground (a swing foot reaches the floor a few ms before its
+        planned touchdown; pretending it is still in the air makes the QP fight the floor)."""
+        contact = reference.contact
+        landing = [i for i in range(2) if not contact[i].any()
+                   and reference.foot_pos_m[i, 2] < LANDING_HEIGHT_M and reference.foot_lin_vel_mps[i, 2] <= 0.0]
+        if not landing:
+            return contact
+        pin.framesForwardKinematics(self.model, self.data, est.q)
+        contact = contact.copy()
+        for i in landing:
+            m = self.data.oMf[self._foot_frames[i]]
+            heights = m.translation[2] + (m.rotation @ self._corner_offsets[i].T)[2]
+            contact[i] = heights < TOUCHDOWN_HEIGHT_M
+        return contact
+
     def _wbc_reference(self, dt_since: float) -> WbcReference:
         ref = self.ref
         assert ref is not None and self.plan is not None
@@ -333,6 +407,44 @@ class WalkingController:
         tel.command = ref.command
         tel.command_clamped = self.planner.command_clamped
         tel.wbc_status = getattr(self.wbc.diagnostics, "status", "")
+
+
+def ankle_pitch_joint(robot: RobotModel, side: str) -> tuple[str, float]:
+    """(name, x offset from the sole centre along the foot, m) of the joint nearest the sole
+    whose axis is the foot's lateral axis: the ankle pitch that must hold the CoP at the toe."""
+    model = robot.pin_model
+    data = model.createData()
+    q = robot.q_standing
+    fid = model.getFrameId(f"{side}_foot")
+    pin.computeJointJacobians(model, data, q)
+    pin.framesForwardKinematics(model, data, q)
+    sole = data.oMf[fid]
+    jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+    lateral, forward = sole.rotation[:, 1], sole.rotation[:, 0]
+    j = model.frames[fid].parentJoint
+    while j > 1:  # 0: universe, 1: the free base
+        col = model.joints[j].idx_v
+        axis = jac[3:, col]
+        if np.linalg.norm(axis) > 0.5 and abs(axis @ lateral) > 0.9 * np.linalg.norm(axis):
+            return model.names[j], float((data.oMi[j].translation - sole.translation) @ forward)
+        j = model.parents[j]
+    raise ValueError(f"{robot.name}: no ankle pitch joint above {side}_foot")
+
+
+def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = ANKLE_LOAD_FACTOR,
+               torque_fraction: float = 0.9) -> float:
+    """How much shorter at the toe the MPC's soles must be for the ankle pitch actuators to hold
+    the CoP there: a CoP a distance d ahead of the ankle needs d · load · m g of ankle torque."""
+    trims = []
+    for side in SIDES:
+        name, offset = ankle_pitch_joint(robot, side)
+        effort = float(robot.effort_limits[robot.joint_names.index(name)])
+        if effort <= 0.0:
+            continue
+        reach = torque_fraction * effort / (load_factor * robot.mass_kg * GRAVITY_MPS2) + offset
+        half = 0.5 * robot.config.soles[side].length_m - margin_m
+        trims.append(max(half - reach, 0.0))
+    return max(trims, default=0.0)
 
 
 def _clip_to_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:

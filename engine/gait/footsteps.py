@@ -34,11 +34,13 @@ class Foothold:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         return Foothold(self.x + c * local[0] - s * local[1], self.y + s * local[0] + c * local[1], self.yaw + local[2])
 
-    def corners(self, length_m: float, width_m: float) -> np.ndarray:
-        """(4, 2) sole corners on the ground, counter-clockwise: back-left, back-right, front-right, front-left."""
+    def corners(self, length_m: float, width_m: float, front_trim_m: float = 0.0) -> np.ndarray:
+        """(4, 2) sole corners on the ground, counter-clockwise: back-left, back-right, front-right, front-left.
+        ``front_trim_m`` cuts the rectangle short at the toe (the heel stays)."""
         c, s = math.cos(self.yaw), math.sin(self.yaw)
-        hl, hw = 0.5 * length_m, 0.5 * width_m
-        x, y = self.x, self.y
+        trim = min(max(front_trim_m, 0.0), 0.9 * length_m)
+        hl, hw = 0.5 * (length_m - trim), 0.5 * width_m
+        x, y = self.x - c * 0.5 * trim, self.y - s * 0.5 * trim
         return np.array([[x - c * hl - s * hw, y - s * hl + c * hw], [x - c * hl + s * hw, y - s * hl - c * hw],
                          [x + c * hl + s * hw, y + s * hl - c * hw], [x + c * hl - s * hw, y + s * hl + c * hw]])
 

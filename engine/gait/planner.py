@@ -118,6 +118,10 @@ class _Pose:
     rot: np.ndarray
 
 
+PATH_TABLE_STEP_S = 0.05
+PATH_TABLE_HORIZON_S = 3.0
+
+
 class GaitPlanner:
     """Stateful planner: ``reset`` once, then ``step`` at 125 Hz with the velocity command."""
 
@@ -129,6 +133,17 @@ class GaitPlanner:
         self.sole_corners_local = np.array([[hl, hw, 0.0], [hl, -hw, 0.0], [-hl, -hw, 0.0], [-hl, hw, 0.0]])
         self.region = SafeRegion.for_sole(sole_length_m, sole_width_m)
         self.preview_margin_m = 0.0  # shrink the preview's soles: the MPC plans the CoP this far inside
+        self.preview_toe_trim_m = 0.0  # and this much shorter at the toe (what the ankles cannot hold)
+        # Share (0..1) of a landed foot's deviation from its nominal foothold (step adjustment,
+        # re-latching to where it really landed) that moves the path frame with it, so later
+        # footholds are planned from the feet the robot stands on rather than a dead-reckoned path.
+        self.path_follows_feet = 0.0
+        # Command preview: where the joystick is heading and how fast the command may change
+        # (m/s², m/s², rad/s²). Footholds ahead are then planned along the ramp the command will
+        # follow, not as if today's command held for the whole preview (None: it holds).
+        self.command_goal: np.ndarray | None = None
+        self.command_rate_limits: np.ndarray | None = None
+        self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -244,6 +259,7 @@ class GaitPlanner:
         if rate > 0.0:
             self.phi = max(blend.phase_of_time(blend.time_at(phi_old) + rate * dt_s), phi_old)
             self.path.advance(self.command, rate * dt_s)
+        self._path_table = None
         self._handle_events(phi_old, self.phi)
         adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
         for side in SIDES:
@@ -253,6 +269,19 @@ class GaitPlanner:
         if with_preview:
             ref.preview = self.preview(kappa)
         return ref
+
+    def time_to_touchdown_s(self, side: str, kappa: float = 1.0) -> float | None:
+        """Seconds until a swinging foot's touchdown at time-scaling κ (None when not swinging)."""
+        if not self.in_swing(side, self.phi):
+            return None
+        lo, td = SWING_PHASES[side]
+        k = math.floor(self.phi - lo)
+        blend = self.blend
+        return max(blend.event_time(k + td) - blend.time_at(self.phi), 0.0) / max(kappa, 1e-3)
+
+    def nominal_target(self, side: str) -> Foothold:
+        """The upcoming foothold of ``side`` without step adjustment."""
+        return self._upcoming_foothold(side, np.zeros(2))
 
     def relatch(self, side: str, measured: Foothold, max_shift_m: float = 0.05) -> bool:
         """Move a support foot's latched foothold to where the foot actually landed.
@@ -267,9 +296,46 @@ class GaitPlanner:
         if math.hypot(measured.x - old.x, measured.y - old.y) > max_shift_m:
             return False
         self.latched[side] = measured
+        self._shift_path(measured.x - old.x, measured.y - old.y)
         if self._last_pose is not None:
             self._last_pose = None  # no spurious rates from the shift
         return True
+
+    def path_ahead(self, dt_s: float) -> np.ndarray:
+        """The path pose ``dt_s`` of gait time ahead, the command ramping toward ``command_goal``
+        within ``command_rate_limits`` (exact arcs per piece of a 50 ms table)."""
+        if self.command_goal is None or self.command_rate_limits is None:
+            return self.path.predicted(self.command, dt_s)
+        if self._path_table is None:
+            self._path_table = self._build_path_table()
+        times, poses, vels = self._path_table
+        k = min(int(dt_s / PATH_TABLE_STEP_S), len(times) - 1)
+        return predict(poses[k], vels[k], dt_s - times[k])
+
+    def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        clamped = self.command_clamped  # clamping the goal must not change what the command reports
+        goal = self.clamp_command(self.command_goal)
+        self.command_clamped = clamped
+        limits = np.abs(np.asarray(self.command_rate_limits, dtype=float))
+        n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
+        times = np.arange(n) * PATH_TABLE_STEP_S
+        poses = np.empty((n, 3))
+        vels = np.empty((n, 3))
+        pose, v = self.path.pose(), self.command.copy()
+        h = PATH_TABLE_STEP_S
+        for i in range(n):
+            dv = np.clip(goal - v, -limits * h, limits * h)
+            poses[i], vels[i] = pose, v + 0.5 * dv  # the piece's mean velocity
+            pose = predict(pose, vels[i], h)
+            v = v + dv
+        return times, poses, vels
+
+    def _shift_path(self, dx_m: float, dy_m: float) -> None:
+        """Move the path frame by ``path_follows_feet`` × (dx, dy)."""
+        gain = self.path_follows_feet
+        if gain > 0.0 and math.isfinite(dx_m) and math.isfinite(dy_m):
+            self.path.x += gain * dx_m
+            self.path.y += gain * dy_m
 
     def _track_target(self, side: str, raw: Foothold) -> None:
         """Follow the re-evaluated foothold's increments, easing them out before touchdown.
@@ -310,6 +376,9 @@ class GaitPlanner:
                 self.target[side] = self._upcoming_foothold(side, np.zeros(2))
                 self._raw_target[side] = self.target[side]
             else:
+                if self.path_follows_feet > 0.0:
+                    nominal = self._upcoming_foothold(side, np.zeros(2))
+                    self._shift_path(self.target[side].x - nominal.x, self.target[side].y - nominal.y)
                 self.latched[side] = self.target[side]
                 self.landed[side] = True
 
@@ -324,7 +393,7 @@ class GaitPlanner:
         phi_td, phi_lo = self._contact_midpoint_phase(side, self.phi)
         t_now = blend.time_at(self.phi)
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_lo))
-        pose = self.path.predicted(self.command, max(t_mid - t_now, 0.0))
+        pose = self.path_ahead(max(t_mid - t_now, 0.0))
         target = foothold_from_path(pose, self.stance(side))
         if adjust_xy.any():
             target = Foothold(target.x + adjust_xy[0], target.y + adjust_xy[1], target.yaw)
@@ -440,8 +509,8 @@ class GaitPlanner:
             down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
             length = self.sole_length_m - 2.0 * self.preview_margin_m
             width = self.sole_width_m - 2.0 * self.preview_margin_m
-            if len(down) == 1:
-                polygon = footholds[down[0]].corners(length, width)
+            if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
+                polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
             else:
                 polygon = convex_hull_2d(np.vstack([footholds[s].corners(length, width) for s in down]))
             phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
@@ -462,7 +531,7 @@ class GaitPlanner:
         lo, _ = SWING_PHASES[side]
         phi_next_lo = math.floor(phi_td - lo) + 1 + lo
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
-        pose = predict(self.path.pose(), self.command, max(t_mid - t_now, 0.0))
+        pose = self.path_ahead(max(t_mid - t_now, 0.0))
         target = foothold_from_path(pose, self.stance(side))
         other = "right" if side == "left" else "left"
         return project_to_safe_region(footholds[other], target, side, self.region)

@@ -33,6 +33,7 @@ from engine.robot.urdf import (
 MODEL_CACHE_VERSION = "5"
 TIMESTEP_S = 0.002
 FLOOR_FRICTION = 1.0
+IMPRATIO = 5.0
 
 # Collision bits: floor collides with everything; robot geoms collide with the floor and,
 # when the config enables it, with each other (minus excluded body pairs).
@@ -207,6 +208,10 @@ def _build_mujoco(cfg: RobotConfig, prepared: PreparedUrdf) -> mujoco.MjSpec:
     spec.modelname = cfg.name
     spec.option.timestep = TIMESTEP_S
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    # Elliptic friction cones with a raised impedance ratio: MuJoCo's soft friction otherwise lets
+    # loaded soles creep by millimetres per step (rubber soles on a floor do not).
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = IMPRATIO
     spec.visual.global_.offwidth = 640
     spec.visual.global_.offheight = 480
 

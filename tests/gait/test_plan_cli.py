@@ -20,7 +20,7 @@ def plans(tmp_path_factory):
     for path in SHIPPED:
         robot, name = path.parent.name, path.stem
         npz = folder / f"{robot}_{name}.npz"
-        done = run_studio("plan", "--robot", robot, "--style", name, "--command", "sweep", "--duration", "48",
+        done = run_studio("plan", "--robot", robot, "--style", name, "--command", "sweep", "--duration", "56",
                           "--out", str(npz))
         assert done.returncode == 0, done.stderr
         out[(robot, name)] = np.load(npz)
@@ -32,7 +32,7 @@ def test_sweep_plan_has_the_documented_fields_and_properties(plans, path):
     robot, name = path.parent.name, path.stem
     z = plans[(robot, name)]
     n = len(z["t"])
-    assert n == 48 * 125
+    assert n == 56 * 125
     k = len(z["upper_joint_names"])
     shapes = {"phase": (n,), "command": (n, 3), "contact": (n, 2), "foot_pos": (n, 2, 3), "foot_quat": (n, 2, 4),
               "sole_corners": (n, 2, 4, 3), "pelvis_z": (n,), "pelvis_quat": (n, 4), "upper_q": (n, k),
