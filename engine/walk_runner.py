@@ -103,7 +103,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     pending = sorted(pushes, key=lambda p: p.t_s)
     rec: dict[str, list] = {k: [] for k in ("t", "qpos", "qvel", "command", "contact", "com", "com_ref", "cop",
                                             "foot_pos", "foot_ref", "kappa", "step_adjust", "velocity_adjust",
-                                            "sample_weights", "base_vel_body")}
+                                            "sample_weights", "base_vel_body", "external_force")}
     timings: dict[str, list[float]] = {"planner": [], "mpc": [], "wbc": [], "sim": [], "estimator": []}
     slip_start: list[np.ndarray | None] = [None, None]
     contact_since = [0.0, 0.0]
@@ -197,6 +197,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["velocity_adjust"].append(fb.velocity_adjust_mps.copy() if fb else np.zeros(2))
             rec["sample_weights"].append(tel.sample_weights.copy())
             rec["base_vel_body"].append(v_body)
+            rec["external_force"].append(tel.external_force_n.copy())
     wall = time.perf_counter() - wall0
     sim_time = sim.time_s
     err = np.array(vel_err) if vel_err else np.zeros((1, 3))

@@ -15,6 +15,7 @@ from engine.control.inverse_dynamics import (
     SIDES,
     TaskSpaceInverseDynamics,
     TrackingController,
+    WbcGains,
     WbcReference,
     friction_basis,
 )
@@ -368,3 +369,45 @@ def test_placo_wrapper_holds_g1_standing(g1):
     assert statuses == {"solved"}
     assert errors.max() < 5e-3
     assert np.linalg.norm((foot_sites(sim) - feet0)[:, :2], axis=1).max() < 1e-3
+
+
+@pytest.mark.parametrize("backend", ["dense", "osqp"])
+@pytest.mark.parametrize("pattern", ["left_only", "right_toe"])
+def test_actuator_torque_limits_hold_and_backends_agree(g1, backend, pattern):
+    """With limits low enough to bind (a third of the URDF effort), the solution's torques stay
+    within them, the dynamics still hold exactly, and both backends find the same optimum."""
+    gains = replace(WbcGains.for_robot(g1), torque_limit_fraction=0.3)
+    results = {}
+    for name in ("dense", "osqp"):
+        wbc = TaskSpaceInverseDynamics(g1, gains=gains, qp_backend=name)
+        state = random_state(g1, 11)
+        ref = wbc.hold_reference(g1.q_standing)
+        ref = replace(ref, contact=np.array(PATTERNS[pattern], dtype=bool),
+                      com_xy_acc_mps2=np.array([1.5, -1.0]))
+        wbc.compute(state, ref)
+        assert wbc.diagnostics.ok, wbc.diagnostics.status
+        results[name] = wbc
+    wbc = results[backend]
+    limit = 0.3 * np.asarray(g1.effort_limits, dtype=float)
+    tau = wbc.diagnostics.tau_nm
+    tolerance = 1e-6 if backend == "dense" else 0.05 * limit.max() * 1e-2 + 1e-2
+    assert np.all(np.abs(tau) <= limit + tolerance)
+    # The limits are binding: without them the same QP asks for more torque somewhere.
+    free = TaskSpaceInverseDynamics(g1, gains=replace(gains, torque_limit_fraction=1e3), qp_backend="dense")
+    free.compute(random_state(g1, 11), replace(free.hold_reference(g1.q_standing),
+                                               contact=np.array(PATTERNS[pattern], dtype=bool),
+                                               com_xy_acc_mps2=np.array([1.5, -1.0])))
+    assert np.any(np.abs(free.diagnostics.tau_nm) > limit + 1e-3)
+    # Dynamics consistency on the limited solution.
+    model, data = g1.pin_model, g1.pin_model.createData()
+    state = random_state(g1, 11)
+    jacs, _ = corner_jacobians(g1, state.q)
+    lhs = pin.crba(model, data, state.q) @ wbc.diagnostics.qdd + pin.nonLinearEffects(model, data, state.q, state.v)
+    rhs = np.concatenate([np.zeros(6), tau]) + np.einsum("fcki,fck->i", jacs, wbc.diagnostics.contact_forces_n)
+    assert np.max(np.abs(lhs - rhs)) < 1e-6
+    dense, sparse = results["dense"], results["osqp"]
+    cost_dense = dense.qp.objective(dense.diagnostics.qdd, dense.diagnostics.rho)
+    cost_osqp = dense.qp.objective(sparse.diagnostics.qdd, sparse.diagnostics.rho)
+    scale = abs(cost_dense) + 1.0
+    assert cost_dense <= cost_osqp + 1e-6 * scale
+    assert cost_osqp - cost_dense < 1e-2 * scale

@@ -17,6 +17,7 @@ import pinocchio as pin
 
 from engine.control.com_mpc import GRAVITY_MPS2, ComMpc, ComMpcSolution, SupportInterval
 from engine.control.controller import JointCommand, RobotState
+from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimator import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
@@ -35,6 +36,9 @@ COP_MARGIN_M = 0.01
 COM_Z_FILTER = 0.05
 CAPTURE_TOLERANCE_M = 0.1  # a plan whose final capture point misses the last support by more is re-anchored  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
 PATH_FOLLOWS_FEET = 1.0  # the path frame moves with step adjustments and re-latched footholds
+MAX_STEP_ADJUST_M = 0.25  # a step moves at most this far from its nominal foothold
+DCM_ERROR_GROWTH_CAP = 2.5  # at most this growth of the measured ξ error is expected by touchdown
+DCM_ERROR_DEADBAND_M = 0.04  # measured ξ errors below this are left to the MPC (a push is larger)
 STEP_REACH_SHARE = 0.8  # share of the CoP's reach a step may rely on (rest: margin for tracking)
 LANDING_HEIGHT_M = 0.01  # a descending swing foot this low may touch down early ...
 TOUCHDOWN_HEIGHT_M = 0.001  # ... and its corners this close to the floor carry load
@@ -71,6 +75,7 @@ class WalkingTelemetry:
     command_clamped: bool = False
     mpc_status: str = ""
     wbc_status: str = ""
+    external_force_n: np.ndarray = field(default_factory=lambda: np.zeros(2))  # observed horizontal push
 
 
 class WalkingController:
@@ -101,6 +106,8 @@ class WalkingController:
             raise ValueError(f"wbc: expected 'paper' or 'placo', got {wbc!r}")
         self.wbc_name = wbc
         self.estimator = StateEstimator(robot, mode="estimated" if state_source == "estimated" else "truth")
+        self.observer = ExternalForceObserver(robot.mass_kg)
+        self._mpc_shift = np.zeros(2)  # the MPC plans in a frame shifted by −f_ext/(m ω²)
         self.state_source = state_source
         self.model = robot.pin_model
         self.data = self.model.createData()
@@ -129,6 +136,7 @@ class WalkingController:
         half = 0.5 * min(robot.config.soles[s].length_m for s in SIDES) - COP_MARGIN_M
         self._reach_back_m = STEP_REACH_SHARE * half
         self._reach_forward_m = STEP_REACH_SHARE * max(half - self.planner.preview_toe_trim_m, 0.0)
+        self._reach_side_m = STEP_REACH_SHARE * (0.5 * min(robot.config.soles[s].width_m for s in SIDES) - COP_MARGIN_M)
 
     # ------------------------------------------------------------------ inputs
     def set_command(self, v: np.ndarray) -> None:
@@ -164,8 +172,11 @@ class WalkingController:
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
         self._com_z = None
-        com = pin.centerOfMass(self.model, data, q)
+        com = pin.centerOfMass(self.model, data, q, state.v)
         self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
+        self.observer.reset(data.vcom[0][:2].copy())
+        self._mpc_shift = np.zeros(2)
+        self._ground_force = None
 
     # ------------------------------------------------------------------ one tick
     def compute(self, state: RobotState) -> JointCommand:
@@ -176,6 +187,9 @@ class WalkingController:
         else:
             est = state
         self.estimate = est
+        pin.centerOfMass(self.model, self.data, est.q, est.v)
+        self._com_now = (self.data.com[0].copy(), self.data.vcom[0].copy())
+        self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2], self._ground_force)
         t_est = time.perf_counter()
         self.timings = StepTimings(estimator=t_est - t_start)
         if self.tick % TICKS_PER_PLAN == 0:
@@ -185,14 +199,25 @@ class WalkingController:
         reference = self._wbc_reference(dt_since)
         reference.contact = self._with_early_touchdown(est, reference)
         self.wbc_contact = reference.contact
+        reference.external_wrench = self._external_wrench(est)
         cmd = self.wbc.compute(est, reference)
+        forces = self.wbc.diagnostics.contact_forces_n if self.wbc.diagnostics.ok else None
+        self._ground_force = None if forces is None else forces[..., :2].sum(axis=(0, 1))
         self.timings.wbc = time.perf_counter() - t_wbc
         self.tick += 1
         return cmd
 
     def _com_state(self, est: RobotState) -> tuple[np.ndarray, np.ndarray]:
-        pin.centerOfMass(self.model, self.data, est.q, est.v)
-        return self.data.com[0][:2].copy(), self.data.vcom[0][:2].copy()
+        return self._com_now[0][:2].copy(), self._com_now[1][:2].copy()
+
+    def _external_wrench(self, est: RobotState) -> np.ndarray | None:
+        """The observed push as a wrench about the CoM (applied at the pelvis)."""
+        f = self.observer.force_n
+        if not f.any():
+            return None
+        force = np.array([f[0], f[1], 0.0])
+        arm = est.q[:3] - self._com_now[0]
+        return np.concatenate([force, np.cross(arm, force)])
 
     def _plan_tick(self, est: RobotState) -> None:
         t0 = time.perf_counter()
@@ -227,6 +252,14 @@ class WalkingController:
         com_z = float(self.data.com[0][2])
         self._com_z = com_z if self._com_z is None else self._com_z + COM_Z_FILTER * (com_z - self._com_z)
         z_com = self._com_z
+        # A steady push f shifts the LIP's equilibrium by f/(m ω²): plan in a frame whose supports
+        # are shifted by −f/(m ω²) (the CoP the plan returns is then the robot's minus that shift).
+        omega2 = GRAVITY_MPS2 / max(z_com, 0.2)
+        shift = -self.observer.force_n / (self.robot.mass_kg * omega2)
+        if np.any(shift != self._mpc_shift) or shift.any():
+            supports = [SupportInterval(sp.t_start_s, sp.t_end_s, sp.polygon + shift) for sp in supports]
+        shift_change = shift - self._mpc_shift
+        self._mpc_shift = shift
         if self.plan is None:
             com0, vel0, cop0 = self._init_com
         else:
@@ -235,7 +268,7 @@ class WalkingController:
             com0, vel0, _ = self.plan.com_at(ref.t_s)
             com0 = com0 + MPC_STATE_PULL * (com - com0)
             vel0 = vel0 + MPC_STATE_PULL * (com_vel - vel0)
-            cop0 = self.plan.cop_at(ref.t_s)
+            cop0 = self.plan.cop_at(ref.t_s) + shift_change
         # The only infeasible part of the QP is an initial CoP outside today's support (time
         # scaling and touchdowns move contact switches relative to the last plan): clip it in.
         cop0 = _clip_to_polygon(cop0, supports[0].polygon)
@@ -257,13 +290,14 @@ class WalkingController:
         self._telemetry_stale = True
 
     def _reachable_steps(self, fb: FeedbackOutput) -> FeedbackOutput:
-        """Keep the swing foot's target where the CoM can still get over it.
+        """Keep the swing foot's target where the CoM can still be balanced over it.
 
-        A foot that lands ahead of the divergent component of motion ξ = x + ẋ/ω by more than
-        the CoP can reach back (to its heel) stops the CoM and throws it back; one landing
-        behind ξ by more than the CoP reaches forward (to the toe the ankles can hold) cannot
-        stop it. Along the walking direction the target is kept within that band around ξ as
-        the CoM plan predicts it at touchdown; the difference joins the step adjustment.
+        With the divergent component of motion ξ = x + ẋ/ω that the CoM plan predicts at
+        touchdown: along the walking direction, a foot landing ahead of ξ by more than the CoP
+        reaches back (to the heel) stops the CoM and throws it back, one landing behind ξ by
+        more than the CoP reaches forward (to the toe the ankles can hold) cannot stop it;
+        sideways, a foot whose outer edge lies inside ξ cannot bring it back toward the other
+        foot. The target is kept within those bounds; the difference joins the step adjustment.
         """
         planner, plan = self.planner, self.plan
         if plan is None:
@@ -271,19 +305,35 @@ class WalkingController:
         adjust = fb.step_adjust_m.copy()
         z = self._com_z if self._com_z is not None else self.robot.q_standing[2] + self.com_offset_m
         omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
-        heading = np.array([math.cos(planner.path.yaw), math.sin(planner.path.yaw)])
+        c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
+        forward, left = np.array([c, s_]), np.array([-s_, c])
+        # Where the robot is off the plan, its ξ runs away from the plan's as e^{ωt} under the
+        # same CoP (the whole-body controller's corrections slow that: the growth is capped).
+        pos_now, vel_now, _ = plan.com_at(planner.t_s)
+        com, com_vel = self._com_state(self.estimate) if self.estimate is not None else (pos_now, vel_now)
+        dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
+        err = float(np.linalg.norm(dcm_error))  # ordinary tracking error is the MPC's to handle
+        dcm_error *= max(err - DCM_ERROR_DEADBAND_M, 0.0) / err if err > 0.0 else 0.0
         for side in SIDES:
             t_td = planner.time_to_touchdown_s(side, fb.kappa)
             if t_td is None:
                 continue
             nominal = planner.nominal_target(side)
             pos, vel, _ = plan.com_at(planner.t_s + t_td)
-            dcm = pos + vel / omega
-            ahead = float((np.array([nominal.x, nominal.y]) + adjust - dcm) @ heading)
+            growth = min(math.exp(omega * t_td), DCM_ERROR_GROWTH_CAP)
+            dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
+            rel = np.array([nominal.x, nominal.y]) + adjust - dcm
+            ahead = float(rel @ forward)
             if ahead > self._reach_back_m:
-                adjust -= (ahead - self._reach_back_m) * heading
+                adjust -= (ahead - self._reach_back_m) * forward
             elif ahead < -self._reach_forward_m:
-                adjust += (-self._reach_forward_m - ahead) * heading
+                adjust += (-self._reach_forward_m - ahead) * forward
+            outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
+            if outward < -self._reach_side_m:
+                adjust += (-self._reach_side_m - outward) * (left if side == "left" else -left)
+        norm = float(np.linalg.norm(adjust))
+        if norm > MAX_STEP_ADJUST_M:  # within the legs' reach
+            adjust *= MAX_STEP_ADJUST_M / norm
         if np.array_equal(adjust, fb.step_adjust_m):
             return fb
         return dataclasses.replace(fb, step_adjust_m=adjust)
@@ -389,9 +439,9 @@ class WalkingController:
         tel.com_xy = com
         if plan is not None:
             tel.com_ref_xy = plan.com_at(ref.t_s)[0]
-            tel.cop_ref_xy = plan.cop_at(ref.t_s)
+            tel.cop_ref_xy = plan.cop_at(ref.t_s) - self._mpc_shift
             _, tel.com_path_xy = plan.com_path(0.04)
-            tel.cop_path_xy = plan.waypoints_xy_m
+            tel.cop_path_xy = plan.waypoints_xy_m - self._mpc_shift
             tel.mpc_status = plan.status
         tel.support_polygon = ref.preview[0].polygon if ref.preview else np.zeros((0, 2))
         tel.preview_polygons = [p.polygon for p in ref.preview]
@@ -407,6 +457,7 @@ class WalkingController:
         tel.command = ref.command
         tel.command_clamped = self.planner.command_clamped
         tel.wbc_status = getattr(self.wbc.diagnostics, "status", "")
+        tel.external_force_n = self.observer.force_n.copy()
 
 
 def ankle_pitch_joint(robot: RobotModel, side: str) -> tuple[str, float]:

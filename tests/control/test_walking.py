@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from engine.gait.command_schedule import from_keyframes
+from engine.gait.command_schedule import from_keyframes, parse_command
 from engine.gait.style import load_style
 from engine.robot.model import load_robot
 from engine.walk_runner import PushSpec, run_walk
@@ -68,3 +68,39 @@ def test_walk_cli_json_and_bad_input(tmp_path):
     assert bad.returncode == 2 and "--push: expected t,fx,fy,fz,dur" in bad.stderr
     bad = run_studio("walk", "--robot", "go1", "--duration", "1")
     assert bad.returncode == 2 and "expected a biped" in bad.stderr
+
+
+def test_g1_neutral_sweep_full_minute():
+    """The must-show run: the `sweep` preset (0.5 m/s forward, reverse, 0.15 m/s strafes, 1 rad/s
+    turns, stop) for 60 s without a fall, stance slip < 2 mm, CoP in the support ≥ 99.5 %."""
+    robot = load_robot("g1")
+    style = load_style(REPO / "styles/g1/neutral.json")
+    schedule = parse_command("sweep", style.velocities)
+    assert schedule.values[:, 0].max() == pytest.approx(0.5)
+    assert np.abs(schedule.values[:, 1]).max() == pytest.approx(0.15)
+    assert np.abs(schedule.values[:, 2]).max() == pytest.approx(1.0)
+    summary, _ = run_walk(robot, style, schedule, 60.0, record=False)
+    assert not summary["fell"], summary
+    assert summary["max_stance_slip_mm"] < 2.0
+    assert summary["cop_inside_fraction"] >= 0.995
+
+
+@pytest.mark.parametrize(("t_s", "force_n"), [(4.0, (-50.0, 0.0, 0.0)), (4.0, (0.0, 25.0, 0.0))])
+def test_g1_recovers_from_a_push_while_walking_slowly(g1, t_s, force_n):
+    """§8.1: a 1 s push at the pelvis while walking at 0.15 m/s. The robot keeps walking and
+    the push shows in the observer and in the gait feedback (for the hard one, all three)."""
+    robot, style = g1
+    schedule = parse_command("0.15,0,0", style.velocities)
+    summary, rec = run_walk(robot, style, schedule, 8.0, pushes=[PushSpec(t_s, force_n, 1.0)])
+    assert not summary["fell"], summary
+    t = rec["t"]
+    before, during = (t > 2.0) & (t < t_s), (t > t_s) & (t < t_s + 1.5)
+    push_xy = np.array(force_n[:2])
+    steady = (t > t_s + 0.2) & (t < t_s + 1.0)  # the observer's time constant is 0.08 s
+    seen = np.median(rec["external_force"][steady] @ (push_xy / np.linalg.norm(push_xy)))
+    assert np.all(np.abs(rec["external_force"][before]) < 1e-9)  # no phantom pushes while walking
+    assert 0.4 * np.linalg.norm(push_xy) < seen < 1.3 * np.linalg.norm(push_xy)
+    if np.linalg.norm(push_xy) >= 1.5 * robot.mass_kg - 1.0:  # the paper's three mechanisms
+        assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.05
+        assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.02
+        assert rec["kappa"][during].max() > 1.2

@@ -1,0 +1,64 @@
+"""External force observer: the horizontal push the robot is under, from its momentum.
+
+The horizontal linear momentum obeys ``d(m v_com)/dt = f_ground + f_ext``. With the ground
+force the whole-body controller applied (its contact forces) and the measured CoM velocity,
+a momentum observer (no differentiation of velocities)::
+
+    r = K (m v_com − m v_com(0) − ∫ (f_ground + r) dt)
+
+converges to ``f_ext`` with the time constant ``1/K``. A deadband keeps model errors (the
+applied forces are the QP's, not measured ones) from showing up as phantom pushes. The CoM
+MPC plans with the estimate (a constant force shifts the LIP's equilibrium: the CoM leans
+into the push), and the whole-body QP's momentum equation includes it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+class ExternalForceObserver:
+    """Horizontal external force (N) on the robot, estimated at the control rate."""
+
+    def __init__(self, mass_kg: float, time_constant_s: float = 0.08, deadband_n_per_kg: float = 0.25,
+                 max_n_per_kg: float = 4.0):
+        self.mass_kg = float(mass_kg)
+        self.gain = 1.0 / time_constant_s
+        self.deadband_n = deadband_n_per_kg * mass_kg
+        self.max_n = max_n_per_kg * mass_kg
+        self.reset()
+
+    def reset(self, com_vel_xy: FloatArray | None = None) -> None:
+        self._p0 = None if com_vel_xy is None else self.mass_kg * np.asarray(com_vel_xy, dtype=float)
+        self._integral = np.zeros(2)
+        self._residual = np.zeros(2)
+        self.force_n = np.zeros(2)
+
+    def update(self, dt_s: float, com_vel_xy: FloatArray, ground_force_xy_n: FloatArray | None) -> FloatArray:
+        """Advance by ``dt_s`` with the measured CoM velocity and the ground force applied over
+        the last step (None: unknown, the estimate holds). Returns the deadbanded estimate."""
+        p = self.mass_kg * np.asarray(com_vel_xy, dtype=float)
+        if not np.all(np.isfinite(p)):
+            return self.force_n
+        if self._p0 is None:
+            self._p0 = p.copy()
+            return self.force_n
+        if ground_force_xy_n is None or not np.all(np.isfinite(ground_force_xy_n)):
+            return self.force_n
+        self._integral += (np.asarray(ground_force_xy_n, dtype=float) + self._residual) * dt_s
+        self._residual = self.gain * (p - self._p0 - self._integral)
+        norm = float(np.linalg.norm(self._residual))
+        if norm > self.max_n:  # a fall or a collision, not a push to plan around
+            self._residual *= self.max_n / norm
+            norm = self.max_n
+        self.force_n = self._residual * (1.0 - self.deadband_n / norm) if norm > self.deadband_n else np.zeros(2)
+        return self.force_n
+
+    @property
+    def magnitude_n(self) -> float:
+        return float(math.hypot(*self.force_n))
