@@ -36,7 +36,11 @@ COP_MARGIN_M = 0.01
 COM_Z_FILTER = 0.05
 CAPTURE_TOLERANCE_M = 0.1  # a plan whose final capture point misses the last support by more is re-anchored  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
 PATH_FOLLOWS_FEET = 1.0  # the path frame moves with step adjustments and re-latched footholds
-MAX_STEP_ADJUST_M = 0.25  # a step moves at most this far from its nominal foothold
+MAX_STEP_ADJUST_M = 0.35  # a step moves at most this far from its nominal foothold
+LATERAL_XI_INSET_M = 0.03  # a foot lands at least this far outward of ξ at touchdown (it must move ξ back in)
+LATERAL_CAPTURE_MARGIN_M = 0.0  # ξ this far beyond the stance foot's outer edge hurries the gait
+OBSERVER_TIME_CONSTANT_S = 0.08  # push observer: response time ...
+OBSERVER_DEADBAND_N_PER_KG = 0.25  # ... and the force per kg below which model errors hide pushes
 DCM_ERROR_GROWTH_CAP = 2.5  # at most this growth of the measured ξ error is expected by touchdown
 DCM_ERROR_DEADBAND_M = 0.04  # measured ξ errors below this are left to the MPC (a push is larger)
 STEP_REACH_SHARE = 0.8  # share of the CoP's reach a step may rely on (rest: margin for tracking)
@@ -106,7 +110,8 @@ class WalkingController:
             raise ValueError(f"wbc: expected 'paper' or 'placo', got {wbc!r}")
         self.wbc_name = wbc
         self.estimator = StateEstimator(robot, mode="estimated" if state_source == "estimated" else "truth")
-        self.observer = ExternalForceObserver(robot.mass_kg)
+        self.observer = ExternalForceObserver(robot.mass_kg, time_constant_s=OBSERVER_TIME_CONSTANT_S,
+                                              deadband_n_per_kg=OBSERVER_DEADBAND_N_PER_KG)
         self._mpc_shift = np.zeros(2)  # the MPC plans in a frame shifted by −f_ext/(m ω²)
         self.state_source = state_source
         self.model = robot.pin_model
@@ -136,6 +141,7 @@ class WalkingController:
         half = 0.5 * min(robot.config.soles[s].length_m for s in SIDES) - COP_MARGIN_M
         self._reach_back_m = STEP_REACH_SHARE * half
         self._reach_forward_m = STEP_REACH_SHARE * max(half - self.planner.preview_toe_trim_m, 0.0)
+        self._half_sole_width_m = 0.5 * min(robot.config.soles[s].width_m for s in SIDES)
         self._reach_side_m = STEP_REACH_SHARE * (0.5 * min(robot.config.soles[s].width_m for s in SIDES) - COP_MARGIN_M)
 
     # ------------------------------------------------------------------ inputs
@@ -329,8 +335,8 @@ class WalkingController:
             elif ahead < -self._reach_forward_m:
                 adjust += (-self._reach_forward_m - ahead) * forward
             outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
-            if outward < -self._reach_side_m:
-                adjust += (-self._reach_side_m - outward) * (left if side == "left" else -left)
+            if outward < LATERAL_XI_INSET_M:
+                adjust += (LATERAL_XI_INSET_M - outward) * (left if side == "left" else -left)
         norm = float(np.linalg.norm(adjust))
         if norm > MAX_STEP_ADJUST_M:  # within the legs' reach
             adjust *= MAX_STEP_ADJUST_M / norm
@@ -386,8 +392,34 @@ class WalkingController:
             stance_xy = np.array([planner.latched[leaving].x, planner.latched[leaving].y])
             next_xy = np.array([planner.latched[landed].x, planner.latched[landed].y])
         z = (self.ref.pelvis_z if self.ref is not None else self.robot.q_standing[2]) + self.com_offset_m
-        return self.feedback.update(PLAN_DT_S, com, com_vel, ref_pos, ref_vel, z, planner.path.yaw,
-                                    stance_xy, next_xy, single_support=bool(swinging))
+        fb = self.feedback.update(PLAN_DT_S, com, com_vel, ref_pos, ref_vel, z, planner.path.yaw,
+                                  stance_xy, next_xy, single_support=bool(swinging))
+        outer = stance if swinging else leaving
+        return self._hurry_when_thrown_out(fb, com, com_vel, z, outer, single=bool(swinging))
+
+    def _hurry_when_thrown_out(self, fb: FeedbackOutput, com: np.ndarray, com_vel: np.ndarray, z: float,
+                               outer: str, single: bool) -> FeedbackOutput:
+        """Time scaling at its upper bound while ξ is beyond the outer side of the foot that
+        stands until the next lift-off (a sideways push toward it).
+
+        ε < 0 slows the gait so a lagging CoM can reach the next foot; a CoM thrown out past the
+        stance foot never gets there, no CoP can bring it back, and only that foot's own next step
+        (after the other foot lands) catches it: the gait should hurry, not wait. The external
+        push the observer sees moves the reachable CoP (the MPC's shift) and counts too.
+        """
+        if not math.isfinite(LATERAL_CAPTURE_MARGIN_M):
+            return fb
+        planner = self.planner
+        omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
+        xi = com + com_vel / omega - self._mpc_shift
+        c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
+        outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
+        foot = planner.latched[outer]
+        beyond = float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
+        if beyond <= LATERAL_CAPTURE_MARGIN_M:
+            return fb
+        lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double
+        return dataclasses.replace(fb, kappa=max(fb.kappa, hi))
 
     def _with_early_touchdown(self, est: RobotState, reference: WbcReference) -> np.ndarray:
         """Sole corners the whole-body QP may push on: the plan's, plus the corners of a landing
