@@ -207,13 +207,12 @@ class PelvisTask(Task):
 
     def compute_desired_acceleration(self, snap: DynamicsSnapshot) -> FloatArray:
         rot = snap.base_rotation
-        err = np.empty(4)
-        rate = np.empty(4)
-        err[0] = self.height_m - snap.q[2]
-        err[1:] = pin.log3(self.rotation @ rot.T)
-        rate[0] = self.height_rate_mps - rot[2] @ snap.v[0:3]
-        rate[1:] = self.angular_velocity_radps - rot @ snap.v[3:6]
-        return self._feedforward + self.kp * err + self.kd * rate
+        out = self._feedforward.copy()
+        v = snap.v
+        height_rate = rot[2, 0] * v[0] + rot[2, 1] * v[1] + rot[2, 2] * v[2]
+        out[0] += self.kp[0] * (self.height_m - snap.q[2]) + self.kd[0] * (self.height_rate_mps - height_rate)
+        out[1:] += self.kp[1:] * pin.log3(self.rotation @ rot.T) + self.kd[1:] * (self.angular_velocity_radps - rot @ v[3:6])
+        return out
 
 
 class ComTask(Task):
@@ -230,9 +229,9 @@ class ComTask(Task):
 
     def set_target(self, position_m: FloatArray, velocity_mps: FloatArray | None = None,
                    acceleration_mps2: FloatArray | None = None) -> None:
-        self.position_m = np.asarray(position_m, dtype=float)
-        self.velocity_mps = np.zeros(3) if velocity_mps is None else np.asarray(velocity_mps, dtype=float)
-        self.acceleration_mps2 = np.zeros(3) if acceleration_mps2 is None else np.asarray(acceleration_mps2, dtype=float)
+        self.position_m = np.array(position_m, dtype=float)  # owned copies (targets may be written in place)
+        self.velocity_mps = np.zeros(3) if velocity_mps is None else np.array(velocity_mps, dtype=float)
+        self.acceleration_mps2 = np.zeros(3) if acceleration_mps2 is None else np.array(acceleration_mps2, dtype=float)
 
     def compute_jacobian(self, snap: DynamicsSnapshot) -> FloatArray:
         return snap.centroidal_map[:3] / snap.mass_kg
