@@ -37,6 +37,7 @@ COM_Z_FILTER = 0.05
 CAPTURE_TOLERANCE_M = 0.1  # a plan whose final capture point misses the last support by more is re-anchored  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
 PATH_FOLLOWS_FEET = 1.0  # the path frame moves with step adjustments and re-latched footholds
 MAX_STEP_ADJUST_M = 0.35  # a step moves at most this far from its nominal foothold
+LATERAL_XI_MAX_OUT_M = 0.15  # ... and at most this far: with ξ running toward the stance foot, land near it
 LATERAL_XI_INSET_M = 0.03  # a foot lands at least this far outward of ξ at touchdown (it must move ξ back in)
 LATERAL_CAPTURE_MARGIN_M = 0.0  # ξ this far beyond the stance foot's outer edge hurries the gait
 OBSERVER_TIME_CONSTANT_S = 0.08  # push observer: response time ...
@@ -337,6 +338,8 @@ class WalkingController:
             outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
             if outward < LATERAL_XI_INSET_M:
                 adjust += (LATERAL_XI_INSET_M - outward) * (left if side == "left" else -left)
+            elif outward > LATERAL_XI_MAX_OUT_M:  # ξ runs toward the other foot: land near it
+                adjust -= (outward - LATERAL_XI_MAX_OUT_M) * (left if side == "left" else -left)
         norm = float(np.linalg.norm(adjust))
         if norm > MAX_STEP_ADJUST_M:  # within the legs' reach
             adjust *= MAX_STEP_ADJUST_M / norm
