@@ -924,25 +924,31 @@ def benchmark_wbc(robot_name: str = "g1", n: int = 300) -> dict:
     robot = load_robot(robot_name)
     states, ref, rtf = record_standing_states(robot_name, n)
 
-    def run(ctrl) -> tuple[NDArray, list[WbcDiagnostics]]:  # noqa: ANN001 - any compute(state, ref) controller
-        ctrl.reset(states[0])
-        for st in states[:20]:  # warm up (allocations, warm start)
-            ctrl.compute(st, ref)
-        ctrl.reset(states[0])
-        times, diags = [], []
+    def interleaved(ctrls: list) -> list[tuple[NDArray, list[WbcDiagnostics]]]:  # noqa: ANN001
+        """Each recorded state is given to every controller in turn, so all of them run under
+        the same machine conditions (and, as in the engine loop, with caches shared with the
+        others rather than warm from their own previous tick)."""
+        for ctrl in ctrls:
+            ctrl.reset(states[0])
+            for st in states[:20]:  # warm up (allocations, warm start)
+                ctrl.compute(st, ref)
+            ctrl.reset(states[0])
+        times = [[] for _ in ctrls]
+        diags = [[] for _ in ctrls]
         for st in states:
-            t = time.perf_counter()
-            ctrl.compute(st, ref)
-            times.append(time.perf_counter() - t)
-            diags.append(ctrl.diagnostics)
-        return np.asarray(times) * 1e6, diags
+            for i, ctrl in enumerate(ctrls):
+                t = time.perf_counter()
+                ctrl.compute(st, ref)
+                times[i].append(time.perf_counter() - t)
+                diags[i].append(ctrl.diagnostics)
+        return [(np.asarray(t) * 1e6, d) for t, d in zip(times, diags)]
 
     def stats(a: NDArray) -> dict[str, float]:
         return {"median_us": round(float(np.median(a)), 1), "p99_us": round(float(np.percentile(a, 99)), 1)}
 
-    t_dense, d_dense = run(TaskSpaceInverseDynamics(robot, qp_backend="dense"))
-    t_osqp, _ = run(TaskSpaceInverseDynamics(robot, qp_backend="osqp"))
-    t_placo, d_placo = run(PlacoWbc(robot))
+    (t_dense, d_dense), (t_osqp, _), (t_placo, d_placo) = interleaved(
+        [TaskSpaceInverseDynamics(robot, qp_backend="dense"), TaskSpaceInverseDynamics(robot, qp_backend="osqp"),
+         PlacoWbc(robot)])
     breakdown = {k: round(float(np.median([getattr(d, f"{k}_s") for d in d_dense])) * 1e6, 1)
                  for k in ("pinocchio", "build", "qp")}
     return {
