@@ -959,6 +959,10 @@ class StateEstimator:
             self._init_yaw_rad = _yaw_of(init_rot)
             self.odometry.reset(np.array(state.q[:3], dtype=float), init_rot.dot(np.asarray(state.v[:3], dtype=float)))
         self.ekf.set_rotation(init_rot)  # until the first usable accelerometer sample
+        if state is not None:
+            # A known starting pose (the robot is placed, as on a stand): start fused at once
+            # rather than reporting a frozen pose while the first samples average in.
+            self.ekf.initialize(init_rot.T @ np.array([0.0, 0.0, self.gravity_mps2]), self._init_yaw_rad)
         self._last: RobotState | None = state
 
     @property

@@ -10,11 +10,13 @@ can be swapped and measured against each other:
   swing foot gets a soft frame task on the planner's pose/velocity,
 * CoM task on x, y (PD on the MPC reference plus its acceleration),
 * pelvis height (position task, z) and orientation,
-* upper-body joints task, joint and torque limits, placo's torque regularisation.
+* upper-body joints task, torque limits, placo's torque regularisation.
 
 Differences from the paper's QP: placo models each sole contact as one 6-D wrench with a
 ZMP rectangle (not per-corner friction pyramids), so a heel/toe contact still uses the
-whole sole rectangle; there is no angular-momentum damping task.
+whole sole rectangle; there is no angular-momentum damping task. placo's joint limits are
+hard constraints: once a landing impact pushes a joint past its limit the QP has no solution
+and stays without one, so they are off here (our QP's limits are the paper's soft ones).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from engine.robot.urdf import with_extra_frames
 FloatArray = NDArray[np.float64]
 
 __all__ = ["PlacoWbc"]
+
+TORQUE_LIMITS = True  # placo's actuator torque limits (hard, like ours)
 
 
 def _pose(rotation: FloatArray, position: FloatArray) -> FloatArray:
@@ -73,8 +77,8 @@ class PlacoWbc:
 
         s = self.solver = placo.DynamicsSolver(self.wrapper)
         s.dt = dt_s
-        s.enable_joint_limits(True)
-        s.enable_torque_limits(True)
+        s.enable_joint_limits(False)
+        s.enable_torque_limits(TORQUE_LIMITS)
         self.foot_tasks = []
         self.contacts = []
         for side in SIDES:

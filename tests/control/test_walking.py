@@ -104,3 +104,22 @@ def test_g1_recovers_from_a_push_while_walking_slowly(g1, t_s, force_n):
         assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.05
         assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.02
         assert rec["kappa"][during].max() > 1.2
+
+
+def test_g1_walks_on_the_estimated_state(g1):
+    """--state estimated: the EKF (IMU) and leg odometry close the loop instead of the truth."""
+    robot, style = g1
+    schedule = from_keyframes([[0, 0, 0, 0], [1, 0, 0, 0], [3, 0.3, 0, 0.3]], "test")
+    summary, rec = run_walk(robot, style, schedule, 6.0, state_source="estimated")
+    assert not summary["fell"], summary
+    assert summary["max_stance_slip_mm"] < 2.0
+    assert rec["qpos"][-1][0] > 0.5
+
+
+def test_placo_peer_steps_and_walks_slowly(g1):
+    """--wbc placo behind the same interface: steps in place, then 0.1 m/s, without a failed QP."""
+    robot, style = g1
+    schedule = from_keyframes([[0, 0, 0, 0], [2, 0, 0, 0], [3, 0.1, 0, 0]], "test")
+    summary, rec = run_walk(robot, style, schedule, 6.0, wbc="placo")
+    assert not summary["fell"], summary
+    assert rec["qpos"][-1][0] > 0.2
