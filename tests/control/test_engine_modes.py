@@ -70,3 +70,27 @@ def test_playback_speed_bounds():
     assert core.playback_speed == 0.25
     core.handle(msg.SetPlaybackSpeed(100.0))
     assert core.playback_speed == 0.25 and isinstance(events[-1], msg.Notice)
+
+
+def test_an_extreme_style_edit_stays_safe():
+    """A valid but extreme style (knees nearly straight at full height, feet thrown forward, toes
+    splayed out) at full speed: torques stay finite every tick, nothing raises, and a fall is
+    reported exactly when it happens (the QP's own fallbacks are tested in test_inverse_dynamics)."""
+    core, events = core_for()
+    core.handle(msg.SetMode("test"))
+    core.handle(msg.SetVelocityCommand(0.5, 0.0, 0.0))
+    doc = json.loads((REPO / "styles/g1/neutral.json").read_text())
+    for sample in doc["samples"].values():
+        sample["attributes"].update(pelvis_height_m=0.78, stance_x_bias_m=0.2, stance_splay_rad=0.6)
+    core.handle(msg.SetStyle(doc, revision=3))
+    for _ in range(4):  # the next planner tick runs with it
+        core.tick()
+    assert core.frame().style_revision == 3  # accepted: it is a valid style
+    fell = False
+    for _ in range(int(6.0 / 0.002)):
+        core.tick()
+        assert np.all(np.isfinite(core.sim.data.ctrl))
+        assert np.all(np.isfinite(core.sim.data.qpos))
+        fell |= core.sim.fallen
+    notices = [e.message for e in events if isinstance(e, msg.Notice)]
+    assert fell == any("fell" in m for m in notices)
