@@ -9,6 +9,7 @@ import argparse
 import json
 import os
 import sys
+from pathlib import Path
 
 EXIT_USAGE = 2
 
@@ -141,8 +142,6 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def resolve_style(robot: str, style: str):
     """Load ``style`` (a name in styles/<robot>/ or a file path) for ``robot``; one-line errors."""
-    from pathlib import Path
-
     from engine.gait.style import StyleError, load_style, styles_dir
 
     path = Path(style)
@@ -158,22 +157,17 @@ def resolve_style(robot: str, style: str):
         raise CliError(str(exc)) from None
 
 
-def cmd_plan(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    import numpy as np
-
+def _walk_inputs(args: argparse.Namespace, why_biped: str):  # noqa: ANN202 - (Style, CommandSchedule)
+    """--robot (a biped), --duration, --style and --command of `studio plan` and `studio walk`."""
     from engine.gait.command_schedule import CommandError, parse_command
-    from engine.gait.offline_plan import run_plan
     from engine.robot.config import RobotConfigError, load_robot_config
-    from engine.robot.model import load_robot
 
     try:
         cfg = load_robot_config(args.robot)
     except RobotConfigError as exc:
         raise CliError(str(exc)) from None
     if cfg.kind != "biped":
-        raise CliError(f"--robot: expected a biped (the gait planner walks bipeds), {args.robot} is a {cfg.kind}")
+        raise CliError(f"--robot: expected a biped ({why_biped}), {args.robot} is a {cfg.kind}")
     if not (args.duration > 0 and args.duration <= 3600):
         raise CliError(f"--duration: expected 0 < T ≤ 3600 s, got {args.duration}")
     style = resolve_style(args.robot, args.style)
@@ -181,14 +175,39 @@ def cmd_plan(args: argparse.Namespace) -> int:
         schedule = parse_command(args.command, style.velocities)
     except CommandError as exc:
         raise CliError(str(exc)) from None
-    out = Path(args.out)
+    return style, schedule
+
+
+def _npz_path(spec: str) -> Path:
+    out = Path(spec)
     if out.suffix != ".npz":
-        raise CliError(f"--out: expected a .npz file, got {args.out!r}")
+        raise CliError(f"--out: expected a .npz file, got {spec!r}")
+    return out
+
+
+def _save_npz(out: Path, arrays: dict) -> None:
+    """Compressed npz, written atomically (a recording is never left half-written)."""
+    import io
+
+    import numpy as np
+
+    from engine.atomic_io import atomic_write_bytes
+
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(out, buf.getvalue())
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from engine.gait.offline_plan import run_plan
+    from engine.robot.model import load_robot
+
+    style, schedule = _walk_inputs(args, "the gait planner walks bipeds")
+    out = _npz_path(args.out)
     arrays = run_plan(load_robot(args.robot), style, schedule, args.duration)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp.npz")
-    np.savez_compressed(tmp, **arrays)
-    tmp.replace(out)
+    _save_npz(out, arrays)
     n = len(arrays["t"])
     clamped = int(np.any(np.abs(arrays["command"] - arrays["command_requested"]) > 1e-9, axis=1).sum())
     print(f"{out}: {n} samples at 125 Hz, {args.duration:g} s, style {style.name} on {args.robot}"
@@ -197,32 +216,17 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def cmd_walk(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     import numpy as np
 
-    from engine.gait.command_schedule import CommandError, parse_command
-    from engine.robot.config import RobotConfigError, load_robot_config
     from engine.robot.model import load_robot
     from engine.walk_runner import PushSpec, run_walk
 
+    style, schedule = _walk_inputs(args, "the walking controller walks bipeds")
     try:
-        cfg = load_robot_config(args.robot)
-    except RobotConfigError as exc:
-        raise CliError(str(exc)) from None
-    if cfg.kind != "biped":
-        raise CliError(f"--robot: expected a biped (the walking controller walks bipeds), {args.robot} is a {cfg.kind}")
-    if not (args.duration > 0 and args.duration <= 3600):
-        raise CliError(f"--duration: expected 0 < T ≤ 3600 s, got {args.duration}")
-    style = resolve_style(args.robot, args.style)
-    try:
-        schedule = parse_command(args.command, style.velocities)
         pushes = [PushSpec.parse(p) for p in args.push]
-    except (CommandError, ValueError) as exc:
+    except ValueError as exc:
         raise CliError(str(exc)) from None
-    out = Path(args.out) if args.out else None
-    if out is not None and out.suffix != ".npz":
-        raise CliError(f"--out: expected a .npz file, got {args.out!r}")
+    out = _npz_path(args.out) if args.out else None
     v = style.velocities
     requested = np.abs(schedule.values).max(axis=0)
     limits = np.array([v.x_max_mps, v.y_max_mps, v.yaw_max_radps])
@@ -232,10 +236,7 @@ def cmd_walk(args: argparse.Namespace) -> int:
     summary, arrays = run_walk(load_robot(args.robot), style, schedule, args.duration, pushes, wbc=args.wbc,
                                state_source=args.state, feedback=not args.no_feedback, record=out is not None)
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.name}.tmp.npz")
-        np.savez_compressed(tmp, **arrays)
-        tmp.replace(out)
+        _save_npz(out, arrays)
     if args.json:
         print(json.dumps(summary, indent=1))
     else:

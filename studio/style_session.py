@@ -19,11 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from engine.atomic_io import atomic_write_text
 from engine.gait.style import (
     Style,
     StyleContext,
     StyleError,
-    atomic_write_text,
     dumps_style,
     load_style,
     style_from_dict,

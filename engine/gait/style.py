@@ -35,13 +35,13 @@ import difflib
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
+from engine.atomic_io import atomic_write_text
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.phase_map import PhaseMap
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
@@ -604,22 +604,6 @@ def styles_dir(robot: str) -> Path:
     """The folder of ``robot``'s styles (``MOTION_STUDIO_STYLES`` overrides the repo's styles/)."""
     root = Path(os.environ["MOTION_STUDIO_STYLES"]) if os.environ.get("MOTION_STUDIO_STYLES") else STYLES_ROOT
     return root / robot
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write to a temporary file next to ``path`` and rename it over: never a half-written file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def save_style(path: str | os.PathLike, style: Style) -> None:

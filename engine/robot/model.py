@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from engine.atomic_io import atomic_write_bytes
 from engine.robot import meshes
 from engine.robot.config import RobotConfig, RobotConfigError, load_robot_config
 from engine.robot.urdf import (
@@ -325,7 +326,7 @@ def _save_body_meshes(path: Path, body_meshes: list[BodyMesh]) -> None:
 
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    meshes.atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _load_body_meshes(path: Path) -> list[BodyMesh]:
@@ -397,10 +398,10 @@ def build_robot(cfg: RobotConfig, use_cache: bool = True) -> RobotModel:
             mj_model = spec.compile()
         if use_cache:
             cache_dir.mkdir(parents=True, exist_ok=True)
-            meshes.atomic_write_bytes(mjcf_path, spec.to_xml().encode())
-            meshes.atomic_write_bytes(urdf_path, urdf_text.encode())
+            atomic_write_bytes(mjcf_path, spec.to_xml().encode())
+            atomic_write_bytes(urdf_path, urdf_text.encode())
             _save_body_meshes(mesh_path, body_meshes)
-            meshes.atomic_write_bytes(meta_path, json.dumps(meta, indent=1).encode())
+            atomic_write_bytes(meta_path, json.dumps(meta, indent=1).encode())
             mj_model = mujoco.MjModel.from_xml_path(str(mjcf_path))  # what later loads will see
     srdf = parse_srdf(source_path(cfg, cfg.srdf).read_text()) if cfg.srdf else None
     model = _finish(cfg, urdf_text, mj_model, efforts, body_meshes, cache_dir if use_cache else None, srdf)
