@@ -840,30 +840,43 @@ class TaskSpaceInverseDynamics:
         return tau
 
     def _setpoints(self, state: RobotState, qdd: FloatArray, tau: FloatArray) -> JointCommand:
-        """Integrate q̈ into joint velocity/position set-points, clipped around the measured state."""
-        g, dt = self.gains, self.dt_s
-        qj, vj = state.q[7:], state.v[6:]
-        # np.minimum/np.maximum: the same clip at a fraction of np.clip's call overhead
-        qd = np.minimum(np.maximum(self.qd_des + qdd[6:] * dt, vj - g.max_velocity_error_radps),
-                        vj + g.max_velocity_error_radps)
-        qdes = np.minimum(np.maximum(self.q_des + qd * dt, qj - g.max_position_error_rad), qj + g.max_position_error_rad)
-        self.qd_des, self.q_des = qd, qdes
-        return JointCommand(qdes.copy(), qd.copy(), tau.copy(), self._servo_kp, self._servo_kd)
+        self.q_des, self.qd_des = integrate_setpoints(self.q_des, self.qd_des, qdd[6:], state, self.gains, self.dt_s)
+        return JointCommand(self.q_des.copy(), self.qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
 
     def _fallback(self, state: RobotState, status: str, message: str, t0: float, iterations: int = 0) -> JointCommand:
-        """Stiff PD hold of the last set-point with the last good torques decaying: always finite."""
-        n = self.n_joints
-        q_meas = np.asarray(state.q, dtype=float)[7:] if np.shape(state.q) == (self.model.nq,) else np.full(n, np.nan)
-        hold = self.q_des if self.q_des is not None and np.all(np.isfinite(self.q_des)) else q_meas
-        if not np.all(np.isfinite(hold)):
-            hold = self.robot.q_standing[7:].copy()
-        self.q_des = hold.copy()
-        self.qd_des = np.zeros(n)
-        decay = math.exp(-self.dt_s / self.gains.fallback_decay_s)
-        self.last_tau = np.where(np.isfinite(self.last_tau), self.last_tau, 0.0) * decay
+        cmd = fallback_hold(self.robot, state, self.q_des, self.last_tau, self.dt_s, self.gains.fallback_decay_s)
+        self.q_des, self.qd_des, self.last_tau = cmd.q_des.copy(), cmd.qd_des.copy(), cmd.tau_ff.copy()
         self.diagnostics = WbcDiagnostics(status=status, message=message, tau_nm=self.last_tau.copy(),
                                           qp_iterations=iterations, total_s=time.perf_counter() - t0)
-        return JointCommand(hold.copy(), np.zeros(n), self.last_tau.copy(), self.robot.kp.copy(), self.robot.kd.copy())
+        return cmd
+
+
+# ----------------------------------------------------------------------------- shared by the whole-body controllers
+
+
+def integrate_setpoints(q_des: FloatArray, qd_des: FloatArray, qdd_joints: FloatArray, state: RobotState,
+                        gains: WbcGains, dt_s: float) -> tuple[FloatArray, FloatArray]:
+    """Integrate joint accelerations into position/velocity set-points, each clipped to a band
+    around the measured joint state (the servo never chases a set-point that ran away)."""
+    qj, vj = state.q[7:], state.v[6:]
+    # np.minimum/np.maximum: the same clip at a fraction of np.clip's call overhead
+    qd = np.minimum(np.maximum(qd_des + qdd_joints * dt_s, vj - gains.max_velocity_error_radps),
+                    vj + gains.max_velocity_error_radps)
+    q = np.minimum(np.maximum(q_des + qd * dt_s, qj - gains.max_position_error_rad), qj + gains.max_position_error_rad)
+    return q, qd
+
+
+def fallback_hold(robot: RobotModel, state: RobotState, q_des: FloatArray | None, last_tau: FloatArray,
+                  dt_s: float, decay_s: float) -> JointCommand:
+    """Stiff PD hold of the last set-point (else the measured joints, else the standing pose)
+    with the last good torques decaying over ``decay_s``: finite whatever came in."""
+    n = robot.n_joints
+    q_meas = np.asarray(state.q, dtype=float)[7:] if np.shape(state.q) == (robot.pin_model.nq,) else np.full(n, np.nan)
+    hold = q_des if q_des is not None and np.shape(q_des) == (n,) and np.all(np.isfinite(q_des)) else q_meas
+    if not np.all(np.isfinite(hold)):
+        hold = robot.q_standing[7:]
+    tau = np.where(np.isfinite(last_tau), last_tau, 0.0) * math.exp(-dt_s / decay_s)
+    return JointCommand(np.array(hold, dtype=float), np.zeros(n), tau, robot.kp.copy(), robot.kd.copy())
 
 
 # ----------------------------------------------------------------------------- controller slot

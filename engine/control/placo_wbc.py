@@ -21,7 +21,6 @@ and stays without one, so they are off here (our QP's limits are the paper's sof
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 
@@ -30,7 +29,15 @@ import placo
 from numpy.typing import NDArray
 
 from engine.control.controller import JointCommand, RobotState
-from engine.control.inverse_dynamics import CONTROL_PERIOD_S, SIDES, WbcDiagnostics, WbcGains, WbcReference
+from engine.control.inverse_dynamics import (
+    CONTROL_PERIOD_S,
+    SIDES,
+    WbcDiagnostics,
+    WbcGains,
+    WbcReference,
+    fallback_hold,
+    integrate_setpoints,
+)
 from engine.robot.model import RobotModel
 from engine.robot.urdf import with_extra_frames
 
@@ -184,10 +191,7 @@ class PlacoWbc:
         qdd = np.asarray(result.qdd).copy()
         if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(qdd))):
             return self._fallback(state, "fallback_solver", "placo: non-finite solution", t0)
-        dt = self.dt_s
-        qj, vj = q[7:], v[6:]
-        self.qd_des = np.clip(self.qd_des + qdd[6:] * dt, vj - g.max_velocity_error_radps, vj + g.max_velocity_error_radps)
-        self.q_des = np.clip(self.q_des + self.qd_des * dt, qj - g.max_position_error_rad, qj + g.max_position_error_rad)
+        self.q_des, self.qd_des = integrate_setpoints(self.q_des, self.qd_des, qdd[6:], state, g, self.dt_s)
         self.last_tau = tau
         self.diagnostics = WbcDiagnostics(status="solved", backend="placo", qdd=qdd, tau_nm=tau,
                                           build_s=t1 - t0, qp_s=t2 - t1, total_s=time.perf_counter() - t0)
@@ -203,14 +207,8 @@ class PlacoWbc:
         return gen
 
     def _fallback(self, state: RobotState, status: str, message: str, t0: float) -> JointCommand:
-        n = self.robot.n_joints
-        q = np.asarray(state.q, dtype=float)
-        hold = self.q_des if self.q_des is not None and np.all(np.isfinite(self.q_des)) else q[7:]
-        if hold.shape != (n,) or not np.all(np.isfinite(hold)):
-            hold = self.robot.q_standing[7:].copy()
-        self.q_des, self.qd_des = hold.copy(), np.zeros(n)
-        decay = math.exp(-self.dt_s / self.gains.fallback_decay_s)
-        self.last_tau = np.where(np.isfinite(self.last_tau), self.last_tau, 0.0) * decay
+        cmd = fallback_hold(self.robot, state, self.q_des, self.last_tau, self.dt_s, self.gains.fallback_decay_s)
+        self.q_des, self.qd_des, self.last_tau = cmd.q_des.copy(), cmd.qd_des.copy(), cmd.tau_ff.copy()
         self.diagnostics = WbcDiagnostics(status=status, message=message, backend="placo", tau_nm=self.last_tau.copy(),
                                           total_s=time.perf_counter() - t0)
-        return JointCommand(hold.copy(), np.zeros(n), self.last_tau.copy(), self.robot.kp.copy(), self.robot.kd.copy())
+        return cmd
