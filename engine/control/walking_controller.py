@@ -214,7 +214,8 @@ class WalkingController:
         self.tick += 1
         return cmd
 
-    def _com_state(self, est: RobotState) -> tuple[np.ndarray, np.ndarray]:
+    def _com_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Horizontal CoM position and velocity of this tick's state (computed once in compute())."""
         return self._com_now[0][:2].copy(), self._com_now[1][:2].copy()
 
     def _external_wrench(self, est: RobotState) -> np.ndarray | None:
@@ -228,7 +229,7 @@ class WalkingController:
 
     def _plan_tick(self, est: RobotState) -> None:
         t0 = time.perf_counter()
-        com, com_vel = self._com_state(est)
+        com, com_vel = self._com_state()
         planner = self.planner
         if self.plan is not None:
             t_now = planner.t_s
@@ -263,7 +264,7 @@ class WalkingController:
         # are shifted by −f/(m ω²) (the CoP the plan returns is then the robot's minus that shift).
         omega2 = GRAVITY_MPS2 / max(z_com, 0.2)
         shift = -self.observer.force_n / (self.robot.mass_kg * omega2)
-        if np.any(shift != self._mpc_shift) or shift.any():
+        if shift.any():
             supports = [SupportInterval(sp.t_start_s, sp.t_end_s, sp.polygon + shift) for sp in supports]
         shift_change = shift - self._mpc_shift
         self._mpc_shift = shift
@@ -317,7 +318,7 @@ class WalkingController:
         # Where the robot is off the plan, its ξ runs away from the plan's as e^{ωt} under the
         # same CoP (the whole-body controller's corrections slow that: the growth is capped).
         pos_now, vel_now, _ = plan.com_at(planner.t_s)
-        com, com_vel = self._com_state(self.estimate) if self.estimate is not None else (pos_now, vel_now)
+        com, com_vel = self._com_state()
         dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
         err = float(np.linalg.norm(dcm_error))  # ordinary tracking error is the MPC's to handle
         dcm_error *= max(err - DCM_ERROR_DEADBAND_M, 0.0) / err if err > 0.0 else 0.0
