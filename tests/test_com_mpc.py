@@ -19,6 +19,7 @@ from engine.control.com_mpc import (
     clip_convex_polygons,
     closed_loop_like_problems,
     convex_hull,
+    example_walking_supports,
     polygon_area,
     polygon_centroid,
     polygon_halfplanes,
@@ -52,26 +53,12 @@ def walk(
     initial_double_support_s: float = 0.4,
     final_double_support_s: float = 4.0,
 ) -> list[SupportInterval]:
-    """Alternating double/single supports of a straight walk (heading ``yaw_rad``)."""
-    heading = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
-    lateral = np.array([-math.sin(yaw_rad), math.cos(yaw_rad)])
-
-    def place(x_m: float, side: int) -> np.ndarray:
-        return foot(x_m * heading + side * 0.5 * step_width_m * lateral, yaw_rad)
-
-    feet = {1: place(0.0, 1), -1: place(0.0, -1)}
-    t = 0.0
-    out = [SupportInterval(t, t + initial_double_support_s, convex_hull(np.vstack([feet[1], feet[-1]])))]
-    t += initial_double_support_s
-    for i in range(n_steps):
-        swing = -1 if i % 2 == 0 else 1
-        out.append(SupportInterval(t, t + single_support_s, feet[-swing]))
-        t += single_support_s
-        feet[swing] = place((i + 1) * step_length_m, swing)
-        ds = final_double_support_s if i == n_steps - 1 else double_support_s
-        out.append(SupportInterval(t, t + ds, convex_hull(np.vstack([feet[1], feet[-1]]))))
-        t += ds
-    return out
+    """Alternating double/single supports of a straight walk (heading ``yaw_rad``), this file's feet."""
+    return example_walking_supports(
+        n_steps=n_steps, step_length_m=step_length_m, step_width_m=step_width_m, single_support_s=single_support_s,
+        double_support_s=double_support_s, initial_double_support_s=initial_double_support_s,
+        final_double_support_s=final_double_support_s, foot_length_m=FOOT_LENGTH_M, foot_width_m=FOOT_WIDTH_M,
+        yaw_rad=yaw_rad)
 
 
 def window(supports: list[SupportInterval], t_s: float, preview_s: float = 2.0) -> list[SupportInterval]:
