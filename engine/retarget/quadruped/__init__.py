@@ -1,0 +1,1 @@
+"""Quadruped retargeting (STMR): UVM, SMR (spatial), TMR (temporal)."""
