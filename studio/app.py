@@ -347,8 +347,10 @@ class Studio:
             else:
                 state = "paused" if frame.paused else ("fallen" if frame.fallen else "running")
                 x, y = (float(v) for v in frame.body_pos[0][:2])
+                yaw_deg = float(np.degrees(self.robot_yaw_rad()))
                 text = (f"Engine {state} · pid {pid} · {frame.mode} mode · t = {frame.sim_time_s:.1f} s · "
-                        f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m")
+                        f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m, "
+                        f"yaw {yaw_deg:+.0f}°")
             self.robot_panel.show_status(text)
             try:
                 self.plots.render()
