@@ -117,7 +117,6 @@ class Studio:
         opened = session.open(cfg.default_style)
         if not opened.ok:
             self._notify("error", opened.message)
-        self.session = session
         from studio.panels.sample_editor import SampleEditor
         from studio.panels.style_browser import StyleBrowser
 
@@ -140,6 +139,7 @@ class Studio:
             with folder:
                 self.curve_editor = self._make_curve_editor(session)
             self._style_folders.append(folder)
+        self.session = session  # published once its panels exist: other threads see a complete set
         session.subscribe(self._on_style_change)
         self._send_style()
 
