@@ -15,8 +15,8 @@ import numpy as np
 @dataclass(frozen=True)
 class ContactThresholds:
     height_m: float = 0.03
-    speed_m_s: float = 0.4
-    min_segment_s: float = 0.08
+    speed_m_s: float = 0.6
+    min_segment_s: float = 0.1
 
 
 def estimate_contacts(feet: np.ndarray, fps: float, ground_z_m: float | np.ndarray | None = None,
@@ -29,8 +29,9 @@ def estimate_contacts(feet: np.ndarray, fps: float, ground_z_m: float | np.ndarr
     height = z - ground_z_m
     vel = np.zeros(z.shape)
     if len(feet) > 1:
+        # a planted foot is still with respect to at least one neighbouring frame (its first and last stance frames too)
         d = np.linalg.norm(np.diff(feet[:, :, :2], axis=0), axis=2) * fps
-        vel[1:-1] = 0.5 * (d[1:] + d[:-1])
+        vel[1:-1] = np.minimum(d[1:], d[:-1])
         vel[0], vel[-1] = d[0], d[-1]
     contact = (height < thresholds.height_m) & (vel < thresholds.speed_m_s)
     n_min = max(1, int(round(thresholds.min_segment_s * fps)))

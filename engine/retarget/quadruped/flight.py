@@ -21,3 +21,17 @@ def exit_velocity(base_history: np.ndarray, dt: float, horizon: int = 6) -> np.n
     t = (np.arange(n) - (n - 1)) * dt  # last sample at t = 0
     coeffs = np.polyfit(t, hist, deg)  # (deg+1, 3), highest power first
     return coeffs[-2].copy()  # d/dt at t = 0 is the linear coefficient
+
+
+def landing_exit_velocity_z(ref_base_z: np.ndarray, dt: float, g: float = 9.81) -> float:
+    """Vertical exit velocity of a ballistic arc that lands when the contact schedule says it does.
+
+    ``ref_base_z`` is the reference base height from the last contact frame to the landing frame
+    (n + 1 samples); the discrete flight z_k = z_{k−1} + v_k Δt, v_{k+1} = v_k − g Δt then reaches the
+    reference's height change exactly at the landing frame.
+    """
+    n = len(ref_base_z) - 1
+    if n < 1:
+        return 0.0
+    dz = float(ref_base_z[-1] - ref_base_z[0])
+    return (dz + g * dt * dt * n * (n - 1) / 2.0) / (n * dt)

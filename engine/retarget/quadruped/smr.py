@@ -30,7 +30,7 @@ import osqp
 import pinocchio as pin
 from scipy import sparse
 
-from engine.retarget.quadruped.flight import GRAVITY_M_S2, exit_velocity
+from engine.retarget.quadruped.flight import GRAVITY_M_S2, exit_velocity, landing_exit_velocity_z
 from engine.retarget.quadruped.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import QuadrupedKinematics
 from engine.retarget.quadruped.uvm import RetargetCancelled
@@ -46,6 +46,10 @@ class SmrOptions:
     tolerance_m: float = 1e-6
     flight_horizon: int = 6
     touchdown_tolerance_m: float = 1e-4
+    swing_clearance_m: float = 0.01  # swing feet stay this far above the height map
+    flight_base_weight: float = 1e6  # base position weight in flight: the base follows the ballistic reference
+    land_on_schedule: bool = True  # vertical exit velocity so the ballistic arc lands at the scheduled contact
+    touchdowns: bool = False  # Algorithm 1 lines 17–22: a foot landing in flight starts a contact
 
 
 @dataclass
@@ -55,6 +59,7 @@ class SmrResult:
     anchors: np.ndarray  # (T, 4, 3) anchor of each foot while in contact (NaN in swing)
     flight: np.ndarray  # (T,) bool: frames with a ballistic base reference
     qp_failures: int
+    qp_solves: int = 0
 
 
 class FootLockQP:
@@ -74,18 +79,22 @@ class FootLockQP:
         mask[12:, 6:] = np.eye(nj, dtype=bool)
         a = sparse.csc_matrix(mask.astype(float))
         a.sort_indices()
-        self.rows = a.indices.copy()
-        self.cols = np.repeat(np.arange(nv), np.diff(a.indptr))
+        self.flat = a.indices * nv + np.repeat(np.arange(nv), np.diff(a.indptr))  # CSC data order
         self.a_dense = np.zeros(mask.shape)
         self.a_dense[12:, 6:] = np.eye(nj)
         self.lower = np.full(12 + nj, -np.inf)
         self.upper = np.full(12 + nj, np.inf)
         self.solver = osqp.OSQP()
-        self.solver.setup(P=sparse.diags(w).tocsc(), q=np.zeros(nv), A=a, l=self.lower.copy(), u=self.upper.copy(),
-                          eps_abs=1e-9, eps_rel=1e-9, max_iter=4000, polish=True, verbose=False,
+        self.solver.setup(P=sparse.diags(w.copy()).tocsc(), q=np.zeros(nv), A=a, l=self.lower.copy(), u=self.upper.copy(),
+                          eps_abs=1e-8, eps_rel=1e-8, max_iter=4000, polish=False, verbose=False,
                           warm_starting=True, adaptive_rho=True)
         self.q_lo = kin.model.lowerPositionLimit[7:]
         self.q_hi = kin.model.upperPositionLimit[7:]
+
+    def set_base_weight(self, weight: float) -> None:
+        if weight != self.w[0]:
+            self.w[:3] = weight
+            self.solver.update(Px=self.w.copy())
 
     def solve(self, target_step: np.ndarray, feet: np.ndarray, jac: np.ndarray, contact: np.ndarray,
               anchors: np.ndarray, ground_z: np.ndarray, joints: np.ndarray) -> np.ndarray | None:
@@ -103,7 +112,7 @@ class FootLockQP:
         # a joint already beyond a limit may not be pushed further but is not forced back in one step
         lo[12:] = np.minimum(lo[12:], 0.0)
         up[12:] = np.maximum(up[12:], 0.0)
-        self.solver.update(q=-self.w * target_step, Ax=self.a_dense[self.rows, self.cols], l=lo, u=up)
+        self.solver.update(q=-self.w * target_step, Ax=self.a_dense.ravel()[self.flat], l=lo, u=up)
         res = self.solver.solve()
         if res.info.status_val not in (1, 2):  # solved, solved inaccurate
             return None
@@ -129,6 +138,7 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
     touchdown = np.zeros(4, dtype=bool)  # contacts begun by a landing during flight
     v_flight = np.zeros(3)
     failures = 0
+    iterations = 0
     q_prev = ref_q[0].copy()
     for i in range(t_n):
         if cancel is not None and cancel.is_set():
@@ -151,6 +161,10 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
                 if prev_contact.any() or not flight[i - 1]:
                     hist = out_q[max(0, i - options.flight_horizon):i, :3]
                     v_flight = exit_velocity(hist, dt, options.flight_horizon)
+                    if options.land_on_schedule:
+                        landing = np.flatnonzero(sched[i:].any(axis=1))
+                        if len(landing):
+                            v_flight[2] = landing_exit_velocity_z(ref_q[i - 1:i + landing[0] + 1, 2], dt)
                 else:
                     v_flight = v_flight + GRAVITY_M_S2 * dt
                 rot = pin.Quaternion(q_prev[3:7]).toRotationMatrix()
@@ -161,28 +175,29 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
             q_ref[7:] += options.joint_pull * (ref_q[i, 7:] - q_ref[7:])
             if options.joint_pull > 0:
                 q_ref[3:7] = pin.Quaternion(q_ref[3:7]).slerp(options.joint_pull, pin.Quaternion(ref_q[i, 3:7])).coeffs()
-        # --- anchors at new contact segments: the reference foot projected onto the ground
-        feet_ref = kin.feet(data, q_ref)
-        for leg in range(4):
-            if c[leg] and not prev_contact[leg]:
-                anchors[leg] = heightmap.project(feet_ref[leg], radius[leg])
-            elif not c[leg]:
-                anchors[leg] = np.nan
         # --- Newton iterations on Eq. 14
         q = q_ref.copy()
-        for _ in range(options.newton_iterations):
+        qp.set_base_weight(options.flight_base_weight if flight[i] else options.weight_base_pos)
+        for it in range(options.newton_iterations):
             feet, jac = kin.foot_jacobians(data, q)
-            ground = heightmap.heights(feet[:, :2]) + radius
+            if it == 0:  # anchors at new contact segments: the reference foot projected onto the ground
+                for leg in range(4):
+                    if c[leg] and not prev_contact[leg]:
+                        anchors[leg] = heightmap.project(feet[leg], radius[leg])
+                    elif not c[leg]:
+                        anchors[leg] = np.nan
+            ground = heightmap.heights(feet[:, :2]) + radius + options.swing_clearance_m
             step = pin.difference(model, q, q_ref)
             dq = qp.solve(step, feet, jac, c, anchors, ground, q[7:])
             if dq is None:
                 failures += 1
                 break
             q = pin.integrate(model, q, dq)
+            iterations += 1
             if np.abs(dq).max() < options.tolerance_m:
                 break
         # --- touchdowns during flight (Algorithm 1, lines 17–22)
-        if flight[i]:
+        if flight[i] and options.touchdowns:
             feet = kin.feet(data, q)
             ground = heightmap.heights(feet[:, :2]) + radius
             for leg in range(4):
@@ -197,4 +212,4 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
         q_prev = q
         if progress is not None and i % 16 == 0:
             progress(i / t_n)
-    return SmrResult(out_q, sched, anchors_out, flight, failures)
+    return SmrResult(out_q, sched, anchors_out, flight, failures, iterations)

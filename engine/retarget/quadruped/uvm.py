@@ -89,6 +89,7 @@ class KeypointIK:
         self.damping = damping
         self.iterations = iterations
         self.lower = self.model.lowerPositionLimit[7:]
+        self._damp = damping * np.eye(self.model.nv - 6)
         self.upper = self.model.upperPositionLimit[7:]
 
     def _fk_jac(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -116,7 +117,7 @@ class KeypointIK:
             if np.abs(r).max() < 1e-6:
                 break
             j = jac.reshape(-1, self.model.nv)[:, 6:] * self.w[:, None]
-            dq = np.linalg.solve(j.T @ j + self.damping * np.eye(j.shape[1]), j.T @ r)
+            dq = np.linalg.solve(j.T @ j + self._damp, j.T @ r)
             q[7:] = np.clip(q[7:] + dq, self.lower, self.upper)
             if np.abs(dq).max() < 1e-7:
                 break
