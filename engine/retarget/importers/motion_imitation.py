@@ -109,7 +109,7 @@ def import_frames(path: Path) -> KeypointMotion:
         how = "per-file table" if path.stem in FILE_LEG_ORDER else "pybullet default"
     q = pin_configurations(kin, frames, order)
     kp = keypoints_of(kin, q)
-    fps = 1.0 / dt
+    fps = round(1.0 / dt, 6)
     contact = estimate_contacts(kp[:, 3::4], fps)
     quat = q[:, [6, 3, 4, 5]]
     return KeypointMotion(

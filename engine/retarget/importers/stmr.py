@@ -54,7 +54,7 @@ def import_stmr_keypoints(path: Path) -> KeypointMotion:
         dt = float(np.median(np.diff(np.asarray(data["time"], dtype=float))))
         if not dt > 0:
             raise ImportFormatError(f"{name}: time: expected increasing times")
-        fps = 1.0 / dt
+        fps = round(1.0 / dt, 6)
     else:
         fps = 20.0
     world = base_pos[:, None, :] + np.einsum("tij,tkj->tki", rot, kp)

@@ -1,0 +1,39 @@
+"""The figures a retargeting run reports (``studio retarget --json``, the bench, the studio's panel)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.retarget import metrics as M
+from engine.retarget.motion import KeypointMotion
+from engine.retarget.quadruped.heightmap import HeightMap
+from engine.retarget.quadruped.kinematics import quadruped_kinematics
+
+DTW_MAX_FRAMES = 400
+
+
+def summary(source: KeypointMotion, result, heightmap: HeightMap) -> dict:
+    """``result`` is a RetargetOutput (motion, target keypoints, wall time)."""
+    motion = result.motion
+    kin = quadruped_kinematics(motion.robot)
+    feet = motion.keypoints[:, 3::4]
+    slide = M.foot_slide_mm(feet, source.contact, motion.fps)
+    target = result.target_keypoints
+    step = max(1, int(np.ceil(len(target) / DTW_MAX_FRAMES)))
+    enforced = motion.source.get("contact_enforced")
+    figures = {
+        "robot": motion.robot, "method": motion.method, "baseless": bool(motion.source.get("baseless")),
+        "frames": motion.frames, "fps": motion.fps,
+        "foot_slide_mm": round(slide["mean"], 4), "foot_slide_max_mm": round(slide["max"], 4),
+        "slide_segments": slide["segments"],
+        "contact_iou": round(M.contact_iou(source.contact, motion.contact), 4),
+        "penetration_mm": round(M.penetration_mm(feet, kin.foot_radius_m, heightmap), 3),
+        "keypoint_error_mm": round(M.keypoint_error_mm(motion.keypoints, target), 2),
+        "dtw_keypoint_l1_percent": round(M.dtw_keypoint_l1_percent(motion.keypoints[::step], target[::step]), 3),
+        "travel_m": round(M.travel_distance_m(motion.base_pos), 4),
+        "frames_per_s": round(motion.frames / max(result.wall_time_s, 1e-9), 1),
+        "wall_time_s": round(result.wall_time_s, 4),
+    }
+    if enforced is not None:
+        figures["contact_iou_enforced"] = round(M.contact_iou(source.contact, np.array(enforced, dtype=bool)), 4)
+    return figures
