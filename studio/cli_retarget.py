@@ -111,10 +111,14 @@ def cmd_retarget(args: argparse.Namespace) -> int:
         print(json.dumps(figures, indent=1))
     else:
         print(f"{Path(args.source).name} → {robot} ({args.method}{', baseless' if args.baseless else ''}): "
-              f"{figures['frames']} frames, foot slide {figures['foot_slide_mm']:.3f} mm, contact IoU "
+              f"{figures['frames']} frames, foot slide {_mm(figures['foot_slide_mm'])}, contact IoU "
               f"{figures['contact_iou']:.3f}, penetration {figures['penetration_mm']:.2f} mm, keypoint error "
               f"{figures['keypoint_error_mm']:.1f} mm, {figures['frames_per_s']:.0f} frames/s → {out}")
     return 0
+
+
+def _mm(value) -> str:
+    return "n/a (no contact longer than 0.5 s)" if value is None else f"{value:.3f} mm"
 
 
 def cmd_export(args: argparse.Namespace) -> int:

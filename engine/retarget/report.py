@@ -24,7 +24,8 @@ def summary(source: KeypointMotion, result, heightmap: HeightMap) -> dict:
     figures = {
         "robot": motion.robot, "method": motion.method, "baseless": bool(motion.source.get("baseless")),
         "frames": motion.frames, "fps": motion.fps,
-        "foot_slide_mm": round(slide["mean"], 4), "foot_slide_max_mm": round(slide["max"], 4),
+        "foot_slide_mm": None if slide["mean"] is None else round(slide["mean"], 4),
+        "foot_slide_max_mm": None if slide["max"] is None else round(slide["max"], 4),
         "slide_segments": slide["segments"],
         "contact_iou": round(M.contact_iou(source.contact, motion.contact), 4),
         "penetration_mm": round(M.penetration_mm(feet, kin.foot_radius_m, heightmap), 3),
@@ -32,6 +33,7 @@ def summary(source: KeypointMotion, result, heightmap: HeightMap) -> dict:
         "dtw_keypoint_l1_percent": round(M.dtw_keypoint_l1_percent(motion.keypoints[::step], target[::step]), 3),
         "travel_m": round(M.travel_distance_m(motion.base_pos), 4),
         "frames_per_s": round(motion.frames / max(result.wall_time_s, 1e-9), 1),
+        "frames_per_cpu_s": round(motion.frames / max(result.cpu_time_s, 1e-9), 1),
         "wall_time_s": round(result.wall_time_s, 4),
     }
     if enforced is not None:

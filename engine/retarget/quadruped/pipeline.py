@@ -38,6 +38,7 @@ class RetargetOutput:
     motion: RobotMotion
     target_keypoints: np.ndarray  # (T, 16, 3) the UVM keypoints the methods aim at
     wall_time_s: float
+    cpu_time_s: float = float("nan")  # this process's CPU time (the machine may be shared)
 
 
 def remove_base(source: KeypointMotion) -> KeypointMotion:
@@ -63,7 +64,7 @@ def retarget_detailed(source: KeypointMotion, robot: str, method: str = "smr", o
     if method not in METHODS:
         raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
     kin = quadruped_kinematics(robot)  # NotAQuadruped for bipeds
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     src = remove_base(source) if options.baseless else source
     report = (lambda lo, hi: (lambda f: progress(lo + (hi - lo) * f))) if progress else (lambda lo, hi: None)
     target, weights, base_pos, base_rot = uvm_keypoints(src, kin)
@@ -75,12 +76,12 @@ def retarget_detailed(source: KeypointMotion, robot: str, method: str = "smr", o
         res = smr(kin, ik_q, src.contact, src.fps, options.heightmap, options.smr, report(0.5, 1.0), cancel)
         q = res.q
         contact_enforced = res.contact
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     motion = robot_motion_from_q(kin, q, src, method, options, contact_enforced)
     motion.source["wall_time_s"] = wall
     if progress:
         progress(1.0)
-    return RetargetOutput(motion, target, wall)
+    return RetargetOutput(motion, target, wall, cpu)
 
 
 def robot_motion_from_q(kin: QuadrupedKinematics, q: np.ndarray, source: KeypointMotion, method: str,
