@@ -42,7 +42,7 @@ class SmrOptions:
     weight_base_rot: float = 1.0
     weight_joint: float = 1.0
     joint_pull: float = 0.2  # per frame, toward the IK joints and base orientation
-    newton_iterations: int = 4
+    newton_iterations: int = 8
     tolerance_m: float = 1e-6
     flight_horizon: int = 6
     touchdown_tolerance_m: float = 1e-4
@@ -60,6 +60,7 @@ class SmrResult:
     flight: np.ndarray  # (T,) bool: frames with a ballistic base reference
     qp_failures: int
     qp_solves: int = 0
+    joint_limit_relaxed: int = 0
 
 
 class FootLockQP:
@@ -86,9 +87,10 @@ class FootLockQP:
         self.upper = np.full(12 + nj, np.inf)
         self.solver = osqp.OSQP()
         self.solver.setup(P=sparse.diags(w.copy()).tocsc(), q=np.zeros(nv), A=a, l=self.lower.copy(), u=self.upper.copy(),
-                          eps_abs=1e-8, eps_rel=1e-8, max_iter=4000, polish=False, verbose=False,
+                          eps_abs=1e-8, eps_rel=1e-8, max_iter=4000, polishing=False, verbose=False,
                           warm_starting=True, adaptive_rho=True)
         self.q_lo = kin.model.lowerPositionLimit[7:]
+        self.relaxed = 0  # solves that had to drop the joint limits
         self.q_hi = kin.model.upperPositionLimit[7:]
 
     def set_base_weight(self, weight: float) -> None:
@@ -113,10 +115,29 @@ class FootLockQP:
         lo[12:] = np.minimum(lo[12:], 0.0)
         up[12:] = np.maximum(up[12:], 0.0)
         self.solver.update(q=-self.w * target_step, Ax=self.a_dense.ravel()[self.flat], l=lo, u=up)
-        res = self.solver.solve()
+        res = self.solver.solve(raise_error=False)
+        self.last_status = res.info.status_val
         if res.info.status_val not in (1, 2):  # solved, solved inaccurate
-            return None
+            # the anchors cannot be held within the joint limits: hold them, let the limits give
+            self.relaxed += 1
+            lo[12:], up[12:] = -np.inf, np.inf
+            self.solver.update(l=lo, u=up)
+            res = self.solver.solve(raise_error=False)
+            if res.info.status_val not in (1, 2):
+                return None
         return np.asarray(res.x)
+
+
+FREEZE_GROUND_AFTER = 3
+_STENCIL = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [0.7, 0.7], [0.7, -0.7], [-0.7, 0.7], [-0.7, -0.7]])
+
+
+def _swing_ground(heightmap: HeightMap, feet: np.ndarray, radius: np.ndarray, margin_m: float = 0.02) -> np.ndarray:
+    """Lowest allowed foot-centre height: the highest ground under a disc around each foot (box edges)."""
+    if not heightmap.boxes:
+        return np.full(len(feet), heightmap.floor_z_m) + radius
+    pts = feet[:, None, :2] + _STENCIL[None, :, :] * (radius[:, None, None] + margin_m)
+    return heightmap.heights(pts).max(axis=1) + radius
 
 
 def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: float, heightmap: HeightMap,
@@ -186,7 +207,8 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
                         anchors[leg] = heightmap.project(feet[leg], radius[leg])
                     elif not c[leg]:
                         anchors[leg] = np.nan
-            ground = heightmap.heights(feet[:, :2]) + radius + options.swing_clearance_m
+            if it < FREEZE_GROUND_AFTER:  # then frozen: the box edges cannot make the Newton steps cycle
+                ground = _swing_ground(heightmap, feet, radius) + options.swing_clearance_m
             step = pin.difference(model, q, q_ref)
             dq = qp.solve(step, feet, jac, c, anchors, ground, q[7:])
             if dq is None:
@@ -212,4 +234,4 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
         q_prev = q
         if progress is not None and i % 16 == 0:
             progress(i / t_n)
-    return SmrResult(out_q, sched, anchors_out, flight, failures, iterations)
+    return SmrResult(out_q, sched, anchors_out, flight, failures, iterations, qp.relaxed)
