@@ -29,8 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     ret.add_argument("--baseless", action="store_true", help="remove the source's base trajectory and rebuild it (§VIII-E)")
     ret.add_argument("--terrain", action="append", default=[], metavar="box:x,y,w,d,h",
                      help="a box on the floor (metres; repeatable)")
-    ret.add_argument("--touchdowns", action="store_true",
-                     help="Algorithm 1 lines 17-22: a foot landing during a flight starts a contact")
+    ret.add_argument("--no-touchdowns", action="store_true",
+                     help="keep the source schedule even if a foot reaches the ground during a flight (Algorithm 1 lines 17-22 off)")
     ret.add_argument("--format", default=None, help="force the source format")
     ret.add_argument("--out", required=True, help="output robot motion (.npz)")
     ret.add_argument("--json", action="store_true", help="print the metrics as JSON")
@@ -102,7 +102,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
     source = _load_source(args.source, args.format)
-    options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=args.touchdowns))
+    options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns))
     result = retarget_detailed(source, robot, args.method, options)
     figures = summary(source, result, heightmap)
     result.motion.metrics = figures

@@ -49,7 +49,7 @@ class SmrOptions:
     swing_clearance_m: float = 0.01  # swing feet stay this far above the height map
     flight_base_weight: float = 1e6  # base position weight in flight: the base follows the ballistic reference
     land_on_schedule: bool = True  # vertical exit velocity so the ballistic arc lands at the scheduled contact
-    touchdowns: bool = False  # Algorithm 1 lines 17–22: a foot landing in flight starts a contact
+    touchdowns: bool = True  # Algorithm 1 lines 17–22: a foot reaching the ground in flight starts a contact
 
 
 @dataclass
@@ -221,7 +221,7 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
         # --- touchdowns during flight (Algorithm 1, lines 17–22)
         if flight[i] and options.touchdowns:
             feet = kin.feet(data, q)
-            ground = heightmap.heights(feet[:, :2]) + radius
+            ground = _swing_ground(heightmap, feet, radius) + options.swing_clearance_m
             for leg in range(4):
                 if not c[leg] and feet[leg, 2] <= ground[leg] + options.touchdown_tolerance_m:
                     touchdown[leg] = True
