@@ -19,6 +19,9 @@ class Box:
         return abs(x - self.x_m) <= self.width_m / 2 and abs(y - self.y_m) <= self.depth_m / 2
 
 
+_STENCIL = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [0.7, 0.7], [0.7, -0.7], [-0.7, 0.7], [-0.7, -0.7]])
+
+
 @dataclass(frozen=True)
 class HeightMap:
     floor_z_m: float = 0.0
@@ -39,9 +42,19 @@ class HeightMap:
             h = np.where(inside, np.maximum(h, self.floor_z_m + b.height_m), h)
         return h
 
+    def support_heights(self, xy: np.ndarray, radius_m: np.ndarray | float, margin_m: float = 0.02) -> np.ndarray:
+        """Highest ground under a disc (radius + margin) around each point: what a foot sphere there rests on
+        (a foot overhanging a box edge rests on the box)."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=float))
+        if not self.boxes:
+            return np.full(len(xy), self.floor_z_m)
+        r = np.broadcast_to(np.asarray(radius_m, dtype=float), (len(xy),))
+        pts = xy[:, None, :] + _STENCIL[None, :, :] * (r[:, None, None] + margin_m)
+        return self.heights(pts).max(axis=1)
+
     def project(self, p: np.ndarray, radius_m: float = 0.0) -> np.ndarray:
-        """ProjectGround: the point on the surface below/above p (its sphere resting on it)."""
-        return np.array([p[0], p[1], self.height(p[0], p[1]) + radius_m])
+        """ProjectGround: where a foot sphere of ``radius_m`` above/below p rests on the surface."""
+        return np.array([p[0], p[1], float(self.support_heights(p[:2], radius_m)[0]) + radius_m])
 
     def to_json(self) -> dict:
         return {"floor_z_m": self.floor_z_m, "boxes": [b.__dict__ for b in self.boxes]}

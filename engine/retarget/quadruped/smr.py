@@ -17,7 +17,10 @@ toward the IK solution (``joint_pull``) so constraint corrections do not accumul
 
 Flight (§V-C): when no foot is in contact the reference base moves ballistically from the exit velocity
 (polynomial fit of the base history) under gravity; a swing foot that reaches the ground during the flight
-starts a new contact there (Algorithm 1, lines 17–22), which ends the flight.
+starts a new contact there (Algorithm 1, lines 17–22), which ends the flight; it lasts until the source
+schedule has a contact again. Deviation: the vertical exit velocity is chosen so the arc lands at the next
+scheduled contact (``land_on_schedule``), because the STMR clips are slowed down ×2.4 in time and an arc from
+the polynomial exit velocity would land early and change the contact schedule.
 """
 
 from __future__ import annotations
@@ -129,15 +132,9 @@ class FootLockQP:
 
 
 FREEZE_GROUND_AFTER = 3
-_STENCIL = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [0.7, 0.7], [0.7, -0.7], [-0.7, 0.7], [-0.7, -0.7]])
-
-
-def _swing_ground(heightmap: HeightMap, feet: np.ndarray, radius: np.ndarray, margin_m: float = 0.02) -> np.ndarray:
+def _swing_ground(heightmap: HeightMap, feet: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Lowest allowed foot-centre height: the highest ground under a disc around each foot (box edges)."""
-    if not heightmap.boxes:
-        return np.full(len(feet), heightmap.floor_z_m) + radius
-    pts = feet[:, None, :2] + _STENCIL[None, :, :] * (radius[:, None, None] + margin_m)
-    return heightmap.heights(pts).max(axis=1) + radius
+    return heightmap.support_heights(feet[:, :2], radius) + radius
 
 
 def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: float, heightmap: HeightMap,
@@ -150,7 +147,8 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
     t_n = len(ref_q)
     qp = FootLockQP(kin, options)
     radius = kin.foot_radius_m
-    sched = np.asarray(contact, dtype=bool).copy()
+    source_sched = np.asarray(contact, dtype=bool)
+    sched = source_sched.copy()
     out_q = np.empty_like(ref_q)
     anchors_out = np.full((t_n, 4, 3), np.nan)
     flight = np.zeros(t_n, dtype=bool)
@@ -168,8 +166,8 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
         c = sched[i].copy()
         for leg in range(4):
             if touchdown[leg]:
-                if i > 0 and sched[i - 1, leg] and not sched[i, leg]:
-                    touchdown[leg] = False  # the scheduled contact it merged into ended
+                if source_sched[i].any():
+                    touchdown[leg] = False  # the schedule resumes (a scheduled contact of this foot keeps the anchor)
                 else:
                     c[leg] = True
         # --- reference q̃
@@ -223,7 +221,8 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
             feet = kin.feet(data, q)
             ground = _swing_ground(heightmap, feet, radius) + options.swing_clearance_m
             for leg in range(4):
-                if not c[leg] and feet[leg, 2] <= ground[leg] + options.touchdown_tolerance_m:
+                # (a foot that lifted off this very frame is not landing: one swing frame at least)
+                if not c[leg] and not prev_contact[leg] and feet[leg, 2] <= ground[leg] + options.touchdown_tolerance_m:
                     touchdown[leg] = True
                     c[leg] = True
                     anchors[leg] = heightmap.project(feet[leg], radius[leg])
