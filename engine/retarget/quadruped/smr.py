@@ -92,6 +92,7 @@ class FootLockQP:
         self.solver.setup(P=sparse.diags(w.copy()).tocsc(), q=np.zeros(nv), A=a, l=self.lower.copy(), u=self.upper.copy(),
                           eps_abs=1e-8, eps_rel=1e-8, max_iter=4000, polishing=False, verbose=False,
                           warm_starting=True, adaptive_rho=True)
+        self.ext = self.solver._solver
         self.q_lo = kin.model.lowerPositionLimit[7:]
         self.relaxed = 0  # solves that had to drop the joint limits
         self.q_hi = kin.model.upperPositionLimit[7:]
@@ -99,7 +100,7 @@ class FootLockQP:
     def set_base_weight(self, weight: float) -> None:
         if weight != self.w[0]:
             self.w[:3] = weight
-            self.solver.update(Px=self.w.copy())
+            self.ext.update_data_mat(P_x=self.w.copy(), P_i=None, A_x=None, A_i=None)
 
     def solve(self, target_step: np.ndarray, feet: np.ndarray, jac: np.ndarray, contact: np.ndarray,
               anchors: np.ndarray, ground_z: np.ndarray, joints: np.ndarray) -> np.ndarray | None:
@@ -117,21 +118,26 @@ class FootLockQP:
         # a joint already beyond a limit may not be pushed further but is not forced back in one step
         lo[12:] = np.minimum(lo[12:], 0.0)
         up[12:] = np.maximum(up[12:], 0.0)
-        self.solver.update(q=-self.w * target_step, Ax=self.a_dense.ravel()[self.flat], l=lo, u=up)
-        res = self.solver.solve(raise_error=False)
-        self.last_status = res.info.status_val
-        if res.info.status_val not in (1, 2):  # solved, solved inaccurate
+        # The wrapper's solver object directly: OSQP.update/solve rebuild Python namespaces on every call,
+        # which costs more than the solve itself for this 18-variable QP (same calls underneath).
+        ext = self.ext
+        ext.update_data_vec(q=-self.w * target_step, l=np.maximum(lo, -INF), u=np.minimum(up, INF))
+        ext.update_data_mat(P_x=None, P_i=None, A_x=self.a_dense.ravel()[self.flat], A_i=None)
+        ext.solve()
+        self.last_status = ext.info.status_val
+        if self.last_status not in (1, 2):  # solved, solved inaccurate
             # the anchors cannot be held within the joint limits: hold them, let the limits give
             self.relaxed += 1
-            lo[12:], up[12:] = -np.inf, np.inf
-            self.solver.update(l=lo, u=up)
-            res = self.solver.solve(raise_error=False)
-            if res.info.status_val not in (1, 2):
+            lo[12:], up[12:] = -INF, INF
+            ext.update_data_vec(q=None, l=np.maximum(lo, -INF), u=np.minimum(up, INF))
+            ext.solve()
+            if ext.info.status_val not in (1, 2):
                 return None
-        return np.asarray(res.x)
+        return np.array(ext.solution.x)
 
 
 FREEZE_GROUND_AFTER = 3
+INF = 1e30  # OSQP_INFTY
 def _swing_ground(heightmap: HeightMap, feet: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Lowest allowed foot-centre height: the highest ground under a disc around each foot (box edges)."""
     return heightmap.support_heights(feet[:, :2], radius) + radius
