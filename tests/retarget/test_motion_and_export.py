@@ -104,3 +104,24 @@ def test_amp_full_frame_layout(tmp_path, go1_motion):
     assert np.allclose(f[3, 31:34], rot.T @ (f[4, 0:3] - f[3, 0:3]) / dt, atol=1e-3)
     assert np.allclose(f[3, 37:49], (f[4, 7:19] - f[3, 7:19]) / dt, atol=1e-3)
     assert np.allclose(f[3, 49:61], (f[4, 19:31] - f[3, 19:31]) / dt, atol=1e-3)
+
+
+def test_retarget_api_reports_progress_and_cancels():
+    import threading
+
+    from engine.retarget.quadruped import RetargetCancelled
+
+    seen: list[float] = []
+    motion = retarget(synthetic_trot("a1", frames=40), "a1", "smr", progress=seen.append)
+    assert seen[-1] == 1.0 and seen == sorted(seen) and motion.method == "smr" and motion.robot == "a1"
+    cancel = threading.Event()
+    cancel.set()
+    with pytest.raises(RetargetCancelled):
+        retarget(synthetic_trot("a1", frames=40), "a1", "smr", cancel=cancel)
+
+
+def test_uvm_is_the_keypoint_ik_with_the_base_transferred():
+    src = synthetic_trot("a1", frames=20)
+    motion = retarget(src, "a1", "uvm")
+    assert np.allclose(motion.qpos[:, :3], src.base_pos, atol=1e-9)  # base transferred directly
+    assert np.abs(motion.keypoints - src.keypoints).max() < 2e-3  # a1 → a1: the same keypoints back
