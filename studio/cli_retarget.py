@@ -31,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="a box on the floor (metres; repeatable)")
     ret.add_argument("--no-touchdowns", action="store_true",
                      help="keep the source schedule even if a foot reaches the ground during a flight (Algorithm 1 lines 17-22 off)")
+    ret.add_argument("--flight", choices=("schedule", "exit"), default="schedule",
+                     help="flight arcs: land at the next scheduled contact (default; keeps the schedule, high arcs on "
+                          "slowed-down clips) or leave with the fitted exit velocity (the paper's; lands early)")
     ret.add_argument("--format", default=None, help="force the source format")
     ret.add_argument("--out", required=True, help="output robot motion (.npz)")
     ret.add_argument("--json", action="store_true", help="print the metrics as JSON")
@@ -102,7 +105,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
     source = _load_source(args.source, args.format)
-    options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns))
+    options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns, land_on_schedule=args.flight == "schedule"))
     result = retarget_detailed(source, robot, args.method, options)
     figures = summary(source, result, heightmap)
     result.motion.metrics = figures
