@@ -41,6 +41,7 @@ def clip_path(shared: Path, clip: str) -> Path:
 
 
 def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROBOTS, baseless: bool = True) -> list[dict]:
+    from engine.retarget.contacts import contact_iou, estimate_contacts
     from engine.retarget.importers import import_source
     from engine.retarget.metrics import recovery_rate_percent, travel_distance_m
     from engine.retarget.quadruped.heightmap import HeightMap
@@ -88,6 +89,13 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
                      "smr_kp_err_mm": round(float(np.mean([r["smr_kp_err_mm"] for r in smr_rows])), 1),
                      **{k: mean(k, 0) for k in ("uvm_frames_per_s", "uvm_frames_per_cpu_s", "smr_frames_per_s", "smr_frames_per_cpu_s")},
                      "paper_uvm_slide_mm": 73.92, "paper_smr_slide_mm": 0.34, "paper_uvm_iou": 0.513, "paper_smr_iou": 0.998})
+    for clip in clips:  # the contact estimate (foot height + speed) against the clip's own schedule
+        src = import_source(clip_path(shared, clip))
+        est = estimate_contacts(src.feet, src.fps)
+        rows.append({"section": "retarget-contacts", "clip": clip, "schedule_from": src.source.get("contact_from"),
+                     "estimate_iou": round(contact_iou(est, src.contact), 3),
+                     "contact_fraction_source": round(float(src.contact.mean()), 3),
+                     "contact_fraction_estimate": round(float(est.mean()), 3)})
     if baseless:
         for clip in [c for c in BASELESS_CLIPS if c in clips]:
             src = import_source(clip_path(shared, clip))
