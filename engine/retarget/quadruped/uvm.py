@@ -81,7 +81,7 @@ def uvm_keypoints(source: KeypointMotion, kin: QuadrupedKinematics) -> tuple[np.
 class KeypointIK:
     """Damped least squares on the leg joints (base given) to reach 16 weighted keypoints."""
 
-    def __init__(self, kin: QuadrupedKinematics, weights: np.ndarray, damping: float = 1e-4, iterations: int = 12):
+    def __init__(self, kin: QuadrupedKinematics, weights: np.ndarray, damping: float = 1e-4, iterations: int = 8):
         self.kin = kin
         self.model = kin.model
         self.data = self.model.createData()
@@ -114,12 +114,12 @@ class KeypointIK:
         for _ in range(self.iterations):
             pos, jac = self._fk_jac(q)
             r = (tgt - pos.reshape(-1)) * self.w
-            if np.abs(r).max() < 1e-6:
+            if np.abs(r).max() < 1e-5:
                 break
             j = jac.reshape(-1, self.model.nv)[:, 6:] * self.w[:, None]
             dq = np.linalg.solve(j.T @ j + self._damp, j.T @ r)
             q[7:] = np.clip(q[7:] + dq, self.lower, self.upper)
-            if np.abs(dq).max() < 1e-7:
+            if np.abs(dq).max() < 1e-5:
                 break
         return q
 
