@@ -42,6 +42,9 @@ def summary(source: KeypointMotion, result, heightmap: HeightMap) -> dict:
         "frames_per_cpu_s": round(motion.frames / max(result.cpu_time_s, 1e-9), 1),
         "wall_time_s": round(result.wall_time_s, 4),
     }
+    for key in ("qp_failures", "joint_limit_relaxed", "flight_frames"):
+        if key in motion.source:
+            figures[key] = motion.source[key]
     if enforced is not None:
         figures["contact_iou_enforced"] = round(M.contact_iou(source.contact, np.array(enforced, dtype=bool)), 4)
     return figures

@@ -72,13 +72,17 @@ def retarget_detailed(source: KeypointMotion, robot: str, method: str = "smr", o
     if method == "uvm":
         q = ik_q
         contact_enforced = None
+        smr_stats = {}
     else:
         res = smr(kin, ik_q, src.contact, src.fps, options.heightmap, options.smr, report(0.5, 1.0), cancel)
         q = res.q
         contact_enforced = res.contact
+        smr_stats = {"qp_solves": res.qp_solves, "qp_failures": res.qp_failures,
+                     "joint_limit_relaxed": res.joint_limit_relaxed, "flight_frames": int(res.flight.sum())}
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     motion = robot_motion_from_q(kin, q, src, method, options, contact_enforced)
     motion.source["wall_time_s"] = wall
+    motion.source.update(smr_stats)
     if progress:
         progress(1.0)
     return RetargetOutput(motion, target, wall, cpu)

@@ -62,7 +62,6 @@ def uvm_keypoints(source: KeypointMotion, kin: QuadrupedKinematics) -> tuple[np.
             elif k == 1:
                 e = np.einsum("tij,j->ti", rot, std[leg, 1] - std[leg, 0])
                 trg[:, leg, 1] = trg[:, leg, 0] + e
-                weights[leg, 1] = 1.0 if not known[leg, 1] else 1.0
             elif k == 2:
                 trg[:, leg, 2] = np.nan  # filled below (foot from thigh) and ignored by the IK
                 weights[leg, 2] = 0.0
