@@ -44,9 +44,7 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
     from engine.retarget.contacts import contact_iou, estimate_contacts
     from engine.retarget.importers import import_source
     from engine.retarget.metrics import recovery_rate_percent, travel_distance_m
-    from engine.retarget.quadruped.heightmap import HeightMap
     from engine.retarget.quadruped.pipeline import RetargetOptions, retarget_detailed
-    from engine.retarget.report import summary
 
     shared = shared_dir()
     if shared is None:
@@ -60,7 +58,7 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
             row = {"section": "retarget", "robot": robot, "clip": clip, "frames": src.frames}
             for method in ("uvm", "smr"):
                 out = retarget_detailed(src, robot, method)
-                fig = summary(src, out, HeightMap())
+                fig = out.motion.metrics
                 row[f"{method}_slide_mm"] = "-" if fig["foot_slide_mm"] is None else round(fig["foot_slide_mm"], 3)
                 row[f"{method}_iou"] = round(fig["contact_iou"], 3)
                 row[f"{method}_pen_mm"] = round(fig["penetration_mm"], 2)

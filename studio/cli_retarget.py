@@ -94,7 +94,6 @@ def cmd_retarget(args: argparse.Namespace) -> int:
     from engine.retarget.quadruped.heightmap import parse_terrain
     from engine.retarget.quadruped.pipeline import METHODS, RetargetOptions, retarget_detailed
     from engine.retarget.quadruped.smr import SmrOptions
-    from engine.retarget.report import summary
 
     if args.method not in METHODS:
         raise CliError(f"--method {args.method}: expected one of {', '.join(METHODS)}")
@@ -107,8 +106,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
     source = _load_source(args.source, args.format)
     options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns, land_on_schedule=args.flight == "schedule"))
     result = retarget_detailed(source, robot, args.method, options)
-    figures = summary(source, result, heightmap)
-    result.motion.metrics = figures
+    figures = result.motion.metrics
     result.motion.save(out)
     if args.json:
         print(json.dumps(figures, indent=1))

@@ -83,9 +83,13 @@ def retarget_detailed(source: KeypointMotion, robot: str, method: str = "smr", o
     motion = robot_motion_from_q(kin, q, src, method, options, contact_enforced)
     motion.source["wall_time_s"] = wall
     motion.source.update(smr_stats)
+    output = RetargetOutput(motion, target, wall, cpu)
+    from engine.retarget.report import summary
+
+    motion.metrics = summary(src, output, options.heightmap)  # foot slide, IoU, penetration, … (see report.py)
     if progress:
         progress(1.0)
-    return RetargetOutput(motion, target, wall, cpu)
+    return output
 
 
 def robot_motion_from_q(kin: QuadrupedKinematics, q: np.ndarray, source: KeypointMotion, method: str,
