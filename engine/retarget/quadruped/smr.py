@@ -138,6 +138,8 @@ class FootLockQP:
 
 FREEZE_GROUND_AFTER = 3
 INF = 1e30  # OSQP_INFTY
+
+
 def _swing_ground(heightmap: HeightMap, feet: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Lowest allowed foot-centre height: the highest ground under a disc around each foot (box edges)."""
     return heightmap.support_heights(feet[:, :2], radius) + radius
