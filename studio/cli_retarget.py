@@ -66,10 +66,17 @@ def _check_out(out: str, suffixes: tuple[str, ...]) -> Path:
     return path
 
 
+def _write(out: Path, save) -> None:
+    try:
+        save(out)
+    except OSError as exc:
+        raise CliError(f"--out {out}: cannot write ({exc.strerror or exc.__class__.__name__})") from None
+
+
 def cmd_import(args: argparse.Namespace) -> int:
     out = _check_out(args.out, (".npz",))
     motion = _load_source(args.src, args.format)
-    motion.save(out)
+    _write(out, motion.save)
     src = motion.source
     print(f"{Path(args.src).name} → {out}: {motion.frames} frames at {motion.fps:g} fps ({motion.duration_s:.2f} s), "
           f"format {src.get('format')}, contacts {src.get('contact_from', 'source')}"
@@ -107,7 +114,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
     options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns, land_on_schedule=args.flight == "schedule"))
     result = retarget_detailed(source, robot, args.method, options)
     figures = result.motion.metrics
-    result.motion.save(out)
+    _write(out, result.motion.save)
     if args.json:
         print(json.dumps(figures, indent=1))
     else:
@@ -143,7 +150,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             raise CliError(f"{Path(args.motion).name}: robot: {exc}") from None
         if kind != "quadruped" or len(motion.joint_names) != 12:
             raise CliError(f"{Path(args.motion).name}: robot: --amp-full expects a 12-joint quadruped, got {motion.robot}")
-    export_motion(motion, args.format, out, amp_full=args.amp_full)
+    _write(out, lambda path: export_motion(motion, args.format, path, amp_full=args.amp_full))
     print(f"{Path(args.motion).name} → {out} ({args.format}{', 61-value AMP frames' if args.amp_full else ''}, "
           f"{motion.frames} frames at {motion.fps:g} fps)")
     return 0

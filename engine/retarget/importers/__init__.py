@@ -21,6 +21,8 @@ FORMATS = ("keypoint-npz", "stmr-keypoints", "motion-imitation", "dog-keypoints"
 
 def detect_format(path: Path) -> str:
     name = path.name
+    if path.is_dir():
+        raise ImportFormatError(f"{name}: expected a motion file, got a directory")
     if not path.is_file():
         raise ImportFormatError(f"{name}: file not found")
     head = path.read_bytes()[:4096]
