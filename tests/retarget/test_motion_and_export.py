@@ -55,6 +55,11 @@ def test_robot_motion_round_trip_and_biped_shape(tmp_path, go1_motion):
                         method="walk", foot_names=["left", "right"])
     biped.save(tmp_path / "b.npz")
     assert RobotMotion.load(tmp_path / "b.npz").foot_names == ["left", "right"]
+    for fmt, name in (("amp-json", "b.json"), ("unitree-csv", "b.csv")):  # the exporters take it too
+        export_motion(biped, fmt, tmp_path / name)
+    qpos, names, _ = read_amp_json(tmp_path / "b.json")
+    assert names == biped.joint_names and np.allclose(qpos, biped.qpos)
+    assert np.allclose(read_unitree_csv(tmp_path / "b.csv"), biped.qpos)
 
 
 def test_validation_names_file_and_field(tmp_path):
