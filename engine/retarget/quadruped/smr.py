@@ -46,7 +46,7 @@ class SmrOptions:
     weight_joint: float = 1.0
     joint_pull: float = 0.2  # per frame, toward the IK joints and base orientation
     newton_iterations: int = 8
-    tolerance_m: float = 1e-6
+    tolerance_m: float = 1e-4  # a step this small leaves an O(step²) ≈ 1e-8 m linearisation error
     flight_horizon: int = 6
     touchdown_tolerance_m: float = 1e-4
     swing_clearance_m: float = 0.01  # swing feet stay this far above the height map
