@@ -115,3 +115,15 @@ def test_dog_bvh_with_a_missing_joint_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "dog.bvh" in err[0] and "'LeftForeArm' is missing" in err[0]
     assert not (tmp_path / "dog.npz").exists()
+
+
+@pytest.mark.parametrize("clip", ["sidesteps.txt", "hopturn.txt", "dog_pace.txt", "dog_backwards_trot.txt"])
+def test_laikago_clips(clip):
+    """Peng's Laikago frames: toes on the ground when standing, left legs on the left, same gait as STMR's A1 copy."""
+    m = import_source(shared_file("motion_imitation", "motions", clip))
+    assert np.allclose(left_of_body(m), [1, 0, 1, 0])
+    assert m.source["robot"].startswith("laikago") and m.contact.mean() > 0.3
+    if clip == "sidesteps.txt":  # the same animation as STMR's sidesteps (A1): foot lifts correlate leg for leg
+        a1 = import_source(stmr_clip("sidesteps"))
+        corr = np.corrcoef(m.feet[:, :, 2].T, a1.feet[:, :, 2].T)[:4, 4:]
+        assert (np.diag(corr) > 0.95).all()

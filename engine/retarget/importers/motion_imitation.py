@@ -9,8 +9,8 @@ toe positions, velocities). The leg order differs per file (PROVENANCE.md of eac
 * 19-value frames: pybullet order FR, FL, RR, RL, except the STMR trot/pace ``*_raw.txt`` clips, which
   are the AMP clips with FR↔FL and RR↔RL swapped (FL, FR, RL, RR; checked against the AMP toes).
 
-Frames made for Laikago (root quaternion starting at motion_imitation's INIT_ROT (0.5, 0.5, 0.5, 0.5))
-are not supported yet: the message says so. Contacts are estimated from foot height and speed.
+Frames made for Laikago (Peng's clips: root quaternion starting at motion_imitation's INIT_ROT (0.5, 0.5,
+0.5, 0.5)) go through the FK of that model (``laikago.py``). Contacts are estimated from foot height and speed.
 """
 
 from __future__ import annotations
@@ -97,8 +97,8 @@ def import_frames(path: Path) -> KeypointMotion:
     frames, dt, meta = read_frames(path)
     name = path.name
     first = frames[0, 3:7]
-    if np.allclose(np.abs(first), 0.5, atol=0.08):
-        raise ImportFormatError(f"{name}: Frames: a Laikago clip (root quaternion at INIT_ROT); expected frames made for A1 (Laikago FK is not supported yet)")
+    if frames.shape[1] == 19 and np.allclose(np.abs(first), 0.5, atol=0.08):
+        return _import_laikago(path, frames, dt, meta)
     kin = quadruped_kinematics("a1")
     if frames.shape[1] == 61:
         errors = {order: _toe_error(kin, frames, order) for order in (PYBULLET_ORDER, ENGINE_ORDER)}
@@ -116,4 +116,23 @@ def import_frames(path: Path) -> KeypointMotion:
         fps=fps, keypoints=kp, contact=contact, base_pos=q[:, 0:3].copy(), base_quat=quat,
         source={"file": name, "format": "motion-imitation", "robot": "a1", "frame_values": int(frames.shape[1]),
                 "leg_order": ",".join(order), "leg_order_from": how, "contact_from": "estimated", **meta},
+    )
+
+
+def _import_laikago(path: Path, frames: np.ndarray, dt: float, meta: dict) -> KeypointMotion:
+    from engine.retarget.importers.laikago import laikago_keypoints
+
+    order = FILE_LEG_ORDER.get(path.stem, PYBULLET_ORDER)
+    kp, base_pos, base_quat = laikago_keypoints(frames, order)
+    ground = float(np.percentile(kp[:, 3::4, 2], 2))
+    kp[:, :, 2] -= ground
+    base_pos = base_pos.copy()
+    base_pos[:, 2] -= ground
+    fps = round(1.0 / dt, 6)
+    contact = estimate_contacts(kp[:, 3::4], fps, 0.0)
+    return KeypointMotion(
+        fps=fps, keypoints=kp, contact=contact, base_pos=base_pos, base_quat=base_quat,
+        source={"file": path.name, "format": "motion-imitation", "robot": "laikago (laikago_toes.urdf)",
+                "frame_values": 19, "leg_order": ",".join(order), "leg_order_from": "pybullet default",
+                "contact_from": "estimated", "ground_shift_m": -ground, **meta},
     )
