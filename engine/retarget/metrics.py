@@ -55,18 +55,28 @@ def dtw_keypoint_l1_percent(result: np.ndarray, target: np.ndarray) -> float:
     """DTW-aligned L1 keypoint distance over the target's total keypoint path length, in %."""
     a = result.reshape(len(result), -1)
     b = np.nan_to_num(target).reshape(len(target), -1)
-    cost = np.abs(a[:, None, :] - b[None, :, :]).sum(axis=2)
-    n, m = cost.shape
-    acc = np.full((n + 1, m + 1), np.inf)
-    acc[0, 0] = 0.0
-    steps = np.zeros((n + 1, m + 1), dtype=int)
-    for i in range(1, n + 1):
+    cost = np.abs(a[:, None, :] - b[None, :, :]).sum(axis=2).tolist()
+    n, m = len(a), len(b)
+    inf = float("inf")
+    prev = [0.0] + [inf] * m  # accumulated cost of row i-1 (index 0: the empty prefix)
+    prev_steps = [0] * (m + 1)
+    for i in range(n):
+        row, row_steps = [inf] * (m + 1), [0] * (m + 1)
+        ci = cost[i]
         for j in range(1, m + 1):
-            k = int(np.argmin((acc[i - 1, j - 1], acc[i - 1, j], acc[i, j - 1])))
-            prev = ((i - 1, j - 1), (i - 1, j), (i, j - 1))[k]
-            acc[i, j] = cost[i - 1, j - 1] + acc[prev]
-            steps[i, j] = steps[prev] + 1
-    per_step = acc[n, m] / max(steps[n, m], 1)  # mean L1 over the warped path (all keypoints)
+            diag, up, left = prev[j - 1], prev[j], row[j - 1]
+            if diag <= up and diag <= left:
+                best, st = diag, prev_steps[j - 1]
+            elif up <= left:
+                best, st = up, prev_steps[j]
+            else:
+                best, st = left, row_steps[j - 1]
+            row[j] = ci[j - 1] + best
+            row_steps[j] = st + 1
+        prev, prev_steps = row, row_steps
+        prev[0] = inf
+    total, steps = prev[m], prev_steps[m]
+    per_step = total / max(steps, 1)  # mean L1 over the warped path (all keypoints)
     path = np.abs(np.diff(np.nan_to_num(target), axis=0)).sum()  # L1 path length, all keypoints
     return float(per_step * len(target) / max(path, 1e-9) * 100.0)
 
