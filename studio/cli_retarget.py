@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     ret.add_argument("--flight", choices=("schedule", "exit"), default="schedule",
                      help="flight arcs: land at the next scheduled contact (default; keeps the schedule, high arcs on "
                           "slowed-down clips) or leave with the fitted exit velocity (the paper's; lands early)")
-    ret.add_argument("--format", default=None, help="force the source format")
+    ret.add_argument("--format", default=None, choices=IMPORT_FORMATS, help="force the source format")
     ret.add_argument("--out", required=True, help="output robot motion (.npz)")
     ret.add_argument("--json", action="store_true", help="print the metrics as JSON")
 
