@@ -205,6 +205,7 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": bench_sim, "reference": bench_reference, "mpc": bench_mpc, "wbc": bench_wbc,
     "estimator": bench_estimator, "stack": bench_stack, "edit": bench_edit_latency,
+    "retarget": lambda: __import__("engine.bench_retarget", fromlist=["bench_retarget"]).bench_retarget(),
 }
 
 
