@@ -55,6 +55,10 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    from studio import cli_tmr
+
+    cli_tmr.register(sub)
     return parser
 
 
@@ -73,6 +77,10 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_plan(args)
         if args.subcommand == "walk":
             return cmd_walk(args)
+        if args.subcommand in ("tmr", "retarget-batch"):
+            from studio import cli_tmr
+
+            return cli_tmr.cmd_tmr(args) if args.subcommand == "tmr" else cli_tmr.cmd_retarget_batch(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -5,7 +5,7 @@ Until the spatial stage's ``engine.retarget.motion.RobotMotion`` is on main, TMR
 leg order FL, FR, RL, RR and ``robot``; this module's :class:`RobotMotion` is such an object, and it reads and
 writes the same npz fields (``format``, ``fps``, ``qpos``, ``joint_names``, ``contact``, ``foot_names``, ``robot``,
 ``method``, ``source`` and ``metrics`` as JSON, optional ``keypoints``, ``qvel``, ``ctrl``) plus the dynamic
-fields TMR adds (``pd_targets``, ``pd_kp``, ``pd_kd``, ``alpha``, ``segment_knots_s``).
+fields TMR adds (``pd_targets``, ``pd_kp``, ``pd_kd``, ``alpha``, ``segment_knots_s``, ``contact_sim``).
 Written atomically; read with ``allow_pickle=False``.
 """
 
@@ -22,7 +22,7 @@ from engine.atomic_io import atomic_write_bytes
 
 ROBOT_FORMAT = "robot-motion/1"
 LEGS = ("FL", "FR", "RL", "RR")
-DYNAMIC_FIELDS = ("pd_targets", "pd_kp", "pd_kd", "alpha", "segment_knots_s")
+DYNAMIC_FIELDS = ("pd_targets", "pd_kp", "pd_kd", "alpha", "segment_knots_s", "contact_sim")
 
 
 class MotionFileError(ValueError):
