@@ -49,6 +49,7 @@ class BOResult:
     best_payload: Any
     history: list[tuple[np.ndarray, float]] = field(default_factory=list)
     converged: bool = False
+    payloads: list[Any] = field(default_factory=list)  # one per history entry
 
     @property
     def evaluations(self) -> int:
@@ -135,4 +136,4 @@ def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callab
             abort(list(running))
         raise
     best_i = int(np.argmax([s for _, s in observed]))
-    return BOResult(observed[best_i][0], observed[best_i][1], payloads[best_i], observed, converged)
+    return BOResult(observed[best_i][0], observed[best_i][1], payloads[best_i], observed, converged, payloads)

@@ -209,7 +209,8 @@ def keyframed(robot, keyframes: list[dict], fps: float = 50.0, name: str = "keyf
     """A clip from keyframes ``{t_s, x_m, z_m, pitch_rad, front: (thigh, calf), rear: (thigh, calf),
     contact: (FL, FR, RL, RR)}``. Base x, z and pitch are PCHIP-interpolated between keyframes on the ground and
     ballistic (constant pitch rate) between the last keyframe with contact and the next; leg joints are
-    PCHIP-interpolated, except that a foot in contact keeps its touchdown point (IK)."""
+    PCHIP-interpolated, except that a foot in contact keeps its touchdown point (IK). A keyframe's contact flags
+    hold until the next keyframe."""
     from scipy.interpolate import PchipInterpolator
 
     ik = LegIK(robot)
@@ -222,10 +223,9 @@ def keyframed(robot, keyframes: list[dict], fps: float = 50.0, name: str = "keyf
     z = PchipInterpolator(times, [kf["z_m"] for kf in keyframes])(t)
     pitch = PchipInterpolator(times, np.unwrap([kf["pitch_rad"] for kf in keyframes]))(t)
     legs = PchipInterpolator(times, [[*kf["front"], *kf["rear"]] for kf in keyframes])(t)
-    # contact per frame: the keyframe interval's start flags, airborne only where both ends say so
-    idx = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
-    nxt = np.minimum(idx + 1, len(times) - 1)
-    contact = cont_kf[idx] & (cont_kf[nxt] | (t <= times[idx] + 1e-9))
+    # contact per frame: a keyframe's flags hold until the next keyframe
+    idx = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
+    contact = cont_kf[idx]
     airborne = ~contact.any(axis=1)
     # ballistic base through every flight interval (take-off state from the interpolants)
     k = 0
@@ -249,6 +249,7 @@ def keyframed(robot, keyframes: list[dict], fps: float = 50.0, name: str = "keyf
         k = k1
     qpos = np.zeros((T, len(q0)))
     anchors = np.full((4, 3), np.nan)
+    ground_z = ik.nominal_feet(q0)[:, 2] + q0[2]  # foot-centre height standing on the floor
     q = q0.copy()
     for k in range(T):
         q[0], q[1], q[2] = x[k], q0[1], z[k]
@@ -257,20 +258,20 @@ def keyframed(robot, keyframes: list[dict], fps: float = 50.0, name: str = "keyf
             thigh, calf = legs[k, 0:2] if leg < 2 else legs[k, 2:4]
             hip_adr, thigh_adr, calf_adr = ik.leg_qpos[leg]
             q[hip_adr], q[thigh_adr], q[calf_adr] = q0[hip_adr], thigh, calf
-        if contact[k].any():
-            ik.d.qpos[:] = q
-            mujoco.mj_kinematics(ik.m, ik.d)
-            feet = ik.kp.positions(ik.d)[ik.kp.foot_index]
-            for leg in range(4):
-                if contact[k, leg]:
-                    if np.isnan(anchors[leg, 0]):
-                        anchors[leg] = feet[leg]
-                        anchors[leg, 2] = ik.nominal_feet(q0)[leg, 2] + q0[2]
-                    feet[leg] = anchors[leg]
-                else:
-                    anchors[leg] = np.nan
+        ik.d.qpos[:] = q
+        mujoco.mj_kinematics(ik.m, ik.d)
+        feet = ik.kp.positions(ik.d)[ik.kp.foot_index]
+        low = feet[:, 2] < ground_z - 1e-6
+        for leg in range(4):
+            if contact[k, leg]:
+                if np.isnan(anchors[leg, 0]):
+                    anchors[leg] = feet[leg]
+                    anchors[leg, 2] = ground_z[leg]
+                feet[leg] = anchors[leg]
+            else:
+                anchors[leg] = np.nan
+                feet[leg, 2] = max(feet[leg, 2], ground_z[leg])  # a swinging foot never goes through the floor
+        if contact[k].any() or low.any():
             q = ik.solve(q, feet)
-        else:
-            anchors[:] = np.nan
         qpos[k] = q
     return _finish(robot, qpos, contact, fps, name)

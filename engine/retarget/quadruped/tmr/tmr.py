@@ -161,7 +161,10 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
         "wall_time_s": round(time.perf_counter() - t0, 2),
     }
     out.metrics = {**summary}
-    evaluations = [{"log2_alpha": [round(float(v), 4) for v in x], "score": round(s, 5)} for x, s in bo.history]
+    evaluations = [{"alpha": [round(2.0 ** float(v), 4) for v in x], "score": round(s, 5), "replay_fell": bool(ev.fell),
+                    "tracking_error_mm": round(ev.tracking_error_mm, 2), "duration_s": round(ev.duration_s, 3),
+                    "wall_time_s": round(ev.wall_time_s, 1)}
+                   for (x, s), ev in zip(bo.history, bo.payloads)]
     return TMRResult(out, summary, evaluations)
 
 
