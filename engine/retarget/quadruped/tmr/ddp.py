@@ -501,7 +501,7 @@ class MotionTracker:
     def __init__(self, robot, timestep_s: float = DEFAULT_TIMESTEP_S, physics_step_s: float | None = None,  # noqa: ANN001
                  weights: TrackingWeights | None = None, settings: ILQRSettings | None = None,
                  torque_limit_scale: float = 1.0, mode: str = "receding", window_s: float = 0.3,
-                 replan_s: float = 0.03, window_iterations: int = 3):
+                 replan_s: float = 0.03, window_iterations: int = 3, polish_iterations: int = 0):
         if mode not in ("receding", "full"):
             raise ValueError(f"mode: expected 'receding' or 'full', got {mode!r}")
         self.mode = mode
@@ -521,6 +521,7 @@ class MotionTracker:
         self.window = max(2, int(round(window_s / self.dt_s)))
         self.replan = max(1, int(round(replan_s / self.dt_s)))
         self.window_settings = ILQRSettings(max_iterations=window_iterations, tolerance=1e-3)
+        self.polish_iterations = int(polish_iterations)  # full-horizon iLQR after the receding pass
         self.joint_dof = np.asarray(robot.mj_dof_index)
         self.joint_qpos = np.asarray(robot.mj_qpos_index)
         self.actuator = np.asarray(robot.mj_actuator_index)
@@ -615,6 +616,12 @@ class MotionTracker:
         if self.mode == "receding":
             res = receding_horizon(self.dyn, cost, x0, U0, self.window, self.replan, self.window_settings,
                                    cancel=cancel, progress=progress)
+            if self.polish_iterations > 0:
+                t_receding, t_deriv = res.wall_time_s, res.derivative_time_s
+                res = ilqr(self.dyn, cost, x0, res.U, ILQRSettings(max_iterations=self.polish_iterations),
+                           cancel=cancel)
+                res.wall_time_s += t_receding
+                res.derivative_time_s += t_deriv
         else:
             res = ilqr(self.dyn, cost, x0, U0, self.settings, cancel=cancel, progress=progress)
         out = self.replay(target.qpos[0], target.qvel[0], res.U)

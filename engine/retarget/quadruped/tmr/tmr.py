@@ -49,6 +49,7 @@ class TMRSettings:
     replan_s: float = 0.05
     window_iterations: int = 2
     full_iterations: int = 30
+    polish_iterations: int = 0  # full-horizon iLQR iterations after the receding pass (flips need the whole flight)
     seed: int = 0
 
 
@@ -92,7 +93,7 @@ def deformed_target(robot, qpos: np.ndarray, contact: np.ndarray, fps: float, de
 def make_tracker(robot, settings: TMRSettings) -> MotionTracker:  # noqa: ANN001
     return MotionTracker(robot, timestep_s=settings.timestep_s, settings=ILQRSettings(max_iterations=settings.full_iterations),
                          mode=settings.mode, window_s=settings.window_s, replan_s=settings.replan_s,
-                         window_iterations=settings.window_iterations)
+                         window_iterations=settings.window_iterations, polish_iterations=settings.polish_iterations)
 
 
 def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: float, log2_alpha: np.ndarray,
