@@ -27,7 +27,8 @@ class BOSettings:
     budget: int = 10  # evaluations at most
     init_points: int = 3  # warm start: the identity + (init_points − 1) random points
     parallel: int = 1  # evaluations in flight at once
-    xi: float = 0.01  # exploration of expected improvement (Eq. 18)
+    xi: float = 0.05  # exploration of expected improvement (Eq. 18)
+    noise: float = 1e-3  # GP observation noise (normalised scores): tracking scores are not smooth in α
     convergence_log2: float = 0.05  # suggestions within this of the best point count as "settled"
     patience: int = 3  # settled suggestions in a row without improvement → converged
     seed: int = 0
@@ -69,6 +70,7 @@ def _suggest(dims: int, bound: float, observed: list[tuple[np.ndarray, float]], 
         f=None, pbounds={k: (-bound, bound) for k in keys},
         acquisition_function=acquisition.ExpectedImprovement(xi=settings.xi),
         random_state=int(rng.integers(2**31)), verbose=0, allow_duplicate_points=True)
+    opt.set_gp_params(alpha=settings.noise)
     lie = min(s for _, s in observed)
     for x, s in observed:
         opt.register(params=dict(zip(keys, map(float, x))), target=float(s))
