@@ -11,6 +11,9 @@ import socket
 from typing import Any, Callable
 
 
+START_ATTEMPTS = 2  # a loaded machine can miss Ray's fixed 30 s node start-up window once
+
+
 class RayAddressError(RuntimeError):
     """A Ray address that does not answer (one line)."""
 
@@ -84,10 +87,16 @@ class RayExecutor:
                     p for p in [repo, os.environ.get("PYTHONPATH", "")] if p)}}
             else:
                 kwargs["address"] = address
-            try:
-                ray.init(**kwargs)
-            except (ConnectionError, RuntimeError, TimeoutError) as exc:
-                raise RayAddressError(f"--address {address}: Ray did not start ({str(exc).splitlines()[0]})") from None
+            for attempt in range(START_ATTEMPTS):
+                try:
+                    ray.init(**kwargs)
+                    break
+                except Exception as exc:  # noqa: BLE001 - Ray raises bare Exception when its node times out
+                    ray.shutdown()
+                    if attempt + 1 == START_ATTEMPTS:
+                        where = f"--address {address}: " if address else "local Ray: "
+                        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                        raise RayAddressError(f"{where}Ray did not start ({first})") from None
         self._ray = ray
         self._remote: dict[Callable, Any] = {}
 
