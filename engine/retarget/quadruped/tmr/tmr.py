@@ -200,3 +200,22 @@ def dynamic_motion(robot, motion, ev: Evaluation, settings: TMRSettings) -> Robo
                 "tmr": {k: v for k, v in asdict(settings).items()}},
         extra={"pd_targets": pd, "pd_kp": kp, "pd_kd": kd, "alpha": 2.0 ** ev.log2_alpha,
                "segment_knots_s": deformation.control_knots_s, "contact_sim": ev.contact_sim})
+
+
+def track_motion(motion, settings: TMRSettings | None = None, cancel: Callable[[], bool] | None = None) -> dict:  # noqa: ANN001
+    """Track any robot motion (UVM, SMR, STMR, keyframed) as it is (α = 1) with the same tracker and report the
+    figures the benchmark compares methods by: open-loop replay falls or not, tracking error (mm, against the
+    motion's own keypoints in time), DTW keypoint L1 (%)."""
+    from engine.robot.model import load_robot
+
+    settings = settings or TMRSettings()
+    robot = load_robot(motion.robot)
+    _check_joint_order(robot, motion)
+    qpos = np.asarray(motion.qpos, float)
+    ev = evaluate_alpha(motion.robot, qpos, np.asarray(motion.contact, bool), float(motion.fps), np.zeros(1), settings,
+                        cancel)
+    dtw = dtw_keypoint_l1_pct(ev.keypoints, keypoint_trajectory(robot, qpos))
+    return {"robot": motion.robot, "method": getattr(motion, "method", "unknown"), "replay_fell": bool(ev.fell),
+            "tracking_error_mm": round(ev.tracking_error_mm, 2),
+            "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
+            "contact_iou": round(ev.score["contact_iou"], 4), "wall_time_s": round(ev.wall_time_s, 2)}
