@@ -45,6 +45,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parallel", type=int, default=1, help="BO evaluations in flight on Ray (default 1: in process)")
     p.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray when one is needed)")
     p.add_argument("--mode", choices=("receding", "full"), default="receding", help="iLQR horizon (default receding)")
+    p.add_argument("--window", type=float, default=0.25, help="receding-horizon window in seconds (default 0.25; "
+                   "flips need the whole flight, e.g. 0.6)")
     p.add_argument("--seed", type=int, default=0)
 
 
@@ -62,8 +64,11 @@ def _settings(args: argparse.Namespace):  # noqa: ANN202
         raise CliError(f"--budget: expected 1..1000 evaluations, got {args.budget}")
     if not 1 <= args.parallel <= 256:
         raise CliError(f"--parallel: expected 1..256, got {args.parallel}")
+    if not 0.02 <= args.window <= 5.0:
+        raise CliError(f"--window: expected 0.02..5 s, got {args.window}")
     return TMRSettings(segments=args.segments, log2_bound=args.alpha_bound, budget=args.budget,
-                       init_points=min(3, args.budget), parallel=args.parallel, mode=args.mode, seed=args.seed)
+                       init_points=min(3, args.budget), parallel=args.parallel, mode=args.mode, seed=args.seed,
+                       window_s=args.window)
 
 
 def _check_address(address: str | None) -> None:
