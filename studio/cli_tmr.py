@@ -33,7 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     batch.add_argument("--robots", default=None, help="comma-separated robots (default: each file's own robot)")
     batch.add_argument("--method", default="stmr", choices=("stmr",), help="retargeting method (TMR on the clip)")
     _common(batch)
-    batch.add_argument("--jobs", type=int, default=None, help="clips running at once (default: Ray's CPUs)")
+    batch.add_argument("--jobs", type=int, default=None,
+                       help="clips running at once (default: Ray's CPUs; 1 without --address runs in this process)")
     batch.add_argument("--out", required=True, help="output folder")
     batch.add_argument("--json", action="store_true", help="print the summary as JSON")
 
@@ -263,12 +264,15 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     total = len(plan)
     _bar(len(summaries), total, t0)
     if todo:
-        from engine.retarget.quadruped.tmr.ray_jobs import RayAddressError, RayExecutor
+        from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
 
-        try:
-            executor = RayExecutor(address=args.address, num_cpus=args.jobs)
-        except RayAddressError as exc:
-            raise CliError(str(exc)) from None
+        if args.address is None and args.jobs == 1:
+            executor = LocalExecutor()  # one job at a time needs no Ray
+        else:
+            try:
+                executor = RayExecutor(address=args.address, num_cpus=args.jobs)
+            except RayAddressError as exc:
+                raise CliError(str(exc)) from None
         limit = args.jobs or executor.workers
         pending = list(todo)
         running: dict = {}

@@ -103,9 +103,19 @@ def test_batch_skips_finished_jobs_by_content_hash(clips, tmp_path) -> None:  # 
     del t0
 
 
+def test_batch_runs_then_resumes_in_process(clips, tmp_path) -> None:  # noqa: ANN001
+    args = [str(clips / "stand.npz"), "--robots", "go1", "--budget", "1", "--jobs", "1", "--out", str(tmp_path), "--json"]
+    first = run_studio("retarget-batch", *args, timeout=600)
+    assert first.returncode == 0, first.stderr
+    assert [r["status"] for r in json.loads(first.stdout)["jobs"]] == ["done"]
+    assert "1/1 jobs" in first.stderr
+    second = run_studio("retarget-batch", *args, timeout=300)
+    assert [r["status"] for r in json.loads(second.stdout)["jobs"]] == ["skipped (done)"]
+
+
 @pytest.mark.slow
 def test_batch_on_ray_runs_then_resumes(clips, tmp_path) -> None:  # noqa: ANN001
-    args = [str(clips / "stand.npz"), "gen:standing", "--robots", "go1", "--budget", "1", "--jobs", "1", "--out",
+    args = [str(clips / "stand.npz"), "gen:standing", "--robots", "go1", "--budget", "1", "--jobs", "2", "--out",
             str(tmp_path), "--json"]
     first = run_studio("retarget-batch", *args, timeout=900)
     assert first.returncode == 0, first.stderr
