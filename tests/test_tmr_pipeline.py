@@ -65,3 +65,25 @@ def test_tracker_detects_a_fall(go1) -> None:  # noqa: ANN001
     assert replay.fell, "zero torque: the trunk drops onto the floor"
     assert replay.qpos[-1, 2] < 0.5 * q0[2]
 
+
+
+def test_shipped_backflip_turns_once_with_a_ballistic_flight_and_clean_feet() -> None:
+    from tests.conftest import REPO
+
+    m = load_robot_motion(REPO / "motions" / "go1" / "backflip.npz")
+    assert m.robot == "go1" and m.source["keyframes"] == 12 and m.duration_s == pytest.approx(1.48)
+    q = m.qpos
+    pitch = np.unwrap(2.0 * np.arctan2(q[:, 5], q[:, 3]))  # rotation about y (x = z = 0 in this clip)
+    assert np.allclose(q[:, [4, 6]], 0.0, atol=1e-9)
+    assert pitch[-1] - pitch[0] == pytest.approx(-2.0 * np.pi, abs=1e-6)
+    air = ~m.contact.any(axis=1)
+    assert air.sum() / m.fps == pytest.approx(0.40, abs=0.03)
+    z = q[air, 2]
+    acc = np.diff(z, 2) * m.fps**2
+    np.testing.assert_allclose(acc, -9.81, atol=0.05)  # ballistic base in flight
+    feet = m.keypoints[:, [3, 7, 11, 15]]
+    assert feet[..., 2].min() >= 0.02 - 1e-6  # foot spheres (r = 2 cm) never below the floor
+    for leg in range(4):
+        both = m.contact[1:, leg] & m.contact[:-1, leg]
+        slide = np.linalg.norm(np.diff(feet[:, leg], axis=0), axis=1)[both]
+        assert slide.max() < 1e-3

@@ -35,8 +35,8 @@ ALL, REAR, NONE = (True, True, True, True), (False, False, True, True), (False, 
 KEYFRAMES = [
     (0.00, 0.00, 0.00, 0.0, (0.80, -1.85), (0.80, -1.85), ALL),  # stand
     (0.20, 0.00, -0.08, 0.0, (1.15, -2.45), (1.15, -2.45), ALL),  # crouch
-    (0.35, -0.01, -0.04, -0.35, (0.70, -1.50), (1.25, -2.40), ALL),  # front legs push, nose rises
-    (0.45, -0.03, 0.02, -0.85, (0.40, -1.10), (1.05, -2.00), REAR),  # front take-off, rear legs drive
+    (0.35, -0.01, -0.04, -0.35, (0.70, -1.50), (1.25, -2.40), REAR),  # front legs have pushed and lift, nose rises
+    (0.45, -0.03, 0.02, -0.85, (0.40, -1.10), (1.05, -2.00), REAR),  # rear legs drive
     (0.55, -0.06, 0.08, -1.45, (1.40, -2.50), (0.45, -1.05), NONE),  # rear take-off: flight begins
     (0.65, -0.10, 0.16, -2.50, (2.00, -2.70), (1.60, -2.70), NONE),  # tuck
     (0.75, -0.14, 0.19, -3.55, (2.00, -2.70), (1.80, -2.70), NONE),  # upside down, tucked
