@@ -209,6 +209,15 @@ SECTIONS: dict[str, Callable[[], list[dict]]] = {
 }
 
 
+def _bench_tmr() -> list[dict]:
+    from engine.bench_tmr import bench_tmr
+
+    return bench_tmr()
+
+
+SECTIONS["tmr"] = _bench_tmr
+
+
 def percentiles_us(samples_s: list[float] | np.ndarray) -> dict[str, float]:
     arr = np.asarray(samples_s, dtype=float) * 1e6
     return {"median_us": round(float(np.median(arr)), 1), "p99_us": round(float(np.percentile(arr, 99)), 1)}

@@ -59,6 +59,10 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    from studio import cli_tmr
+
+    cli_tmr.register(sub)
     return parser
 
 
@@ -81,6 +85,10 @@ def main(argv: list[str] | None = None) -> int:
             from studio import cli_retarget
 
             return getattr(cli_retarget, f"cmd_{args.subcommand}")(args)
+        if args.subcommand in ("tmr", "retarget-batch"):
+            from studio import cli_tmr
+
+            return cli_tmr.cmd_tmr(args) if args.subcommand == "tmr" else cli_tmr.cmd_retarget_batch(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
