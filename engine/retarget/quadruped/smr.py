@@ -145,6 +145,29 @@ def _swing_ground(heightmap: HeightMap, feet: np.ndarray, radius: np.ndarray) ->
     return heightmap.support_heights(feet[:, :2], radius) + radius
 
 
+def _newton(kin: QuadrupedKinematics, data, qp: FootLockQP, q_start: np.ndarray, q_ref: np.ndarray, c: np.ndarray,
+            anchors: np.ndarray, heightmap: HeightMap, options: SmrOptions) -> tuple[np.ndarray, int, int]:
+    """Re-linearised QP steps from q_start toward q_ref under the foot constraints: (q, solves, failures)."""
+    model = kin.model
+    radius = kin.foot_radius_m
+    q = q_start.copy()
+    solves = 0
+    ground = None
+    for it in range(options.newton_iterations):
+        feet, jac = kin.foot_jacobians(data, q)
+        if it < FREEZE_GROUND_AFTER or ground is None:  # then frozen: box edges cannot make the steps cycle
+            ground = _swing_ground(heightmap, feet, radius) + options.swing_clearance_m
+        step = pin.difference(model, q, q_ref)
+        dq = qp.solve(step, feet, jac, c, anchors, ground, q[7:])
+        if dq is None:
+            return q, solves, 1
+        q = pin.integrate(model, q, dq)
+        solves += 1
+        if np.abs(dq).max() < options.tolerance_m:
+            break
+    return q, solves, 0
+
+
 def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: float, heightmap: HeightMap,
         options: SmrOptions = SmrOptions(), progress: Callable[[float], None] | None = None,
         cancel=None) -> SmrResult:
@@ -203,37 +226,32 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
             if options.joint_pull > 0:
                 q_ref[3:7] = pin.Quaternion(q_ref[3:7]).slerp(options.joint_pull, pin.Quaternion(ref_q[i, 3:7])).coeffs()
         # --- Newton iterations on Eq. 14
-        q = q_ref.copy()
         qp.set_base_weight(options.flight_base_weight if flight[i] else options.weight_base_pos)
-        for it in range(options.newton_iterations):
-            feet, jac = kin.foot_jacobians(data, q)
-            if it == 0:  # anchors at new contact segments: the reference foot projected onto the ground
-                for leg in range(4):
-                    if c[leg] and not prev_contact[leg]:
-                        anchors[leg] = heightmap.project(feet[leg], radius[leg])
-                    elif not c[leg]:
-                        anchors[leg] = np.nan
-            if it < FREEZE_GROUND_AFTER:  # then frozen: the box edges cannot make the Newton steps cycle
-                ground = _swing_ground(heightmap, feet, radius) + options.swing_clearance_m
-            step = pin.difference(model, q, q_ref)
-            dq = qp.solve(step, feet, jac, c, anchors, ground, q[7:])
-            if dq is None:
-                failures += 1
-                break
-            q = pin.integrate(model, q, dq)
-            iterations += 1
-            if np.abs(dq).max() < options.tolerance_m:
-                break
-        # --- touchdowns during flight (Algorithm 1, lines 17–22)
+        feet = kin.foot_jacobians(data, q_ref)[0]
+        for leg in range(4):  # anchors at new contact segments: the reference foot projected onto the ground
+            if c[leg] and not prev_contact[leg]:
+                anchors[leg] = heightmap.project(feet[leg], radius[leg])
+            elif not c[leg]:
+                anchors[leg] = np.nan
+        q, solves, failed = _newton(kin, data, qp, q_ref, q_ref, c, anchors, heightmap, options)
+        iterations += solves
+        failures += failed
+        # --- touchdowns during flight (Algorithm 1, lines 17–22): the foot lands on this very frame
         if flight[i] and options.touchdowns:
             feet = kin.feet(data, q)
             ground = _swing_ground(heightmap, feet, radius) + options.swing_clearance_m
+            landed = False
             for leg in range(4):
                 # (a foot that lifted off this very frame is not landing: one swing frame at least)
                 if not c[leg] and not prev_contact[leg] and feet[leg, 2] <= ground[leg] + options.touchdown_tolerance_m:
                     touchdown[leg] = True
                     c[leg] = True
                     anchors[leg] = heightmap.project(feet[leg], radius[leg])
+                    landed = True
+            if landed:
+                q, solves, failed = _newton(kin, data, qp, q, q_ref, c, anchors, heightmap, options)
+                iterations += solves
+                failures += failed
         out_q[i] = q
         sched[i] = c
         anchors_out[i] = anchors
