@@ -52,6 +52,9 @@ class EngineCore:
         self._ticks = 0
         self.style_revision = 0
         self._pending_revision: int | None = None
+        from engine.jobs import JobRunner
+
+        self.jobs = JobRunner()  # long jobs (retargeting, ...) on worker threads; the loop drains their events
         self.load(robot)
 
     # ------------------------------------------------------------------ robot
@@ -133,6 +136,10 @@ class EngineCore:
             if not (math.isfinite(speed) and 0.05 <= speed <= 4.0):
                 raise ValueError(f"playback speed must be within 0.05..4, got {speed}")
             self.playback_speed = speed
+        elif isinstance(command, msg.StartJob):
+            self.jobs.start(command.job, command.params, command.job_id)
+        elif isinstance(command, msg.CancelJob):
+            self.jobs.cancel(command.job_id)
         else:
             raise ValueError(f"not supported by this engine yet: {command.kind}")
 

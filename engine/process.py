@@ -86,6 +86,8 @@ def engine_main(conn: Connection, robot: str) -> None:
                             break
             else:
                 wall0 = now - ticks * period
+            for event in core.jobs.drain():  # job workers never write to the pipe themselves
+                conn.send(event)
             now = time.perf_counter()
             if now - rtf_wall >= 1.0:
                 core.real_time_factor = (ticks - rtf_ticks) / CONTROL_RATE_HZ / (now - rtf_wall)

@@ -91,7 +91,16 @@ class StartJob:
 
     job: str
     params: dict[str, Any] = field(default_factory=dict)
+    job_id: str = ""  # chosen by the studio; JobProgress and CancelJob name it
     kind: str = "start_job"
+
+
+@dataclass(frozen=True)
+class CancelJob:
+    """Stop a running job; a cancelled job writes nothing."""
+
+    job_id: str
+    kind: str = "cancel_job"
 
 
 @dataclass(frozen=True)
@@ -100,7 +109,7 @@ class Shutdown:
 
 
 Command = (Reset | SetPaused | ApplyPush | SwitchRobot | SetVelocityCommand | SetStyle | SetMode | SetPlaybackSpeed
-           | StartJob | Shutdown)
+           | StartJob | CancelJob | Shutdown)
 
 # ------------------------------------------------------------------ events (engine → studio)
 
@@ -157,7 +166,8 @@ class JobProgress:
     job: str
     fraction: float
     message: str = ""
-    result: dict[str, Any] | None = None
+    result: dict[str, Any] | None = None  # set on the last event of a job: {"ok": bool, ...}
+    job_id: str = ""
     kind: str = "job_progress"
 
 

@@ -1,0 +1,283 @@
+"""Long jobs in the engine process: retargeting, import, export, playback poses.
+
+``StartJob(job, params, job_id)`` starts one on a worker thread; it reports ``JobProgress(fraction, message)``
+and ends with one ``JobProgress`` whose ``result`` is ``{"ok": True, ...}`` or ``{"ok": False, "error": ...,
+"cancelled": bool}``. ``CancelJob(job_id)`` sets the job's cancel event; a cancelled job writes nothing (every file
+is written atomically, and only once the job has succeeded). The engine's simulation loop keeps running: workers
+never touch the simulation, and their events go through a queue that the loop drains (:meth:`JobRunner.drain`),
+so only the loop's thread writes to the pipe.
+
+Jobs (all paths relative to the motion library, :mod:`engine.motion_files`):
+
+* ``retarget``  {source: "source/x.npz" | "demo:trot", robot, method: uvm|smr|stmr, baseless, terrain: [box:…],
+  name, uvm_ghost} → writes ``<robot>/<name>.npz`` (and ``<robot>/<name>.uvm.npz``, the UVM comparison, for smr)
+  → {path, metrics, playback}
+* ``import``    {root: "shared"|"motions", path, name} → writes ``source/<name>.npz`` → {path, frames, fps}
+* ``export``    {motion, format: amp-json|unitree-csv|npz, amp_full} → writes ``exports/<stem>.<ext>`` → {path}
+* ``poses``     {motion, source?, ghost?} → {playback} (nothing written)
+
+``playback`` holds what a viewer needs to show a motion without any kinematics of its own: the robot's body poses
+per frame (forward kinematics here, in MuJoCo), the source keypoints and contacts, the result's contacts.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+import traceback
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from engine import protocol as msg
+from engine.motion_files import (
+    EXPORTS_DIR, SOURCE_DIR, check_name, confined, motions_root, shared_root,
+)
+
+JOBS = ("retarget", "import", "export", "poses")
+DEMO_SOURCES = {"demo:trot": "synthetic trot (a1 proportions, 2 s, 30 fps)"}
+EXPORT_SUFFIX = {"amp-json": ".json", "unitree-csv": ".csv", "npz": ".npz"}
+PROGRESS_PERIOD_S = 0.1  # at most ten progress events a second per job
+
+
+class JobCancelled(Exception):
+    pass
+
+
+class JobError(ValueError):
+    """A user-facing failure: one line naming the file or parameter and what was expected."""
+
+
+class JobRunner:
+    """Runs jobs on worker threads; their events wait in a queue for the engine loop (thread-safe)."""
+
+    def __init__(self, root: Path | None = None):
+        self.root = Path(root) if root is not None else motions_root()
+        self._events: queue.Queue[msg.JobProgress] = queue.Queue()
+        self._cancel: dict[str, threading.Event] = {}
+        self._threads: dict[str, threading.Thread] = {}
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ control (engine loop thread)
+    def start(self, job: str, params: dict[str, Any], job_id: str = "") -> None:
+        job_id = job_id or f"{job}-{time.monotonic_ns()}"
+        if job not in JOBS:
+            self._events.put(msg.JobProgress(job, 1.0, "failed", {"ok": False, "cancelled": False,
+                             "error": f"job: expected one of {', '.join(JOBS)}, got {job!r}"}, job_id=job_id))
+            return
+        cancel = threading.Event()
+        thread = threading.Thread(target=self._run, args=(job, dict(params), job_id, cancel),
+                                  name=f"job-{job_id}", daemon=True)
+        with self._lock:
+            self._cancel[job_id] = cancel
+            self._threads[job_id] = thread
+        thread.start()
+
+    def cancel(self, job_id: str) -> bool:
+        with self._lock:
+            event = self._cancel.get(job_id)
+        if event is not None:
+            event.set()
+        return event is not None
+
+    def drain(self) -> list[msg.JobProgress]:
+        out = []
+        while True:
+            try:
+                out.append(self._events.get_nowait())
+            except queue.Empty:
+                return out
+
+    def busy(self) -> bool:
+        with self._lock:
+            return any(t.is_alive() for t in self._threads.values())
+
+    def join(self, timeout_s: float = 60.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        for thread in list(self._threads.values()):
+            thread.join(max(0.0, deadline - time.monotonic()))
+
+    # ------------------------------------------------------------------ worker
+    def _run(self, job: str, params: dict, job_id: str, cancel: threading.Event) -> None:
+        last = [0.0]
+
+        def report(fraction: float, message: str = "") -> None:
+            if cancel.is_set():
+                raise JobCancelled
+            now = time.monotonic()
+            if now - last[0] >= PROGRESS_PERIOD_S:
+                last[0] = now
+                self._events.put(msg.JobProgress(job, float(np.clip(fraction, 0.0, 0.999)), message, None,
+                                                 job_id=job_id))
+
+        report(0.0, "started")
+        try:
+            result = getattr(self, f"_job_{job}")(params, report, cancel)
+            result["ok"] = True
+            self._events.put(msg.JobProgress(job, 1.0, "done", result, job_id=job_id))
+        except BaseException as exc:  # noqa: BLE001 - every failure becomes a message, the engine lives on
+            from engine.retarget.quadruped.uvm import RetargetCancelled
+
+            cancelled = isinstance(exc, (JobCancelled, RetargetCancelled)) or cancel.is_set()
+            if cancelled:
+                error = "cancelled: nothing written"
+            elif isinstance(exc, (ValueError, OSError, KeyError)):
+                error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            else:
+                error = f"{type(exc).__name__}: {exc}"
+                traceback.print_exc()
+            self._events.put(msg.JobProgress(job, 1.0, "cancelled" if cancelled else "failed",
+                                             {"ok": False, "cancelled": cancelled, "error": error}, job_id=job_id))
+        finally:
+            with self._lock:
+                self._cancel.pop(job_id, None)
+
+    # ------------------------------------------------------------------ jobs
+    def _load_source(self, spec: str):
+        from engine.retarget.motion import KeypointMotion
+
+        if spec in DEMO_SOURCES:
+            from engine.retarget.synthetic import synthetic_trot
+
+            motion = synthetic_trot()
+            motion.source.setdefault("file", spec)
+            return motion
+        return KeypointMotion.load(confined(self.root, spec))
+
+    def _job_retarget(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
+        from engine.retarget.quadruped.heightmap import parse_terrain
+        from engine.retarget.quadruped.pipeline import METHODS, QUADRUPEDS, RetargetOptions, retarget_detailed
+
+        robot = str(params.get("robot", ""))
+        if robot not in QUADRUPEDS:
+            raise JobError(f"robot: expected a quadruped ({', '.join(QUADRUPEDS)}), got {robot!r}")
+        method = str(params.get("method", "smr"))
+        if method not in METHODS:
+            raise JobError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+        source_spec = str(params.get("source", ""))
+        source = self._load_source(source_spec)
+        name = check_name(str(params.get("name") or f"{Path(source_spec.split(':')[-1]).stem}_{method}"))
+        options = RetargetOptions(baseless=bool(params.get("baseless", False)),
+                                  heightmap=parse_terrain(list(params.get("terrain") or [])))
+        ghost = bool(params.get("uvm_ghost", True)) and method != "uvm"
+        span = 0.8 if ghost else 1.0
+        output = retarget_detailed(source, robot, method, options,
+                                   progress=lambda f: report(span * f, f"{method.upper()}: frame "
+                                                             f"{int(f * source.frames)} of {source.frames}"),
+                                   cancel=cancel)
+        uvm = None
+        if ghost:
+            uvm = retarget_detailed(source, robot, "uvm", options,
+                                    progress=lambda f: report(span + (1 - span) * f, "UVM comparison"),
+                                    cancel=cancel).motion
+        report(0.999, "writing")
+        if cancel.is_set():
+            raise JobCancelled
+        out = confined(self.root, f"{robot}/{name}.npz")
+        output.motion.source["studio_source"] = source_spec
+        output.motion.save(out)
+        result = {"path": str(out.relative_to(self.root.resolve())), "metrics": dict(output.motion.metrics)}
+        if uvm is not None:
+            ghost_path = confined(self.root, f"{robot}/{name}.uvm.npz")
+            uvm.save(ghost_path)
+            result["ghost_path"] = str(ghost_path.relative_to(self.root.resolve()))
+        result["playback"] = playback_data(output.motion, source, uvm)
+        return result
+
+    def _job_import(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
+        from engine.retarget.importers import import_source
+
+        where = str(params.get("root", "motions"))
+        if where == "shared":
+            shared = shared_root()
+            if shared is None:
+                raise JobError("shared data: not found (MOTION_STUDIO_SHARED, ../shared or /work/shared)")
+            root = shared / "motions-src"
+        elif where == "motions":
+            root = self.root
+        else:
+            raise JobError(f"root: expected 'shared' or 'motions', got {where!r}")
+        src = confined(root, str(params.get("path", "")))
+        if not src.is_file():
+            raise JobError(f"{params.get('path')}: no such file in {root.name}/")
+        name = check_name(str(params.get("name") or src.stem.replace(" ", "_")))
+        report(0.1, f"importing {src.name}")
+        motion = import_source(src)
+        if cancel.is_set():
+            raise JobCancelled
+        out = confined(self.root, f"{SOURCE_DIR}/{name}.npz")
+        motion.save(out)
+        return {"path": str(out.relative_to(self.root.resolve())), "frames": motion.frames, "fps": motion.fps,
+                "format": motion.source.get("format", "")}
+
+    def _job_export(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
+        from engine.export import FORMATS, export_motion
+        from engine.retarget.motion import RobotMotion
+
+        fmt = str(params.get("format", ""))
+        if fmt not in FORMATS:
+            raise JobError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+        src = confined(self.root, str(params.get("motion", "")))
+        motion = RobotMotion.load(src)
+        amp_full = bool(params.get("amp_full", False))
+        stem = f"{motion.robot}_{src.stem}" + ("_full" if amp_full and fmt == "amp-json" else "")
+        out = confined(self.root, f"{EXPORTS_DIR}/{check_name(stem)}{EXPORT_SUFFIX[fmt]}")
+        report(0.5, f"exporting {fmt}")
+        export_motion(motion, fmt, out, amp_full=amp_full)
+        return {"path": str(out.relative_to(self.root.resolve())), "format": fmt}
+
+    def _job_poses(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
+        from engine.retarget.motion import KeypointMotion, RobotMotion
+
+        motion = RobotMotion.load(confined(self.root, str(params.get("motion", ""))))
+        source = params.get("source")
+        source_motion = self._load_source(str(source)) if source else None
+        ghost = params.get("ghost")
+        ghost_motion = RobotMotion.load(confined(self.root, str(ghost))) if ghost else None
+        if source_motion is not None and not isinstance(source_motion, KeypointMotion):
+            raise JobError(f"{source}: expected a keypoint motion")
+        return {"path": str(params.get("motion")), "metrics": dict(motion.metrics or {}),
+                "playback": playback_data(motion, source_motion, ghost_motion)}
+
+
+def body_poses(motion) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Forward kinematics (MuJoCo) of every frame of a robot motion: body names, (T,B,3) positions, (T,B,4) wxyz."""
+    import mujoco
+
+    from engine.robot.model import load_robot
+
+    robot = load_robot(motion.robot)
+    model = robot.mj_model
+    data = mujoco.MjData(model)
+    data.qpos[:] = robot.mj_standing_qpos()
+    adr = [int(model.jnt_qposadr[model.joint(name).id]) for name in motion.joint_names]
+    T, B = motion.frames, model.nbody - 1
+    pos = np.empty((T, B, 3), dtype=np.float32)
+    quat = np.empty((T, B, 4), dtype=np.float32)
+    for t in range(T):
+        data.qpos[:7] = motion.qpos[t, :7]
+        data.qpos[adr] = motion.qpos[t, 7:]
+        mujoco.mj_kinematics(model, data)
+        pos[t], quat[t] = data.xpos[1:], data.xquat[1:]
+    return list(robot.body_names), pos, quat
+
+
+def playback_data(motion, source=None, ghost=None) -> dict:
+    """What the studio needs to play a robot motion beside its source (see module docstring)."""
+    names, pos, quat = body_poses(motion)
+    data: dict[str, Any] = {
+        "robot": motion.robot, "method": motion.method, "fps": float(motion.fps), "frames": int(motion.frames),
+        "body_names": names, "body_pos": pos, "body_quat": quat,
+        "contact": np.asarray(motion.contact, dtype=bool), "foot_names": list(motion.foot_names),
+    }
+    if source is not None:
+        data["source_keypoints"] = np.asarray(source.keypoints, dtype=np.float32)
+        data["source_contact"] = np.asarray(source.contact, dtype=bool)
+        data["source_fps"] = float(source.fps)
+    if ghost is not None and ghost.robot == motion.robot and ghost.frames == motion.frames:
+        _, gpos, gquat = body_poses(ghost)
+        data["ghost_pos"], data["ghost_quat"] = gpos, gquat
+    return data
+

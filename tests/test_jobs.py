@@ -1,0 +1,107 @@
+"""Long jobs in the engine process (engine/jobs.py) and the motion library's confinement (engine/motion_files.py)."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+from engine.jobs import JobRunner
+from engine.motion_files import OutsideLibrary, confined, list_files
+
+
+def run_until_done(runner: JobRunner, job_id: str, timeout_s: float = 300.0, on_progress=None):
+    events = []
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for ev in runner.drain():
+            assert ev.job_id == job_id
+            events.append(ev)
+            if on_progress is not None and ev.result is None:
+                on_progress(ev)
+            if ev.result is not None:
+                return events
+        time.sleep(0.02)
+    raise AssertionError(f"job {job_id} did not finish: {[e.message for e in events]}")
+
+
+def test_retarget_job_reports_progress_and_writes_the_result(tmp_path):
+    runner = JobRunner(tmp_path)
+    runner.start("retarget", {"source": "demo:trot", "robot": "go1", "method": "smr", "name": "trot",
+                              "uvm_ghost": True}, job_id="r1")
+    events = run_until_done(runner, "r1")
+    fractions = [e.fraction for e in events]
+    assert fractions == sorted(fractions), "progress never goes back"
+    assert len(events) >= 3 and fractions[-1] == 1.0 and all(f < 1.0 for f in fractions[:-1])
+    result = events[-1].result
+    assert result["ok"], result
+    assert result["path"] == "go1/trot.npz" and (tmp_path / "go1" / "trot.npz").is_file()
+    assert (tmp_path / "go1" / "trot.uvm.npz").is_file()
+    assert result["metrics"]["contact_iou"] > 0.9 and result["metrics"]["penetration_mm"] == 0.0
+    pb = result["playback"]
+    T = pb["frames"]
+    assert pb["body_pos"].shape[:1] == (T,) and pb["body_pos"].shape[2] == 3 and pb["body_quat"].shape[2] == 4
+    assert pb["source_keypoints"].shape == (T, 16, 3) and pb["contact"].shape == (T, 4)
+    assert pb["ghost_pos"].shape == pb["body_pos"].shape
+    np.testing.assert_allclose(np.linalg.norm(pb["body_quat"], axis=2), 1.0, atol=1e-5)
+    assert not list(tmp_path.rglob("*.tmp")), "no temporary file left behind"
+
+    # export of the result, into exports/
+    runner.start("export", {"motion": "go1/trot.npz", "format": "unitree-csv"}, job_id="e1")
+    export = run_until_done(runner, "e1")[-1].result
+    assert export["ok"] and (tmp_path / export["path"]).is_file() and export["path"].startswith("exports/")
+    rows = np.loadtxt(tmp_path / export["path"], delimiter=",")
+    assert rows.shape == (T, 7 + 12)
+
+    # poses of an existing motion (what the studio asks to view a file)
+    runner.start("poses", {"motion": "go1/trot.npz", "source": "demo:trot", "ghost": "go1/trot.uvm.npz"}, job_id="p1")
+    poses = run_until_done(runner, "p1")[-1].result
+    assert poses["ok"]
+    np.testing.assert_allclose(poses["playback"]["body_pos"], pb["body_pos"], atol=1e-6)
+
+
+def test_cancel_leaves_no_file(tmp_path):
+    runner = JobRunner(tmp_path)
+    runner.start("retarget", {"source": "demo:trot", "robot": "a1", "method": "smr", "name": "c"}, job_id="c1")
+    events = run_until_done(runner, "c1", on_progress=lambda ev: runner.cancel("c1"))
+    result = events[-1].result
+    assert not result["ok"] and result["cancelled"], result
+    runner.join(30)
+    assert not any(p.suffix == ".npz" for p in tmp_path.rglob("*")), list(tmp_path.rglob("*"))
+    assert not list(tmp_path.rglob("*.tmp"))
+
+
+@pytest.mark.parametrize("params, expected", [
+    ({"source": "demo:trot", "robot": "g1", "method": "smr"}, "expected a quadruped"),
+    ({"source": "demo:trot", "robot": "go1", "method": "magic"}, "method: expected one of"),
+    ({"source": "../secrets.npz", "robot": "go1", "method": "smr"}, "'..' is not allowed"),
+    ({"source": "/etc/passwd", "robot": "go1", "method": "smr"}, "not an absolute path"),
+    ({"source": "source/missing.npz", "robot": "go1", "method": "smr"}, "missing.npz"),
+])
+def test_bad_parameters_fail_with_one_line_and_write_nothing(tmp_path, params, expected):
+    runner = JobRunner(tmp_path)
+    runner.start("retarget", params, job_id="b")
+    result = run_until_done(runner, "b", 60)[-1].result
+    assert not result["ok"] and not result["cancelled"]
+    assert expected in result["error"] and "\n" not in result["error"]
+    assert not any(p.is_file() for p in tmp_path.rglob("*"))
+
+
+def test_picker_stays_inside_the_library(tmp_path):
+    root = tmp_path / "motions"
+    (root / "source").mkdir(parents=True)
+    (root / "source" / "a.npz").write_bytes(b"x")
+    outside = tmp_path / "outside.npz"
+    outside.write_bytes(b"x")
+    os.symlink(outside, root / "source" / "link_out.npz")
+    os.symlink(tmp_path, root / "dir_out")
+    assert confined(root, "source/a.npz") == (root / "source" / "a.npz").resolve()
+    for bad in ("../outside.npz", "source/../../outside.npz", str(outside), "/etc/passwd", "source/link_out.npz",
+                "dir_out/outside.npz", "~/x.npz", ""):
+        with pytest.raises(OutsideLibrary):
+            confined(root, bad)
+    assert list_files(root) == ["source/a.npz"]
+    with pytest.raises(OutsideLibrary):
+        list_files(root, "../")
