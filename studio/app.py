@@ -62,16 +62,25 @@ class Studio:
         self._shade_cache: dict[str, tuple[str, float]] = {}
 
         tabs = self.server.gui.add_tab_group()
+        quadruped_first = load_robot_config(robot).kind == "quadruped"  # quadrupeds open on the Retarget workspace
+        if quadruped_first:
+            self.tab_retarget = tabs.add_tab("Retarget", viser.Icon.DOG)
         self.tab_robot = tabs.add_tab("Robot", viser.Icon.ROBOT)
         self.tab_style = tabs.add_tab("Style", viser.Icon.PALETTE)
         self.tab_sample = tabs.add_tab("Sample", viser.Icon.ADJUSTMENTS)
         self.tab_curves = tabs.add_tab("Curves", viser.Icon.CHART_LINE)
         self.tab_plots = tabs.add_tab("Plots", viser.Icon.CHART_DOTS)
+        if not quadruped_first:
+            self.tab_retarget = tabs.add_tab("Retarget", viser.Icon.DOG)
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)
         with self.tab_plots:
             self.plots = PlotsPanel(self.server)
+        from studio.panels.retarget_panel import RetargetPanel
+
+        with self.tab_retarget:
+            self.retarget = RetargetPanel(self.server, self)
         self._style_folders: list = []
         self.style_browser = self.sample_editor = self.curve_editor = None
 
@@ -89,6 +98,7 @@ class Studio:
     def stop(self) -> None:
         self._stop.set()
         self.drive._stop.set()
+        self.retarget.stop()
         self.link.stop()
         self.server.stop()
 
@@ -192,6 +202,8 @@ class Studio:
             self._on_robot_loaded(event)
         elif isinstance(event, msg.Notice):
             self._notify(event.level, event.message)
+        elif isinstance(event, msg.JobProgress):
+            self.retarget.on_job(event)
 
     def _on_robot_loaded(self, event: msg.RobotLoaded) -> None:
         changed = event.robot != (self.session.robot if self.session else None)
@@ -211,6 +223,7 @@ class Studio:
         if changed or self.session is None:
             self.mode = "stand"
             self._build_style_panels(event.robot)
+            self.retarget.on_robot(event.robot, event.robot_kind)
         else:
             self._send_style()  # an engine restart: give it back the edited style
             if self.mode != "stand":

@@ -1,0 +1,411 @@
+"""The Retarget workspace: bring a source motion onto a quadruped (STMR's UVM / SMR), watch and export it.
+
+The panel only views and starts: the engine process imports, retargets, computes every frame's body poses
+(forward kinematics) and exports, as jobs (``StartJob`` / ``JobProgress`` / ``CancelJob``, engine/jobs.py). The
+panel plays back what the engine sent: the result robot, the source keypoints as a skeleton beside it, an
+optional UVM ghost over the result, a timeline scrubber, a contact strip (source vs result) and the metrics.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import viser
+
+from engine import protocol as msg
+from engine.jobs import DEMO_SOURCES
+from engine.motion_files import OutsideLibrary, confined, list_files, motion_kind, motions_root
+
+if TYPE_CHECKING:
+    from studio.app import Studio
+
+QUADRUPEDS = ("go1", "go2", "a1", "b1", "anymal_c")
+METHODS = ("smr", "uvm")
+EXPORT_FORMATS = ("amp-json", "unitree-csv", "npz")
+PLAYBACK_OFFSET = (0.0, 1.0, 0.0)  # the result plays beside the simulated robot (away from the camera)
+SKELETON_OFFSET = (0.0, 1.0, 0.0)  # the source skeleton stands beside the result (relative to it)
+PLAYBACK_HZ = 20.0
+STRIP_COLUMNS = 60
+LEG_NAMES = ("FL", "FR", "RL", "RR")
+# skeleton segments between keypoints 4·leg + k (hip, thigh, knee, foot), plus the body quadrilateral
+SEGMENTS = [(4 * leg + k, 4 * leg + k + 1) for leg in range(4) for k in range(3)] + [(0, 4), (4, 12), (12, 8), (8, 0)]
+STANCE_RGB = np.array([20, 150, 60])
+SWING_RGB = np.array([230, 120, 20])
+BODY_RGB = np.array([60, 60, 200])
+
+
+def contact_strip(source: np.ndarray | None, result: np.ndarray, frame: int, columns: int = STRIP_COLUMNS) -> str:
+    """Markdown: per leg, the source's and the result's contacts (█ stance, · swing) and the playhead (▲)."""
+    T = len(result)
+    cols = min(columns, T)
+    idx = np.minimum((np.arange(cols) * T) // cols, T - 1)
+
+    def row(contact: np.ndarray, leg: int) -> str:
+        return "".join("█" if contact[i, leg] else "·" for i in idx)
+
+    lines = []
+    for leg, name in enumerate(LEG_NAMES):
+        if source is not None and len(source) == T:
+            lines.append(f"{name} src {row(source, leg)}")
+        lines.append(f"{name} res {row(result, leg)}")
+    head = int(np.searchsorted(idx, frame, side="right")) - 1
+    lines.append("       " + " " * max(head, 0) + "▲")
+    return "Contacts (█ stance, · swing)\n```\n" + "\n".join(lines) + "\n```"
+
+
+def metrics_markdown(metrics: dict[str, Any]) -> str:
+    rows = [("foot slide", "foot_slide_mm", "mm"), ("contact IoU", "contact_iou", ""),
+            ("penetration", "penetration_mm", "mm"), ("keypoint error", "keypoint_error_mm", "mm"),
+            ("DTW keypoint L1", "dtw_keypoint_l1_percent", "%"), ("travel", "travel_m", "m"),
+            ("frames", "frames", ""), ("fps", "fps", ""), ("wall time", "wall_time_s", "s")]
+    out = ["| metric | value |", "|---|---|"]
+    for label, key, unit in rows:
+        if key in metrics:
+            value = metrics[key]
+            text = "n/a" if value is None else (f"{value:g}" if isinstance(value, (int, float)) else str(value))
+            out.append(f"| {label} | {text} {unit} |")
+    return "\n".join(out)
+
+
+class RetargetPanel:
+    def __init__(self, server: viser.ViserServer, studio: "Studio", root: Path | None = None):
+        self.server = server
+        self.studio = studio
+        self.root = Path(root) if root is not None else motions_root()
+        self._ids = itertools.count(1)
+        self.job_id: str | None = None  # the running retarget job
+        self.playback: dict[str, Any] | None = None
+        self.result_path: str | None = None
+        self.results_seen = 0
+        self._robots_seen = 0
+        self.frame = 0
+        self._time_s = 0.0
+        self._setting_slider = False
+        self._strip_key: tuple | None = None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        gui = server.gui
+
+        # ---- source
+        with gui.add_folder("Source"):
+            self.source = gui.add_dropdown("Source", self._source_options())
+            self.refresh = gui.add_button("Refresh list", icon=viser.Icon.REFRESH)
+            self.import_root = gui.add_dropdown("Import from", ("shared motions-src", "motions"))
+            self.import_path = gui.add_text("Import path", "")
+            self.import_button = gui.add_button("Import", icon=viser.Icon.FILE_IMPORT)
+        # ---- target and method
+        with gui.add_folder("Target"):
+            self.robot = gui.add_dropdown("Robot", QUADRUPEDS)
+            self.method = gui.add_dropdown("Method", METHODS)
+            self.baseless = gui.add_checkbox("Baseless", False)
+            self.terrain = gui.add_text("Terrain boxes", "", hint="box:x,y,w,d,h; box:…  (metres)")
+            self.with_ghost = gui.add_checkbox("Compute UVM ghost", True)
+            self.run = gui.add_button("Run", icon=viser.Icon.PLAYER_PLAY)
+            self.cancel = gui.add_button("Cancel", icon=viser.Icon.PLAYER_STOP, disabled=True)
+            self.progress = gui.add_progress_bar(0.0, animated=False)
+            self.status = gui.add_markdown("Job: idle")
+        # ---- playback
+        with gui.add_folder("Playback"):
+            self.results = gui.add_dropdown("Result", self._result_options())
+            self.view_button = gui.add_button("View result", icon=viser.Icon.EYE)
+            self.timeline = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0, disabled=True)
+            self.play = gui.add_button("Play / pause", icon=viser.Icon.PLAYER_PAUSE, disabled=True)
+            self.speed = gui.add_slider("Speed", min=0.1, max=2.0, step=0.05, initial_value=1.0)
+            self.show_ghost = gui.add_checkbox("Show UVM ghost", True)
+            self.show_skeleton = gui.add_checkbox("Show source skeleton", True)
+            self.playing = False
+            self.strip = gui.add_markdown("")
+            self.metrics = gui.add_markdown("")
+        with gui.add_folder("Export"):
+            self.export_format = gui.add_dropdown("Format", EXPORT_FORMATS)
+            self.amp_full = gui.add_checkbox("AMP full (61 values)", False)
+            self.export_button = gui.add_button("Export", icon=viser.Icon.DOWNLOAD, disabled=True)
+            self.export_status = gui.add_markdown("")
+
+        self.refresh.on_click(lambda _: self.refresh_lists())
+        self.import_button.on_click(lambda _: self.start_import())
+        self.run.on_click(lambda _: self.start_retarget())
+        self.cancel.on_click(lambda _: self.cancel_job())
+        self.view_button.on_click(lambda _: self.view_result(self.results.value))
+        self.timeline.on_update(lambda _: self._on_scrub())
+        self.play.on_click(lambda _: self.toggle_play())
+        self.export_button.on_click(lambda _: self.start_export())
+        self.show_ghost.on_update(lambda _: self._update_visibility())
+        self.show_skeleton.on_update(lambda _: self._update_visibility())
+
+        # ---- scene: the result robot, its UVM ghost and the source skeleton
+        from studio.robot_view import RobotView
+
+        self.scene_root = server.scene.add_frame("/retarget", position=PLAYBACK_OFFSET, show_axes=False, visible=False)
+        self.robot_view = RobotView(server, root="/retarget/robot")
+        self.ghost_view = RobotView(server, root="/retarget/ghost", opacity=0.3)
+        self.skeleton_root = server.scene.add_frame("/retarget/skeleton", position=SKELETON_OFFSET, show_axes=False)
+        self.skeleton: viser.LineSegmentsHandle | None = None
+        self._pending: dict[str, str] = {}  # job id → kind of the jobs this panel waits for
+        self._thread = threading.Thread(target=self._playback_loop, name="retarget-playback", daemon=True)
+        self._thread.start()
+
+    def on_robot(self, robot: str, kind: str) -> None:
+        """The studio's robot changed: a quadruped becomes the retarget target and this workspace is its home."""
+        if kind != "quadruped" or robot not in QUADRUPEDS:
+            return
+        self.robot.value = robot
+        if self._robots_seen:
+            self.studio._notify("info", f"{robot} is a quadruped: retarget motions onto it in the Retarget tab.")
+        self._robots_seen += 1
+
+    # ------------------------------------------------------------------ lists
+    def _source_options(self) -> tuple[str, ...]:
+        files = [f for f in list_files(self.root, "source") if motion_kind(self.root / f) == "keypoint-motion/1"]
+        return (*DEMO_SOURCES, *files)
+
+    def _result_options(self) -> tuple[str, ...]:
+        out = [f for f in list_files(self.root) if not f.startswith(("source/", "exports/"))
+               and not f.endswith(".uvm.npz") and motion_kind(self.root / f) == "robot-motion/1"]
+        return tuple(out) or ("(none yet)",)
+
+    def refresh_lists(self, select_source: str | None = None, select_result: str | None = None) -> None:
+        self.source.options = self._source_options()
+        if select_source in self.source.options:
+            self.source.value = select_source
+        self.results.options = self._result_options()
+        if select_result in self.results.options:
+            self.results.value = select_result
+
+    # ------------------------------------------------------------------ jobs
+    def _start(self, job: str, params: dict) -> str:
+        job_id = f"{job}-{next(self._ids)}"
+        self._pending[job_id] = job
+        self.studio.link.send(msg.StartJob(job, params, job_id=job_id))
+        return job_id
+
+    def start_import(self) -> None:
+        path = self.import_path.value.strip()
+        root = "shared" if self.import_root.value.startswith("shared") else "motions"
+        try:
+            if root == "motions":
+                confined(self.root, path)  # the engine checks again; refuse early with the reason
+        except OutsideLibrary as exc:
+            self._set_status(f"Import refused: {exc}")
+            return
+        self._set_status(f"Importing {path}…")
+        self._start("import", {"root": root, "path": path})
+
+    def start_retarget(self) -> None:
+        if self.job_id is not None:
+            return
+        source = self.source.value
+        method = self.method.value
+        terrain = [s.strip() for s in self.terrain.value.split(";") if s.strip()]
+        name = f"{Path(source.split(':')[-1]).stem}_{method}" + ("_baseless" if self.baseless.value else "")
+        self.job_id = self._start("retarget", {
+            "source": source, "robot": self.robot.value, "method": method, "baseless": self.baseless.value,
+            "terrain": terrain, "name": name, "uvm_ghost": self.with_ghost.value,
+        })
+        self._source_of_job = source
+        self.run.disabled = True
+        self.cancel.disabled = False
+        self.progress.value = 0.0
+        self.progress.animated = True
+        self._set_status(f"Retarget running: {method.upper()} {source} → {self.robot.value} (0 %)")
+
+    def cancel_job(self) -> None:
+        if self.job_id is not None:
+            self.studio.link.send(msg.CancelJob(self.job_id))
+            self._set_status("Retarget: cancelling…")
+
+    def view_result(self, path: str) -> None:
+        if not path or path.startswith("("):
+            return
+        ghost = path[:-4] + ".uvm.npz"
+        params: dict[str, Any] = {"motion": path}
+        if (self.root / ghost).is_file():
+            params["ghost"] = ghost
+        source = self._source_for(path)
+        if source:
+            params["source"] = source
+        self._set_status(f"Loading {path}…")
+        self._start("poses", params)
+
+    def _source_for(self, path: str) -> str | None:
+        """The studio source a result was made from, if it is still in the library (or a demo)."""
+        try:
+            import json
+
+            with np.load(self.root / path, allow_pickle=False) as f:
+                meta = json.loads(str(f["source"])) if "source" in f.files else {}
+        except Exception:  # noqa: BLE001 - then the result plays without its source
+            return None
+        spec = meta.get("studio_source")
+        if spec in DEMO_SOURCES or (spec and (self.root / spec).is_file()):
+            return spec
+        return None
+
+    def start_export(self) -> None:
+        if not self.result_path:
+            return
+        self.export_status.content = "Exporting…"
+        self._start("export", {"motion": self.result_path, "format": self.export_format.value,
+                               "amp_full": self.amp_full.value})
+
+    def on_job(self, event: msg.JobProgress) -> None:
+        """JobProgress from the engine (the link's thread)."""
+        kind = self._pending.get(event.job_id)
+        if kind is None:
+            return
+        if event.result is None:
+            if event.job_id == self.job_id:
+                self.progress.value = float(np.clip(100.0 * event.fraction, 0.0, 100.0))
+                self._set_status(f"Retarget running: {event.message} ({100 * event.fraction:.0f} %)")
+            return
+        self._pending.pop(event.job_id, None)
+        result = event.result
+        if kind == "retarget":
+            self.job_id = None
+            self.run.disabled = False
+            self.cancel.disabled = True
+            self.progress.animated = False
+            if result.get("ok"):
+                self.progress.value = 100.0
+                self._set_status(f"Result: {result['path']} written")
+                self.refresh_lists(select_result=result["path"])
+                self._show(result["path"], result["playback"], result.get("metrics", {}))
+            elif result.get("cancelled"):
+                self.progress.value = 0.0
+                self._set_status("Retarget cancelled: nothing written")
+            else:
+                self.progress.value = 0.0
+                self._set_status(f"Retarget failed: {result.get('error')}")
+        elif kind == "poses":
+            if result.get("ok"):
+                self._set_status(f"Viewing {result['path']}")
+                self._show(result["path"], result["playback"], result.get("metrics", {}))
+            else:
+                self._set_status(f"Cannot view: {result.get('error')}")
+        elif kind == "import":
+            if result.get("ok"):
+                self._set_status(f"Imported {result['path']} ({result['frames']} frames at {result['fps']:g} fps)")
+                self.refresh_lists(select_source=result["path"])
+            else:
+                self._set_status(f"Import failed: {result.get('error')}")
+        elif kind == "export":
+            self.export_status.content = (f"Exported: motions/{result['path']}" if result.get("ok")
+                                          else f"Export failed: {result.get('error')}")
+
+    def _set_status(self, text: str) -> None:
+        self.status.content = text
+
+    # ------------------------------------------------------------------ playback
+    def _show(self, path: str, playback: dict, metrics: dict) -> None:
+        with self._lock:
+            self.playback = playback
+            self.result_path = path
+            self.frame = 0
+            self._time_s = 0.0
+            self._strip_key = None
+        robot = playback["robot"]
+        names = tuple(playback["body_names"])
+        self.robot_view.load(robot, names)
+        if "ghost_pos" in playback:
+            self.ghost_view.load(robot, names)
+        else:
+            self.ghost_view.load(robot, ())
+        T = int(playback["frames"])
+        self.timeline.max = max(T - 1, 1)
+        self.timeline.disabled = False
+        self.play.disabled = False
+        self.export_button.disabled = False
+        self.metrics.content = f"**{path}** ({playback['method'].upper()} on {robot})\n\n" + metrics_markdown(metrics)
+        self.scene_root.visible = True
+        self._update_visibility()
+        self.playing = True
+        self.results_seen += 1
+        self._render(0)
+        for client in self.server.get_clients().values():
+            start = playback["body_pos"][0, 0] + np.array(PLAYBACK_OFFSET)
+            client.camera.look_at = tuple(start + np.array([0.3, 0.4, -0.1]))
+            client.camera.position = tuple(start + np.array([1.6, -2.0, 1.0]))
+
+    def _update_visibility(self) -> None:
+        pb = self.playback
+        ghost = bool(pb is not None and "ghost_pos" in pb and self.show_ghost.value)
+        for handle in [*self.ghost_view.frames]:
+            handle.visible = ghost
+        self.skeleton_root.visible = bool(self.show_skeleton.value and pb is not None and "source_keypoints" in pb)
+
+    def toggle_play(self) -> None:
+        self.playing = not self.playing
+
+    def _on_scrub(self) -> None:
+        if self._setting_slider or self.playback is None:
+            return
+        self.playing = False
+        frame = int(self.timeline.value)
+        with self._lock:
+            self._time_s = frame / float(self.playback["fps"])
+        self._render(frame)
+
+    def _playback_loop(self) -> None:
+        period = 1.0 / PLAYBACK_HZ
+        last = time.monotonic()
+        while not self._stop.wait(period):
+            now = time.monotonic()
+            dt, last = now - last, now
+            pb = self.playback
+            if pb is None or not self.playing:
+                continue
+            with self._lock:
+                self._time_s += dt * float(self.speed.value)
+                T = int(pb["frames"])
+                frame = int(self._time_s * float(pb["fps"])) % T
+            try:
+                self._render(frame, move_slider=True)
+            except Exception:  # noqa: BLE001 - a dropped frame must not stop playback
+                pass
+
+    def _render(self, frame: int, move_slider: bool = False) -> None:
+        pb = self.playback
+        if pb is None:
+            return
+        frame = int(np.clip(frame, 0, int(pb["frames"]) - 1))
+        self.frame = frame
+        self.robot_view.update(msg.Frame(frame, frame / pb["fps"], pb["body_pos"][frame], pb["body_quat"][frame],
+                                         np.zeros(0), False, False, 0.0))
+        if "ghost_pos" in pb and self.show_ghost.value:
+            self.ghost_view.update(msg.Frame(frame, 0.0, pb["ghost_pos"][frame], pb["ghost_quat"][frame],
+                                             np.zeros(0), False, False, 0.0))
+        if "source_keypoints" in pb and self.show_skeleton.value:
+            self._draw_skeleton(pb, frame)
+        source_contact = pb.get("source_contact")
+        key = (id(pb), int(frame * STRIP_COLUMNS / max(int(pb["frames"]), 1)))
+        if key != self._strip_key:
+            self._strip_key = key
+            self.strip.content = contact_strip(source_contact, pb["contact"], frame)
+        if move_slider:
+            self._setting_slider = True
+            try:
+                self.timeline.value = frame
+            finally:
+                self._setting_slider = False
+
+    def _draw_skeleton(self, pb: dict, frame: int) -> None:
+        kp = pb["source_keypoints"]
+        f = min(frame, len(kp) - 1)
+        points = np.array([[kp[f, a], kp[f, b]] for a, b in SEGMENTS], dtype=np.float32)
+        contact = pb["source_contact"][f]
+        colors = np.array([[STANCE_RGB if contact[i // 3] else SWING_RGB] * 2 for i in range(12)]
+                          + [[BODY_RGB] * 2] * 4, dtype=np.uint8)
+        if self.skeleton is None:
+            self.skeleton = self.server.scene.add_line_segments("/retarget/skeleton/lines", points, colors,
+                                                                thickness=0.012)
+        else:
+            self.skeleton.points = points
+            self.skeleton.colors = colors
+
+    def stop(self) -> None:
+        self._stop.set()
