@@ -19,7 +19,7 @@ import viser
 
 from engine import protocol as msg
 from engine.jobs import DEMO_SOURCES
-from engine.motion_files import OutsideLibrary, confined, list_files, motion_kind, motions_root
+from engine.motion_files import OutsideLibrary, confined, list_files, motion_kind, motions_root, shared_root
 
 if TYPE_CHECKING:
     from studio.app import Studio
@@ -97,6 +97,7 @@ class RetargetPanel:
             self.refresh = gui.add_button("Refresh list", icon=viser.Icon.REFRESH)
             self.import_root = gui.add_dropdown("Import from", ("shared motions-src", "motions"))
             self.import_path = gui.add_text("Import path", "")
+            self.import_check = gui.add_markdown("")
             self.import_button = gui.add_button("Import", icon=viser.Icon.FILE_IMPORT)
         # ---- target and method
         with gui.add_folder("Target"):
@@ -114,6 +115,7 @@ class RetargetPanel:
             self.results = gui.add_dropdown("Result", self._result_options())
             self.view_button = gui.add_button("View result", icon=viser.Icon.EYE)
             self.timeline = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0, disabled=True)
+            self.clock = gui.add_markdown("No motion loaded")
             self.play = gui.add_button("Play / pause", icon=viser.Icon.PLAYER_PAUSE, disabled=True)
             self.speed = gui.add_slider("Speed", min=0.1, max=2.0, step=0.05, initial_value=1.0)
             self.show_ghost = gui.add_checkbox("Show UVM ghost", True)
@@ -129,6 +131,8 @@ class RetargetPanel:
 
         self.refresh.on_click(lambda _: self.refresh_lists())
         self.import_button.on_click(lambda _: self.start_import())
+        self.import_path.on_update(lambda _: self._check_import_path())
+        self.import_root.on_update(lambda _: self._check_import_path())
         self.run.on_click(lambda _: self.start_retarget())
         self.cancel.on_click(lambda _: self.cancel_job())
         self.view_button.on_click(lambda _: self.view_result(self.results.value))
@@ -184,14 +188,32 @@ class RetargetPanel:
         self.studio.link.send(msg.StartJob(job, params, job_id=job_id))
         return job_id
 
+    def _import_root(self) -> Path | None:
+        if self.import_root.value.startswith("shared"):
+            shared = shared_root()
+            return shared / "motions-src" if shared is not None else None
+        return self.root
+
+    def _check_import_path(self) -> bool:
+        """Say at once whether the typed path can be imported (inside the chosen folder, a file)."""
+        path = self.import_path.value.strip()
+        root = self._import_root()
+        if root is None:
+            self.import_check.content = "✗ no shared data folder on this machine"
+            return False
+        try:
+            found = confined(root, path).is_file()  # the engine checks again when it imports
+        except OutsideLibrary as exc:
+            self.import_check.content = f"✗ {exc}"
+            return False
+        self.import_check.content = f"✓ {path}" if found else f"✗ {path}: no such file in {root.name}/"
+        return found
+
     def start_import(self) -> None:
         path = self.import_path.value.strip()
         root = "shared" if self.import_root.value.startswith("shared") else "motions"
-        try:
-            if root == "motions":
-                confined(self.root, path)  # the engine checks again; refuse early with the reason
-        except OutsideLibrary as exc:
-            self._set_status(f"Import refused: {exc}")
+        if not self._check_import_path():
+            self._set_status(f"Import refused: {self.import_check.content.lstrip('✗ ')}")
             return
         self._set_status(f"Importing {path}…")
         self._start("import", {"root": root, "path": path})
@@ -340,6 +362,7 @@ class RetargetPanel:
 
     def toggle_play(self) -> None:
         self.playing = not self.playing
+        self._render(self.frame)
 
     def _on_scrub(self) -> None:
         if self._setting_slider or self.playback is None:
@@ -381,6 +404,9 @@ class RetargetPanel:
                                              np.zeros(0), False, False, 0.0))
         if "source_keypoints" in pb and self.show_skeleton.value:
             self._draw_skeleton(pb, frame)
+        clock = f"Frame {frame} of {int(pb['frames'])} · {frame / pb['fps']:.2f} s · {'playing' if self.playing else 'paused'}"
+        if clock != self.clock.content:
+            self.clock.content = clock
         source_contact = pb.get("source_contact")
         key = (id(pb), int(frame * STRIP_COLUMNS / max(int(pb["frames"]), 1)))
         if key != self._strip_key:

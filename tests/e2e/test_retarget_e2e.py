@@ -1,0 +1,84 @@
+"""The Retarget workspace in the browser: import a clip, retarget it to go1 with SMR, watch it play beside the
+source skeleton, scrub, export; Cancel stops a second run and writes nothing."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from engine.motion_files import shared_root
+from tests.conftest import ServedStudio
+from tests.e2e.browser import open_page, wait_for_text
+
+pytestmark = pytest.mark.e2e
+
+TROT0 = "stmr_rl/datasets/trot0/trot0_keypoints.npz"
+
+
+def text_input(page, label: str):
+    """viser's text and number inputs carry no accessible name: the first text input after the label."""
+    return page.get_by_text(label, exact=True).first.locator("xpath=following::input[@type='text'][1]")
+
+
+def clock(page) -> tuple[int, str]:
+    m = re.search(r"Frame (\d+) of \d+ · [\d.]+ s · (playing|paused)", page.inner_text("body"))
+    assert m, "no playback clock on the page"
+    return int(m.group(1)), m.group(2)
+
+
+def test_retarget_workspace(tmp_path, monkeypatch, artifacts):
+    motions = tmp_path / "motions"
+    monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(motions))
+    studio = ServedStudio("go1")
+    try:
+        with open_page(studio.url, 1000, 760) as page:
+            wait_for_text(page, "Job: idle")  # a quadruped opens on the Retarget workspace
+            shared = shared_root()
+            if shared is not None and (shared / "motions-src" / TROT0).is_file():
+                box = text_input(page, "Import path")
+                box.fill(TROT0)
+                box.press("Enter")
+                box.blur()
+                wait_for_text(page, f"✓ {TROT0}", 30_000)  # the studio checked the path (inside motions-src)
+                page.get_by_role("button", name="Import", exact=True).click()
+                wait_for_text(page, "Imported source/trot0_keypoints.npz", 120_000)
+                assert (motions / "source" / "trot0_keypoints.npz").is_file()
+                stem = "trot0_keypoints"
+            else:  # no shared data: the demo clip the engine makes itself
+                stem = "trot"
+            page.get_by_role("button", name="Run", exact=True).click()
+            wait_for_text(page, "Retarget running", 60_000)  # progress shows while the engine works
+            page.screenshot(path=str(artifacts / "retarget_running.png"))
+            wait_for_text(page, f"Result: go1/{stem}_smr.npz written", 300_000)
+            assert (motions / "go1" / f"{stem}_smr.npz").is_file()
+            assert "contact IoU" in page.inner_text("body")
+            first, state = clock(page)
+            assert state == "playing"
+            page.wait_for_function(  # the result plays: the frame advances
+                "f => { const m = document.body.innerText.match(/Frame (\\d+) of/); return m && Number(m[1]) !== f; }",
+                arg=first, timeout=60_000)
+            page.screenshot(path=str(artifacts / "retarget_playing.png"))
+
+            # scrub: type a frame into the timeline's number box; playback pauses on it
+            slider_input = text_input(page, "Frame")
+            slider_input.fill("12")
+            slider_input.press("Enter")
+            page.wait_for_function("() => /Frame 12 of \\d+ · [\\d.]+ s · paused/.test(document.body.innerText)",
+                                   timeout=60_000)
+
+            page.get_by_role("button", name="Export", exact=True).click()
+            wait_for_text(page, f"Exported: motions/exports/go1_{stem}_smr.json", 120_000)
+            assert (motions / "exports" / f"go1_{stem}_smr.json").is_file()
+
+            # a second run, baseless, cancelled at once: nothing written
+            page.get_by_role("checkbox", name="Baseless").check()
+            page.get_by_role("button", name="Run", exact=True).click()
+            wait_for_text(page, "Retarget running", 60_000)
+            page.get_by_role("button", name="Cancel", exact=True).click()
+            wait_for_text(page, "Retarget cancelled: nothing written", 120_000)
+            page.screenshot(path=str(artifacts / "retarget_cancelled.png"))
+            assert not (motions / "go1" / f"{stem}_smr_baseless.npz").exists()
+            assert not list(motions.rglob("*.tmp"))
+    finally:
+        studio.stop()
