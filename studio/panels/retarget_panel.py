@@ -204,9 +204,9 @@ class RetargetPanel:
         try:
             found = confined(root, path).is_file()  # the engine checks again when it imports
         except OutsideLibrary as exc:
-            self.import_check.content = f"✗ {exc}"
+            self.import_check.content = f"✗ `{exc}`"
             return False
-        self.import_check.content = f"✓ {path}" if found else f"✗ {path}: no such file in {root.name}/"
+        self.import_check.content = f"✓ `{path}`" if found else f"✗ `{path}`: no such file in {root.name}/"
         return found
 
     def start_import(self) -> None:
@@ -215,7 +215,7 @@ class RetargetPanel:
         if not self._check_import_path():
             self._set_status(f"Import refused: {self.import_check.content.lstrip('✗ ')}")
             return
-        self._set_status(f"Importing {path}…")
+        self._set_status(f"Importing `{path}`…")
         self._start("import", {"root": root, "path": path})
 
     def start_retarget(self) -> None:
@@ -234,7 +234,7 @@ class RetargetPanel:
         self.cancel.disabled = False
         self.progress.value = 0.0
         self.progress.animated = True
-        self._set_status(f"Retarget running: {method.upper()} {source} → {self.robot.value} (0 %)")
+        self._set_status(f"Retarget running: {method.upper()} `{source}` → {self.robot.value} (0 %)")
 
     def cancel_job(self) -> None:
         if self.job_id is not None:
@@ -251,7 +251,7 @@ class RetargetPanel:
         source = self._source_for(path)
         if source:
             params["source"] = source
-        self._set_status(f"Loading {path}…")
+        self._set_status(f"Loading `{path}`…")
         self._start("poses", params)
 
     def _source_for(self, path: str) -> str | None:
@@ -294,7 +294,7 @@ class RetargetPanel:
             self.progress.animated = False
             if result.get("ok"):
                 self.progress.value = 100.0
-                self._set_status(f"Result: {result['path']} written")
+                self._set_status(f"Result: `{result['path']}` written")
                 self.refresh_lists(select_result=result["path"])
                 self._show(result["path"], result["playback"], result.get("metrics", {}))
             elif result.get("cancelled"):
@@ -302,22 +302,22 @@ class RetargetPanel:
                 self._set_status("Retarget cancelled: nothing written")
             else:
                 self.progress.value = 0.0
-                self._set_status(f"Retarget failed: {result.get('error')}")
+                self._set_status(f"Retarget failed: `{result.get('error')}`")
         elif kind == "poses":
             if result.get("ok"):
-                self._set_status(f"Viewing {result['path']}")
+                self._set_status(f"Viewing `{result['path']}`")
                 self._show(result["path"], result["playback"], result.get("metrics", {}))
             else:
-                self._set_status(f"Cannot view: {result.get('error')}")
+                self._set_status(f"Cannot view: `{result.get('error')}`")
         elif kind == "import":
             if result.get("ok"):
-                self._set_status(f"Imported {result['path']} ({result['frames']} frames at {result['fps']:g} fps)")
+                self._set_status(f"Imported `{result['path']}` ({result['frames']} frames at {result['fps']:g} fps)")
                 self.refresh_lists(select_source=result["path"])
             else:
                 self._set_status(f"Import failed: {result.get('error')}")
         elif kind == "export":
-            self.export_status.content = (f"Exported: motions/{result['path']}" if result.get("ok")
-                                          else f"Export failed: {result.get('error')}")
+            self.export_status.content = (f"Exported: `motions/{result['path']}`" if result.get("ok")
+                                          else f"Export failed: `{result.get('error')}`")
 
     def _set_status(self, text: str) -> None:
         self.status.content = text
@@ -342,7 +342,7 @@ class RetargetPanel:
         self.timeline.disabled = False
         self.play.disabled = False
         self.export_button.disabled = False
-        self.metrics.content = f"**{path}** ({playback['method'].upper()} on {robot})\n\n" + metrics_markdown(metrics)
+        self.metrics.content = f"`{path}` ({playback['method'].upper()} on {robot})\n\n" + metrics_markdown(metrics)
         self.scene_root.visible = True
         self._update_visibility()
         self.playing = True

@@ -17,8 +17,15 @@ TROT0 = "stmr_rl/datasets/trot0/trot0_keypoints.npz"
 
 
 def text_input(page, label: str):
-    """viser's text and number inputs carry no accessible name: the first text input after the label."""
-    return page.get_by_text(label, exact=True).first.locator("xpath=following::input[@type='text'][1]")
+    """viser's text and number inputs carry no accessible name: the text input in the row of ``label``."""
+    page.wait_for_function("l => [...document.querySelectorAll('label')].some(e => e.innerText.trim() === l)", arg=label)
+    page.evaluate("""l => {
+        const label = [...document.querySelectorAll('label')].find(e => e.innerText.trim() === l);
+        let n = label;
+        while (n && !n.querySelector('input:not([type=hidden]):not([type=checkbox])')) n = n.parentElement;
+        n.querySelector('input:not([type=hidden]):not([type=checkbox])').setAttribute('data-e2e', l);
+    }""", label)
+    return page.locator(f"input[data-e2e='{label}']")
 
 
 def clock(page) -> tuple[int, str]:
