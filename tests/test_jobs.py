@@ -105,3 +105,31 @@ def test_picker_stays_inside_the_library(tmp_path):
     assert list_files(root) == ["source/a.npz"]
     with pytest.raises(OutsideLibrary):
         list_files(root, "../")
+
+
+def test_engine_process_runs_a_job_while_it_keeps_publishing_frames(tmp_path, monkeypatch):
+    """StartJob over the real studio↔engine pipe: progress, then the result; frames keep coming meanwhile."""
+    from engine import protocol as msg
+    from engine.process import EngineProcess
+
+    monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(tmp_path))
+    engine = EngineProcess("go1")
+    engine.start()
+    try:
+        engine.send(msg.StartJob("retarget", {"source": "demo:trot", "robot": "go1", "method": "smr", "name": "p"},
+                                 job_id="j"))
+        progress, frames_during, result = [], 0, None
+        deadline = time.monotonic() + 300
+        while result is None and time.monotonic() < deadline:
+            event = engine.recv(1.0)
+            if isinstance(event, msg.JobProgress):
+                assert event.job_id == "j"
+                progress.append(event.fraction)
+                result = event.result
+            elif isinstance(event, msg.Frame) and progress:
+                frames_during += 1
+        assert result is not None and result["ok"], result
+        assert (tmp_path / "go1" / "p.npz").is_file()
+        assert len(progress) >= 2 and frames_during > 0, (progress, frames_during)
+    finally:
+        engine.stop()
