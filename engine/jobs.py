@@ -32,6 +32,7 @@ from typing import Any, Callable
 import numpy as np
 
 from engine import protocol as msg
+from engine.retarget.motion import LEGS
 from engine.motion_files import (
     EXPORTS_DIR, SOURCE_DIR, check_name, confined, motions_root, shared_root,
 )
@@ -154,13 +155,15 @@ class JobRunner:
         if robot not in QUADRUPEDS:
             raise JobError(f"robot: expected a quadruped ({', '.join(QUADRUPEDS)}), got {robot!r}")
         method = str(params.get("method", "smr"))
-        if method not in METHODS:
-            raise JobError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+        if method not in (*METHODS, "stmr"):
+            raise JobError(f"method: expected one of {', '.join((*METHODS, 'stmr'))}, got {method!r}")
         source_spec = str(params.get("source", ""))
         source = self._load_source(source_spec)
         name = check_name(str(params.get("name") or f"{Path(source_spec.split(':')[-1]).stem}_{method}"))
         options = RetargetOptions(baseless=bool(params.get("baseless", False)),
                                   heightmap=parse_terrain(list(params.get("terrain") or [])))
+        if method == "stmr":
+            return self._stmr(source, source_spec, robot, name, options, params, report, cancel)
         ghost = bool(params.get("uvm_ghost", True)) and method != "uvm"
         span = 0.8 if ghost else 1.0
         output = retarget_detailed(source, robot, method, options,
@@ -185,6 +188,40 @@ class JobRunner:
             result["ghost_path"] = str(ghost_path.relative_to(self.root.resolve()))
         result["playback"] = playback_data(output.motion, source, uvm)
         return result
+
+    def _stmr(self, source, source_spec: str, robot: str, name: str, options, params: dict, report: Callable,
+              cancel: threading.Event) -> dict:
+        """SMR, then TMR (BO over time scaling α + iLQR tracking in MuJoCo): the dynamic motion, SMR as the ghost."""
+        from engine.retarget.quadruped.pipeline import retarget_detailed
+        from engine.retarget.quadruped.tmr.tmr import TMRSettings, temporal_retarget
+
+        smr_span = 0.15
+        kinematic = retarget_detailed(source, robot, "smr", options, cancel=cancel,
+                                      progress=lambda f: report(smr_span * f, f"SMR: frame {int(f * source.frames)} "
+                                                                f"of {source.frames}")).motion
+        budget = int(params.get("budget", 6))
+        if not 1 <= budget <= 100:
+            raise JobError(f"budget: expected 1..100 BO evaluations, got {budget}")
+
+        def on_bo(p) -> None:
+            alpha = ", ".join(f"{a:.2f}" for a in 2.0 ** np.asarray(p.current_log2_alpha, float).ravel())
+            report(smr_span + (1 - smr_span) * p.evaluation / max(p.budget, 1),
+                   f"TMR: BO evaluation {p.evaluation} of {p.budget} · best score {p.best_score:.4f} · α {alpha}")
+
+        report(smr_span, f"TMR: BO evaluation 0 of {budget}")
+        result = temporal_retarget(kinematic, TMRSettings(budget=budget, init_points=min(3, budget)),
+                                   progress=on_bo, cancel=cancel.is_set)
+        if cancel.is_set():
+            raise JobCancelled
+        motion = result.motion
+        motion.source["studio_source"] = source_spec
+        out = confined(self.root, f"{robot}/{name}.npz")
+        ghost_path = confined(self.root, f"{robot}/{name}.smr.npz")
+        motion.save(out)
+        kinematic.save(ghost_path)
+        return {"path": str(out.relative_to(self.root.resolve())), "metrics": dict(result.summary),
+                "ghost_path": str(ghost_path.relative_to(self.root.resolve())),
+                "playback": playback_data(motion, source, None)}
 
     def _job_import(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
         from engine.retarget.importers import import_source
@@ -270,7 +307,7 @@ def playback_data(motion, source=None, ghost=None) -> dict:
     data: dict[str, Any] = {
         "robot": motion.robot, "method": motion.method, "fps": float(motion.fps), "frames": int(motion.frames),
         "body_names": names, "body_pos": pos, "body_quat": quat,
-        "contact": np.asarray(motion.contact, dtype=bool), "foot_names": list(motion.foot_names),
+        "contact": np.asarray(motion.contact, dtype=bool), "foot_names": list(getattr(motion, "foot_names", LEGS)),  # TMR's motion class has none
     }
     if source is not None:
         data["source_keypoints"] = np.asarray(source.keypoints, dtype=np.float32)

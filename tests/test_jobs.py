@@ -133,3 +133,17 @@ def test_engine_process_runs_a_job_while_it_keeps_publishing_frames(tmp_path, mo
         assert len(progress) >= 2 and frames_during > 0, (progress, frames_during)
     finally:
         engine.stop()
+
+
+@pytest.mark.slow
+def test_stmr_job_reports_bo_progress_and_writes_the_dynamic_motion(tmp_path):
+    runner = JobRunner(tmp_path)
+    runner.start("retarget", {"source": "demo:trot", "robot": "go1", "method": "stmr", "name": "d", "budget": 2},
+                 job_id="s")
+    events = run_until_done(runner, "s", 1200)
+    result = events[-1].result
+    assert result["ok"], result
+    assert any("BO evaluation" in e.message for e in events[:-1])
+    assert (tmp_path / "go1" / "d.npz").is_file() and (tmp_path / "go1" / "d.smr.npz").is_file()
+    assert result["metrics"]["bo_evaluations"] >= 1 and "alpha" in result["metrics"]
+    assert result["playback"]["body_pos"].shape[0] == result["playback"]["frames"]

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from studio.app import Studio
 
 QUADRUPEDS = ("go1", "go2", "a1", "b1", "anymal_c")
-METHODS = ("smr", "uvm")
+METHODS = ("smr", "uvm", "stmr")  # stmr: SMR + TMR (BO over time scaling, iLQR in MuJoCo; minutes)
 EXPORT_FORMATS = ("amp-json", "unitree-csv", "npz")
 PLAYBACK_OFFSET = (0.0, 1.0, 0.0)  # the result plays beside the simulated robot (away from the camera)
 SKELETON_OFFSET = (0.0, 1.0, 0.0)  # the source skeleton stands beside the result (relative to it)
@@ -62,7 +62,9 @@ def metrics_markdown(metrics: dict[str, Any]) -> str:
     rows = [("foot slide", "foot_slide_mm", "mm"), ("contact IoU", "contact_iou", ""),
             ("penetration", "penetration_mm", "mm"), ("keypoint error", "keypoint_error_mm", "mm"),
             ("DTW keypoint L1", "dtw_keypoint_l1_percent", "%"), ("travel", "travel_m", "m"),
-            ("frames", "frames", ""), ("fps", "fps", ""), ("wall time", "wall_time_s", "s")]
+            ("frames", "frames", ""), ("fps", "fps", ""), ("wall time", "wall_time_s", "s"),
+            ("α (TMR)", "alpha", ""), ("duration (TMR)", "duration_s", "s"), ("BO evaluations", "bo_evaluations", ""),
+            ("replay fell", "replay_fell", ""), ("tracking error", "tracking_error_mm", "mm")]
     out = ["| metric | value |", "|---|---|"]
     for label, key, unit in rows:
         if key in metrics:
@@ -170,7 +172,7 @@ class RetargetPanel:
 
     def _result_options(self) -> tuple[str, ...]:
         out = [f for f in list_files(self.root) if not f.startswith(("source/", "exports/"))
-               and not f.endswith(".uvm.npz") and motion_kind(self.root / f) == "robot-motion/1"]
+               and not f.endswith((".uvm.npz", ".smr.npz")) and motion_kind(self.root / f) == "robot-motion/1"]
         return tuple(out) or ("(none yet)",)
 
     def refresh_lists(self, select_source: str | None = None, select_result: str | None = None) -> None:
@@ -421,9 +423,10 @@ class RetargetPanel:
 
     def _draw_skeleton(self, pb: dict, frame: int) -> None:
         kp = pb["source_keypoints"]
-        f = min(frame, len(kp) - 1)
+        T = int(pb["frames"])  # the result may be re-timed (TMR): show the source at the same fraction of the clip
+        f = int(round(frame / max(T - 1, 1) * (len(kp) - 1))) if len(kp) != T else frame
         points = np.array([[kp[f, a], kp[f, b]] for a, b in SEGMENTS], dtype=np.float32)
-        contact = pb["source_contact"][f]
+        contact = pb["source_contact"][min(f, len(kp) - 1)]
         colors = np.array([[STANCE_RGB if contact[i // 3] else SWING_RGB] * 2 for i in range(12)]
                           + [[BODY_RGB] * 2] * 4, dtype=np.uint8)
         if self.skeleton is None:
