@@ -147,3 +147,18 @@ def test_stmr_job_reports_bo_progress_and_writes_the_dynamic_motion(tmp_path):
     assert (tmp_path / "go1" / "d.npz").is_file() and (tmp_path / "go1" / "d.smr.npz").is_file()
     assert result["metrics"]["bo_evaluations"] >= 1 and "alpha" in result["metrics"]
     assert result["playback"]["body_pos"].shape[0] == result["playback"]["frames"]
+
+
+def test_contact_strip_and_metrics_text():
+    from studio.panels.retarget_panel import contact_strip, metrics_markdown
+
+    src = np.zeros((10, 4), bool)
+    src[:5, 0] = True
+    res = src.copy()
+    res[5:, 1] = True
+    text = contact_strip(src, res, frame=5)
+    rows = text.split("```")[1].strip("\n").splitlines()
+    assert rows[0] == "FL src █████·····" and rows[1] == "FL res █████·····"
+    assert rows[3] == "FR res ·····█████" and rows[-1].index("▲") == 7 + 5
+    md = metrics_markdown({"contact_iou": 1.0, "replay_fell": False, "duration_s": {"before": 2.0, "after": 1.5}})
+    assert "| contact IoU | 1  |" in md and "| replay fell | no  |" in md and "2 → 1.5" in md

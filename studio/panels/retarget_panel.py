@@ -69,7 +69,18 @@ def metrics_markdown(metrics: dict[str, Any]) -> str:
     for label, key, unit in rows:
         if key in metrics:
             value = metrics[key]
-            text = "n/a" if value is None else (f"{value:g}" if isinstance(value, (int, float)) else str(value))
+            if value is None:
+                text = "n/a"
+            elif isinstance(value, bool):
+                text = "yes" if value else "no"
+            elif isinstance(value, (int, float)):
+                text = f"{value:g}"
+            elif isinstance(value, dict) and {"before", "after"} <= value.keys():
+                text = f"{value['before']:g} → {value['after']:g}"
+            elif isinstance(value, (list, tuple)):
+                text = ", ".join(f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in value)
+            else:
+                text = str(value)
             out.append(f"| {label} | {text} {unit} |")
     return "\n".join(out)
 
@@ -108,6 +119,8 @@ class RetargetPanel:
             self.baseless = gui.add_checkbox("Baseless", False)
             self.terrain = gui.add_text("Terrain boxes", "", hint="box:x,y,w,d,h; box:…  (metres)")
             self.with_ghost = gui.add_checkbox("Compute UVM ghost", True)
+            self.budget = gui.add_slider("TMR budget", min=1, max=30, step=1, initial_value=6,
+                                         hint="stmr: Bayesian-optimisation evaluations at most")
             self.run = gui.add_button("Run", icon=viser.Icon.PLAYER_PLAY)
             self.cancel = gui.add_button("Cancel", icon=viser.Icon.PLAYER_STOP, disabled=True)
             self.progress = gui.add_progress_bar(0.0, animated=False)
@@ -230,6 +243,7 @@ class RetargetPanel:
         self.job_id = self._start("retarget", {
             "source": source, "robot": self.robot.value, "method": method, "baseless": self.baseless.value,
             "terrain": terrain, "name": name, "uvm_ghost": self.with_ghost.value,
+            "budget": int(self.budget.value),
         })
         self._source_of_job = source
         self.run.disabled = True
