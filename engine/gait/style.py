@@ -42,6 +42,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from engine.atomic_io import atomic_write_text
+from engine.safe_io import ReadError, one_line, read_json
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.phase_map import PhaseMap
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
@@ -65,7 +66,7 @@ class StyleError(ValueError):
         self.field_path = path
         self.detail = message
         self.source = source
-        super().__init__(f"{source}: {path}: {message}")
+        super().__init__(one_line(source, path, message))
 
     def with_source(self, source: str) -> "StyleError":
         return StyleError(self.field_path, self.detail, source)
@@ -573,15 +574,9 @@ def load_style(path: str | os.PathLike, ctx: StyleContext | None = None, expecte
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise StyleError("", "file not found", source) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StyleError("", f"cannot read: {exc}", source) from None
-    try:
-        data = json.loads(text, parse_constant=lambda c: float("nan"))
-    except json.JSONDecodeError as exc:
-        raise StyleError(f"line {exc.lineno} column {exc.colno}", f"expected valid JSON: {exc.msg}", source) from None
+        data = read_json(path, source=source)
+    except ReadError as exc:
+        raise StyleError(exc.field_path, exc.detail, source) from None
     if ctx is None:
         robot = expected_robot or (data.get("robot") if isinstance(data, dict) else None)
         if isinstance(robot, str):

@@ -1,0 +1,30 @@
+"""`studio check` on malformed files: one line naming the file, field and expectation, exit 2 (issue 14)."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.conftest import run_studio
+
+
+@pytest.mark.parametrize("name, content, expected", [
+    ("deep.json", b"[" * 100_000 + b"]" * 100_000, "deep.json: line 1 column 100000: expected at most 64 nested"),
+    ("trunc.json", b'{"schema": "motion-studio/sty', "trunc.json: line 1 column 12: expected valid JSON "
+                                                     "(unterminated string starting here; the file ends early"),
+    ("dup.json", b'{"schema": 1, "schema": 2}', "dup.json: schema: duplicate key 'schema'; expected each key once"),
+    ("latin1.json", b'{"name": "caf\xe9"}', "latin1.json: byte 13: expected UTF-8 text, got byte 0xe9"),
+    ("empty.json", b"", "empty.json: expected JSON, the file is empty"),
+])
+def test_check_reports_one_line(tmp_path, name, content, expected):
+    (tmp_path / name).write_bytes(content)
+    r = run_studio("check", str(tmp_path / name), timeout=120)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr
+    assert expected in lines[0], lines[0]
+
+
+def test_check_missing_file_has_no_empty_field():
+    r = run_studio("check", "nope.json", timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.strip() == "studio: error: nope.json: file not found"
