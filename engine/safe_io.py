@@ -59,8 +59,12 @@ class ReadError(ValueError):
 
 def one_line(source: str, field_path: str, detail: str) -> str:
     """``source: field_path: detail`` (no empty parts), always a single line."""
-    parts = [p for p in (source, field_path, detail) if p]
+    parts = [_clip(p, n) for p, n in ((source, 200), (field_path, 160), (detail, 240)) if p]
     return ": ".join(parts).replace("\r", " ").replace("\n", " ")
+
+
+def _clip(text: str, n: int) -> str:
+    return text if len(text) <= n else text[: n - 1] + "…"
 
 
 def _size(n: int) -> str:

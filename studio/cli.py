@@ -18,8 +18,15 @@ class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as ONE line (``studio walk: error: ...``), exit 2, like every other user error."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="studio", description="Motion Studio: author stylized walking gaits for robots.")
+    parser = _Parser(prog="studio", description="Motion Studio: author stylized walking gaits for robots.")
     sub = parser.add_subparsers(dest="subcommand", required=True)
 
     serve = sub.add_parser("serve", help="serve the studio in the browser")

@@ -264,11 +264,23 @@ def _expect(cond: bool, path: str, message: str) -> None:
 
 def _number(value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise StyleError(path, f"expected a number, got {json.dumps(value)[:40]}")
-    value = float(value)
+        raise StyleError(path, f"expected a number, got {_show(value)}")
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond float range (documents that did not come through safe_io)
+        value = math.inf
     if not math.isfinite(value):
         raise StyleError(path, f"expected a finite number, got {value}")
     return value
+
+
+def _show(value: Any) -> str:
+    """A short rendering of a user value for a message (never raises, never long)."""
+    try:
+        text = json.dumps(value)
+        return text if len(text) <= 40 else text[:39] + "…"
+    except (TypeError, ValueError, RecursionError):
+        return type(value).__name__
 
 
 def _table(value: Any, path: str, allowed: tuple[str, ...] | None, required: tuple[str, ...] = ()) -> dict:
@@ -289,7 +301,7 @@ def _table(value: Any, path: str, allowed: tuple[str, ...] | None, required: tup
 
 def _pair(value: Any, path: str) -> tuple[float, float]:
     if not isinstance(value, list) or len(value) != 2:
-        raise StyleError(path, f"expected [min_s, max_s], got {json.dumps(value)[:40]}")
+        raise StyleError(path, f"expected [min_s, max_s], got {_show(value)}")
     return (_number(value[0], f"{path}[0]"), _number(value[1], f"{path}[1]"))
 
 
@@ -328,7 +340,7 @@ def parse_curve(data: Any, path: str, duration_s: float, periodic: bool) -> Herm
         t_s, value = _number(row[0], f"{kp}[0]"), _number(row[1], f"{kp}[1]")
         mode_raw = row[-1] if len(row) in (3, 5) else "auto_clamped"
         if mode_raw not in modes:
-            raise StyleError(f"{kp}[{len(row) - 1}]", f"expected a tangent mode ({', '.join(modes)}), got {json.dumps(mode_raw)}")
+            raise StyleError(f"{kp}[{len(row) - 1}]", f"expected a tangent mode ({', '.join(modes)}), got {_show(mode_raw)}")
         if len(row) == 5:
             knots.append(Knot(t_s, value, _number(row[2], f"{kp}[2]"), _number(row[3], f"{kp}[3]"), TangentMode(mode_raw)))
         else:
@@ -388,9 +400,9 @@ def style_from_dict(data: Any, ctx: StyleContext | None = None, expected_robot: 
     """Parse and validate a style document; raises :class:`StyleError` (source "style")."""
     top = _table(data, "", ("schema", "version", "name", "robot", "description", "velocities", "blend_eta", "samples"),
                  ("schema", "version", "name", "robot", "velocities", "samples"))
-    _expect(top["schema"] == SCHEMA, "schema", f"expected {SCHEMA!r}, got {json.dumps(top['schema'])[:40]}")
+    _expect(top["schema"] == SCHEMA, "schema", f"expected {SCHEMA!r}, got {_show(top['schema'])}")
     version = top["version"]
-    _expect(isinstance(version, int) and not isinstance(version, bool), "version", f"expected an integer, got {version!r}")
+    _expect(isinstance(version, int) and not isinstance(version, bool), "version", f"expected an integer, got {_show(version)}")
     _expect(version <= VERSION, "version", f"expected {VERSION} or older; this file was written by a newer studio "
                                            f"(version {version})")
     _expect(version >= 1, "version", f"expected 1..{VERSION}, got {version}")

@@ -138,7 +138,9 @@ class _Reader:
         self.data = data
 
     def fail(self, field_path: str, message: str) -> RobotConfigError:
-        return RobotConfigError(f"{self.path.name}: {field_path}: {message}")
+        from engine.safe_io import one_line
+
+        return RobotConfigError(one_line(self.path.name, field_path, message))  # clipped: user keys can be long
 
     def get(self, table: dict[str, Any], key: str, prefix: str, kind: type | tuple[type, ...], default: Any = ...) -> Any:
         where = f"{prefix}{key}"
