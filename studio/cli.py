@@ -33,6 +33,7 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--robot", default=None, help="robot to open (default: g1)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     serve.add_argument("--port", type=int, default=8080)
+    serve.add_argument("--token", default=None, help="require this access token from browsers (env MOTION_STUDIO_TOKEN)")
 
     sub.add_parser("robots", help="list the robot library")
 
@@ -105,9 +106,16 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise _config_error(exc) from None
     if not 0 < args.port < 65536:
         raise CliError(f"--port: expected 1..65535, got {args.port}")
+    from studio.access import is_loopback, token_from_env
     from studio.app import serve
 
-    serve(robot, args.host, args.port)
+    token = args.token or token_from_env()
+    if token is not None and not token.strip():
+        raise CliError("--token: expected a non-empty token")
+    if not is_loopback(args.host) and not token:
+        print(f"studio: warning: --host {args.host}: anyone on the network can read and write styles and motions; "
+              "pass --token TOKEN (or set MOTION_STUDIO_TOKEN) to require an access token", file=sys.stderr)
+    serve(robot, args.host, args.port, token=token)
     return 0
 
 
