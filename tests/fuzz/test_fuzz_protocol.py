@@ -62,3 +62,46 @@ def test_junk_commands_become_notices(core, commands):
     core.handle(msg.SetVelocityCommand(0.0, 0.0, 0.0))
     core.handle(msg.SetPlaybackSpeed(1.0))
     core.handle(msg.SetPaused(False))
+
+
+# ----------------------------------------------------------------------------- browser WebSocket messages
+
+def test_junk_websocket_messages_drop_only_that_client():
+    """Random bytes and malformed msgpack from one client: that client is dropped, the server and the other
+    clients keep working, GUI values keep their type."""
+    import random
+
+    import msgspec
+    import viser
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    from tests.conftest import free_port
+
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    slider = server.gui.add_slider("speed", min=0.0, max=1.0, step=0.1, initial_value=0.5)
+    url = f"ws://127.0.0.1:{server.get_port()}/"
+    proto = [f"viser-v{viser.__version__}"]
+    rng = random.Random(14)
+    payloads = [bytes(rng.randrange(256) for _ in range(rng.randrange(1, 64))) for _ in range(20)]
+    payloads += [msgspec.msgpack.encode(m) for m in (
+        {}, {"type": "nosuch"}, {"type": "GuiUpdateMessage"}, [1, 2, 3], "x",
+        {"type": "GuiUpdateMessage", "uuid": slider._impl.uuid, "updates": {"value": "junk"}},
+        {"type": "GuiUpdateMessage", "uuid": "nope", "updates": {"value": 1}},
+        {"type": "ViewerCameraMessage", "wxyz": "x"},
+    )]
+    try:
+        for payload in payloads:
+            with connect(url, subprotocols=proto, open_timeout=10) as ws:
+                ws.recv(timeout=10)
+                try:
+                    ws.send(payload)
+                    ws.recv(timeout=0.5)
+                except (ConnectionClosed, TimeoutError):
+                    pass
+        with connect(url, subprotocols=proto, open_timeout=10) as ws:  # a well-behaved client still gets the GUI
+            assert ws.recv(timeout=10)
+        assert server._websock_server._background_event_loop.is_running()  # noqa: SLF001
+    finally:
+        server.stop()
+    assert slider.value == 0.5  # the junk updates did not reach the GUI state
