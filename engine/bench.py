@@ -206,6 +206,8 @@ SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": bench_sim, "reference": bench_reference, "mpc": bench_mpc, "wbc": bench_wbc,
     "estimator": bench_estimator, "stack": bench_stack, "edit": bench_edit_latency,
 }
+# Reliability sections live in their own module (issue 14).
+SECTIONS["engine"] = lambda: __import__("engine.bench_reliability", fromlist=["x"]).bench_engine()
 
 
 def percentiles_us(samples_s: list[float] | np.ndarray) -> dict[str, float]:

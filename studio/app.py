@@ -369,6 +369,13 @@ def serve(robot: str, host: str, port: int, token: str | None = None) -> None:
     studio = Studio(robot, host, port, token=token).start()
     url = browser_url(host, studio.server.get_port(), token) if token or host != "127.0.0.1" else studio.url
     print(f"Motion Studio: {url}  (robot {robot}; Ctrl+C to stop)", flush=True)
+
+    def terminate(signum, frame):  # SIGTERM: stop like Ctrl+C (engine shut down; autosaves are atomic)
+        raise KeyboardInterrupt
+
+    import signal
+
+    signal.signal(signal.SIGTERM, terminate)
     try:
         while True:
             time.sleep(1.0)

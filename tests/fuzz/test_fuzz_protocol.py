@@ -17,6 +17,8 @@ from engine import protocol as msg
 from engine.core import EngineCore
 from tests.conftest import REPO
 
+pytestmark = pytest.mark.timeout(600)  # a hang is a failure too
+
 _junk = st.one_of(st.none(), st.booleans(), st.integers(min_value=-10 ** 30, max_value=10 ** 30),
                   st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=8),
                   st.lists(st.floats(allow_nan=True), max_size=4), st.dictionaries(st.text(max_size=6),

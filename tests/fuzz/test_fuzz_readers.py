@@ -24,6 +24,8 @@ from engine.gait.velocity_sampler import SampleVelocities
 from engine.robot.config import RobotConfigError, load_config
 from studio import cli
 from tests.conftest import REPO
+
+pytestmark = pytest.mark.timeout(600)  # a hang is a failure too
 from tests.fuzz_corpus.make_corpus import large_cases
 
 CORPUS = REPO / "tests" / "fuzz_corpus"
