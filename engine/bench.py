@@ -208,6 +208,8 @@ SECTIONS: dict[str, Callable[[], list[dict]]] = {
 }
 # Reliability sections live in their own module (issue 14).
 SECTIONS["engine"] = lambda: __import__("engine.bench_reliability", fromlist=["x"]).bench_engine()
+# `studio bench soak --minutes M --clients C` drives a whole studio (not in the default run).
+SECTIONS["soak"] = lambda **kw: __import__("studio.bench_soak", fromlist=["x"]).bench_soak(**kw)
 
 
 def percentiles_us(samples_s: list[float] | np.ndarray) -> dict[str, float]:

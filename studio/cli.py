@@ -63,6 +63,8 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    bench.add_argument("--minutes", type=float, default=1.0, help="soak: how long to drive the studio")
+    bench.add_argument("--clients", type=int, default=4, help="soak: headless WebSocket clients")
     return parser
 
 
@@ -266,13 +268,16 @@ def cmd_walk(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from engine.bench import SECTIONS
 
-    sections = args.sections or list(SECTIONS)
+    sections = args.sections or [s for s in SECTIONS if s != "soak"]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")
+    if not (0 < args.minutes <= 24 * 60) or not (1 <= args.clients <= 64):
+        raise CliError(f"--minutes/--clients: expected 0 < M ≤ 1440 and 1 ≤ C ≤ 64, got {args.minutes}, {args.clients}")
     rows: list[dict] = []
     for section in sections:
-        rows.extend(SECTIONS[section]())
+        kwargs = {"minutes": args.minutes, "clients": args.clients} if section == "soak" else {}
+        rows.extend(SECTIONS[section](**kwargs))
     if args.json:
         print(json.dumps({"rows": rows, "cpu_count": os.cpu_count()}, indent=1))
         return 0
