@@ -37,6 +37,7 @@ import json
 import math
 import os
 import re
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -75,6 +76,11 @@ def read_bytes(path: str | os.PathLike, max_bytes: int = MAX_FILE_BYTES, source:
     path = Path(path)
     source = source if source is not None else str(path)
     try:
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
+            raise IsADirectoryError
+        if not stat.S_ISREG(mode):  # a FIFO or a device would block or never end
+            raise ReadError(source, "", "expected a regular file (this is a device, FIFO or socket)")
         with open(path, "rb") as f:
             data = f.read(max_bytes + 1)
     except FileNotFoundError:

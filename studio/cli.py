@@ -199,6 +199,9 @@ def _npz_path(spec: str) -> Path:
     out = Path(spec)
     if out.suffix != ".npz":
         raise CliError(f"--out: expected a .npz file, got {spec!r}")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir() or not os.access(folder, os.W_OK) or out.is_dir():
+        raise CliError(f"--out: expected a writable file in an existing folder, got {spec!r}")  # before the run
     return out
 
 
@@ -212,7 +215,10 @@ def _save_npz(out: Path, arrays: dict) -> None:
 
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    atomic_write_bytes(out, buf.getvalue())
+    try:
+        atomic_write_bytes(out, buf.getvalue())
+    except OSError as exc:  # full disk, folder removed meanwhile: nothing half-written (atomic), one line
+        raise CliError(f"--out: could not write {out}: {exc.strerror or exc}") from None
 
 
 def cmd_plan(args: argparse.Namespace) -> int:

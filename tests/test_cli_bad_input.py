@@ -28,3 +28,46 @@ def test_check_missing_file_has_no_empty_field():
     r = run_studio("check", "nope.json", timeout=120)
     assert r.returncode == 2
     assert r.stderr.strip() == "studio: error: nope.json: file not found"
+
+
+def test_out_in_a_missing_folder_is_refused_before_the_run():
+    r = run_studio("plan", "--out", "/nonexistent-folder/x.npz", timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.strip() == "studio: error: --out: expected a writable file in an existing folder, got " \
+                               "'/nonexistent-folder/x.npz'"
+
+
+def test_a_full_disk_while_writing_the_recording_is_one_line_and_nothing_is_left(tmp_path, monkeypatch, capsys):
+    import errno
+    import os
+
+    import numpy as np
+
+    import engine.atomic_io as atomic_io
+    import engine.gait.offline_plan as offline_plan
+    from studio import cli
+
+    monkeypatch.setattr(offline_plan, "run_plan", lambda *a: {"t": np.zeros(3), "command": np.zeros((3, 3)),
+                                                              "command_requested": np.zeros((3, 3))})
+
+    real_fdopen = os.fdopen
+
+    class Full:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(atomic_io.os, "fdopen", lambda fd, mode="r", *a, **k: Full(real_fdopen(fd, mode, *a, **k)))
+    out = tmp_path / "plan.npz"
+    assert cli.main(["plan", "--out", str(out), "--duration", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"studio: error: --out: could not write {out}: No space left on device"
+    assert list(tmp_path.iterdir()) == []  # no recording, no temporary file

@@ -98,3 +98,13 @@ def test_read_text_permission(tmp_path):
         pytest.skip("running as root: permissions are not enforced")
     with pytest.raises(ReadError, match="permission denied"):
         read_text(p)
+
+
+def test_fifo_and_devices_are_refused_without_blocking(tmp_path):
+    import os
+
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    assert "regular file" in _err(fifo).detail  # opening it would block forever
+    with pytest.raises(ReadError, match="regular file"):
+        read_text("/dev/zero")
