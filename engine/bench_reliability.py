@@ -41,6 +41,7 @@ def bench_engine(robot: str = "g1", seconds: float = 4.0) -> list[dict]:
     try:
         loaded.wait(60)
         old = link.pid
+        assert old is not None
         loaded.clear()
         t0 = time.monotonic()
         os.kill(old, signal.SIGKILL)

@@ -65,7 +65,9 @@ class _Client(threading.Thread):
             "image_height": 480, "image_width": 640, "fov": 1.0, "near": 0.01, "far": 1000.0,
             "look_at": [0.0, 0.0, 0.6], "up_direction": [0.0, 0.0, 1.0]})
         try:
-            with connect(self.url, subprotocols=[f"viser-v{viser.__version__}"], open_timeout=30,
+            from websockets.typing import Subprotocol
+
+            with connect(self.url, subprotocols=[Subprotocol(f"viser-v{viser.__version__}")], open_timeout=30,
                          max_size=None) as ws:
                 ws.send(camera)
                 while not self.stop.is_set():
@@ -120,7 +122,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
         original_update(frame)
         frames.append((time.monotonic(), frame.sim_time_s))
 
-    studio.view.update = record
+    studio.view.update = record  # type: ignore[method-assign]
     pool: list[_Client] = []
     try:
         if not studio.loaded.wait(180):
@@ -149,12 +151,13 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
                 studio.link.send(msg.ApplyPush((0.0, 25.0, 0.0), 0.2))
                 pushes += 1
                 next_push += 10.0
-            if now >= next_edit and studio.session is not None and studio.session.style is not None:
-                session = studio.session
-                sample = session.style.samples["in_place"]
+            session = studio.session
+            style = session.style if session is not None else None
+            if now >= next_edit and session is not None and style is not None:
+                sample = style.samples["in_place"]
                 width = 0.22 + 0.02 * (edits % 3)
                 edited = replace(sample, attributes=replace(sample.attributes, stance_width_m=width))
-                session.apply(session.style.with_sample("in_place", edited), "soak edit")
+                session.apply(style.with_sample("in_place", edited), "soak edit")
                 edits += 1
                 next_edit += 5.0
             if not marked and now - t0 >= warmup_s:
