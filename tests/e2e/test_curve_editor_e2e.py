@@ -71,9 +71,11 @@ def test_drag_a_knot_with_the_mouse_then_undo_and_redo_with_the_keyboard(tmp_pat
             notice = page.locator(".mantine-Notification-root", has_text="Software WebGL").locator("button")
             if notice.count():
                 notice.first.click()
-            seen = client.camera.update_timestamp
             editor.look_at_graph(client)
-            _wait(lambda: client.camera.update_timestamp > seen, 30, "the browser's camera on the graph")
+            asked, t_asked = np.array(client.camera.position), time.time()
+            # the browser echoes its camera once it has applied ours (the server-side state updates at once)
+            _wait(lambda: client.camera.update_timestamp > t_asked
+                  and np.allclose(client.camera.position, asked, atol=1e-3), 30, "the browser's camera on the graph")
             cam = client.camera
             box = page.locator("canvas").first.bounding_box()
             uv = project_to_screen(editor.knot_world_position(ref), cam.position, cam.wxyz, cam.fov, cam.aspect)

@@ -100,9 +100,11 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
 
             page.get_by_text("Curves", exact=True).first.click()
             client = next(iter(studio.server.get_clients().values()))
-            seen = client.camera.update_timestamp
             editor.look_at_graph(client)
-            wait_until(lambda: client.camera.update_timestamp > seen, 30, "the browser's camera on the graph")
+            asked, t_asked = np.array(client.camera.position), time.time()
+            # the browser echoes its camera once it has applied ours (the server-side state updates at once)
+            wait_until(lambda: client.camera.update_timestamp > t_asked
+                  and np.allclose(client.camera.position, asked, atol=1e-3), 30, "the browser's camera on the graph")
             cam = client.camera
             box = page.locator("canvas").first.bounding_box()
             u, v = project_to_screen(editor.knot_world_position(apex), cam.position, cam.wxyz, cam.fov, cam.aspect)
