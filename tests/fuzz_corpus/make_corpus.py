@@ -23,7 +23,7 @@ def _style_cases() -> dict[str, bytes]:
     def variant(mutate) -> bytes:
         d = json.loads(text)
         mutate(d)
-        return json.dumps(d, indent=1).encode()
+        return json.dumps(d, separators=(",", ":")).encode()
 
     def s(path: str, value):
         def mutate(d):
