@@ -181,7 +181,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
             "engine_rss_growth_pct": round(100 * (rss1[1] / rss0[1] - 1), 1) if studio.link.pid == engine_pid0 else "restarted",
             "engine_frames_per_s": round((len(window) - 1) / (w1 - w0), 1), "sim_clock_drift_pct": round(100 * drift, 2),
             "pushes": pushes, "edits": edits, "engine_restarts": studio.link.restarts - restarts0,
-            "exceptions": len(exceptions),
+            "exceptions": len(exceptions), "load_avg_1min": round(os.getloadavg()[0], 1), "cpus": os.cpu_count(),
         }]
         for i, (m, kb) in enumerate(rates):
             rows.append({"section": "soak clients", "what": f"client {i}", "ws_messages_per_s": round(m, 1),
