@@ -135,6 +135,7 @@ def test_sigterm_during_autosaves_leaves_a_recoverable_file(tmp_path, g1_ctx):
     assert 0.22 <= session.style.samples["in_place"].attributes.stance_width_m <= 0.26
 
 
+@pytest.mark.slow
 def test_serve_stops_cleanly_on_sigterm(tmp_path):
     """SIGTERM to `studio serve`: it shuts its engine down and exits 0 (no orphan, no traceback)."""
     from tests.conftest import ServedStudio
