@@ -232,3 +232,15 @@ def test_no_module_imports_pickle_at_runtime():
     assert not offenders, offenders
 
 
+
+
+def test_the_studio_applies_its_token_before_any_client():
+    from studio.app import Studio
+
+    studio = Studio("g1", port=free_port(), token="k3y")  # not started: no engine needed for the gate
+    try:
+        port = studio.server.get_port()
+        assert _first_messages(port, "/") == (0, 1008)
+        assert _first_messages(port, "/?token=k3y") == (1, None)
+    finally:
+        studio.stop()
