@@ -249,8 +249,10 @@ def cmd_walk(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from engine.bench import SECTIONS
+    from engine.bench import SECTIONS as ENGINE_SECTIONS
+    from studio.bench_edit import bench_edit_latency
 
+    SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency}  # noqa: N806 - the studio's sections on top of the engine's
     sections = args.sections or list(SECTIONS)
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:

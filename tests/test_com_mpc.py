@@ -15,16 +15,15 @@ from engine.control.com_mpc import (
     ComMpcSolution,
     ComMpcWeights,
     SupportInterval,
-    benchmark_solve,
     clip_convex_polygons,
-    closed_loop_like_problems,
     convex_hull,
-    example_walking_supports,
     polygon_area,
     polygon_centroid,
     polygon_halfplanes,
     propagate_lip,
 )
+from engine.bench.mpc import benchmark_solve
+from engine.bench.mpc_problems import closed_loop_like_problems, example_walking_supports
 
 COM_HEIGHT_M = 0.8
 DT_CONTROL_S = 0.008
@@ -736,13 +735,18 @@ def test_vectorised_geometry_matches_reference(seed, n_points, clockwise, collin
 # ---------------------------------------------------------------- benchmark tools
 
 
-def test_benchmark_captured_replays_a_pickle(tmp_path) -> None:
-    import pickle
+def test_benchmark_captured_replays_an_npz(tmp_path) -> None:
+    from engine.bench.mpc import benchmark_captured, load_problems, save_problems
 
-    from engine.control.com_mpc import benchmark_captured
-
-    path = tmp_path / "cases.pkl"
-    path.write_bytes(pickle.dumps(closed_loop_like_problems(40, seed=5)))
+    path = tmp_path / "cases.npz"
+    problems = closed_loop_like_problems(40, seed=5)
+    save_problems(path, problems)
+    loaded = load_problems(path)
+    assert len(loaded) == 40
+    for (a, _), (b, _) in zip(problems, loaded):
+        assert a[0] == b[0] and a[4] == b[4] and len(a[5]) == len(b[5])
+        np.testing.assert_array_equal(a[1], b[1])
+        np.testing.assert_array_equal(a[5][-1].polygon, b[5][-1].polygon)
     stats = benchmark_captured(str(path))
     assert stats["n"] == 40 and stats["solved_fraction"] == 1.0 and stats["fallback_count"] == 0
     assert stats["max_iterations"] <= 25 and 0.0 < stats["median_us"] <= stats["p99_us"]

@@ -18,7 +18,7 @@ eliminated in closed form, leaving a ≤32-variable box QP in ρ solved by a war
 primal active set — one or two small Cholesky solves per tick, equalities exact to
 rounding. :class:`OsqpQpSolver` keeps a fixed sparsity pattern and only updates values each
 tick (``Px, Ax, q, l, u``, warm start); it is the dense solver's fallback and the
-``qp_backend="osqp"`` option (measured slower: ``benchmark_wbc``). The floating-base
+``qp_backend="osqp"`` option (measured slower: ``studio bench wbc``). The floating-base
 acceleration is then made exactly consistent with the rigid-body dynamics (6×6 solve of
 the base rows of Eq. 15), torques follow from Eq. 15 (plus the model's viscous joint
 damping), and joint position/velocity set-points come from integrating q̈, clipped to a
@@ -65,7 +65,6 @@ __all__ = [
     "WbcDiagnostics",
     "WbcGains",
     "WbcReference",
-    "benchmark_wbc",
     "friction_basis",
 ]
 
@@ -899,77 +898,3 @@ class TrackingController:
 
     def compute(self, state: RobotState) -> JointCommand:
         return self.wbc.compute(state, self.reference(state))
-
-
-# ----------------------------------------------------------------------------- benchmark
-
-
-def record_standing_states(robot_name: str = "g1", n: int = 300,
-                           push_n_per_kg: float = 1.0) -> tuple[list[RobotState], WbcReference, float]:
-    """States of a closed-loop standing run under our ID, with a 0.3 s lateral pelvis push after
-    the first third; also returns the run's real-time factor (simulated s / wall s, ID + MuJoCo)."""
-    from engine.robot.model import load_robot
-    from engine.sim import Simulation
-
-    robot = load_robot(robot_name)
-    wbc = TaskSpaceInverseDynamics(robot)
-    ref = wbc.hold_reference(robot.q_standing)
-    sim = Simulation(robot, TrackingController(wbc, lambda _s: ref))
-    states: list[RobotState] = []
-    t_wall = time.perf_counter()
-    for k in range(n):
-        if k == n // 3:
-            sim.push(np.array([0.0, push_n_per_kg * robot.mass_kg, 0.0]), 0.3)
-        st = sim.state()
-        states.append(RobotState(st.t_s, st.q.copy(), st.v.copy()))
-        sim.step()
-    rtf = n * sim.model.opt.timestep / (time.perf_counter() - t_wall)
-    return states, ref, rtf
-
-
-def benchmark_wbc(robot_name: str = "g1", n: int = 300) -> dict:
-    """Median/p99 µs per tick of our ID (dense and OSQP backends) and of placo's DynamicsSolver on
-    the SAME recorded states (closed-loop standing + push), our pinocchio/QP breakdown, and the
-    closed-loop real-time factor of our ID + MuJoCo."""
-    from engine.control.placo_wbc import PlacoWbc
-    from engine.robot.model import load_robot
-
-    robot = load_robot(robot_name)
-    states, ref, rtf = record_standing_states(robot_name, n)
-
-    def interleaved(ctrls: list) -> list[tuple[NDArray, list[WbcDiagnostics]]]:  # noqa: ANN001
-        """Each recorded state is given to every controller in turn, so all of them run under
-        the same machine conditions (and, as in the engine loop, with caches shared with the
-        others rather than warm from their own previous tick)."""
-        for ctrl in ctrls:
-            ctrl.reset(states[0])
-            for st in states[:20]:  # warm up (allocations, warm start)
-                ctrl.compute(st, ref)
-            ctrl.reset(states[0])
-        times = [[] for _ in ctrls]
-        diags = [[] for _ in ctrls]
-        for st in states:
-            for i, ctrl in enumerate(ctrls):
-                t = time.perf_counter()
-                ctrl.compute(st, ref)
-                times[i].append(time.perf_counter() - t)
-                diags[i].append(ctrl.diagnostics)
-        return [(np.asarray(t) * 1e6, d) for t, d in zip(times, diags)]
-
-    def stats(a: NDArray) -> dict[str, float]:
-        return {"median_us": round(float(np.median(a)), 1), "p99_us": round(float(np.percentile(a, 99)), 1)}
-
-    (t_dense, d_dense), (t_osqp, _), (t_placo, d_placo) = interleaved(
-        [TaskSpaceInverseDynamics(robot, qp_backend="dense"), TaskSpaceInverseDynamics(robot, qp_backend="osqp"),
-         PlacoWbc(robot)])
-    breakdown = {k: round(float(np.median([getattr(d, f"{k}_s") for d in d_dense])) * 1e6, 1)
-                 for k in ("pinocchio", "build", "qp")}
-    return {
-        "robot": robot_name, "ticks": len(states),
-        "ours": stats(t_dense), "ours_osqp_backend": stats(t_osqp), "placo": stats(t_placo),
-        "ours_breakdown_median_us": breakdown,
-        "ours_solved_fraction": float(np.mean([d.ok for d in d_dense])),
-        "placo_solved_fraction": float(np.mean([d.ok for d in d_placo])),
-        "placo_over_ours_median": round(float(np.median(t_placo) / np.median(t_dense)), 2),
-        "closed_loop_rtf_ours_plus_mujoco": round(rtf, 2),
-    }

@@ -1,0 +1,60 @@
+"""Benchmarks behind ``studio bench``: figures measured side by side in one run.
+
+Each section is a function returning rows (dicts), its body in this package's module of the
+same concept: ``sim`` (MuJoCo alone), ``reference`` (sampler + planner), ``mpc`` (CoM MPC
+solves), ``wbc`` (our inverse dynamics against placo's), ``qp`` (the QP backends on recorded
+problems), ``estimator`` and ``stack`` (the full stack against MuJoCo alone). The studio adds
+``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`): the engine never imports the studio.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from engine.bench.stats import percentiles_us
+
+__all__ = ["SECTIONS", "percentiles_us"]
+
+
+def _sim() -> list[dict]:
+    from engine.bench.sim import bench_sim
+
+    return bench_sim()
+
+
+def _reference() -> list[dict]:
+    from engine.bench.reference import bench_reference
+
+    return bench_reference()
+
+
+def _mpc() -> list[dict]:
+    from engine.bench.mpc import benchmark_solve
+
+    r = benchmark_solve()
+    return [{"section": "mpc", **{k: (round(v, 1) if isinstance(v, float) else v) for k, v in r.items()},
+             "goal_median_us": 500}]
+
+
+def _wbc() -> list[dict]:
+    from engine.bench.wbc import bench_wbc
+
+    return bench_wbc()
+
+
+def _estimator() -> list[dict]:
+    from engine.bench.estimator import benchmark_estimator
+
+    r = benchmark_estimator("g1")
+    return [{"section": "estimator", "robot": "g1", **{k: (round(v, 1) if isinstance(v, float) else v) for k, v in r.items()}}]
+
+
+def _stack() -> list[dict]:
+    from engine.bench.stack import bench_stack
+
+    return bench_stack()
+
+
+SECTIONS: dict[str, Callable[[], list[dict]]] = {
+    "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "estimator": _estimator, "stack": _stack,
+}
