@@ -111,8 +111,10 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     cop_checks = cop_inside = 0
     fell, fall_time = False, None
     path_len, last_xy = 0.0, sim.data.qpos[:2].copy()
-    vel_window: list[np.ndarray] = []
-    cmd_window: list[np.ndarray] = []
+    window = int(1.0 / dt)
+    # Running sums of body velocity and command: 1 s means without re-summing a window every tick.
+    vel_sum = np.zeros((n + 1, 3))
+    cmd_sum = np.zeros((n + 1, 3))
     vel_err: list[np.ndarray] = []
     com_err: list[float] = []
     wall0 = time.perf_counter()
@@ -145,14 +147,11 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         v_world = data.qvel[0:3]
         wz = float(data.qvel[5]) if False else float((data.xmat[root].reshape(3, 3) @ data.qvel[3:6])[2])
         v_body = np.array([c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1], wz])
-        vel_window.append(v_body)
-        cmd_window.append(ref.command.copy())
-        window = int(1.0 / dt)
-        if len(vel_window) > window:
-            vel_window.pop(0)
-            cmd_window.pop(0)
-            if t > 2.0:
-                vel_err.append(np.mean(vel_window, axis=0) - np.mean(cmd_window, axis=0))
+        vel_sum[k + 1] = vel_sum[k] + v_body
+        cmd_sum[k + 1] = cmd_sum[k] + ref.command
+        if k + 1 > window and t > 2.0:
+            vel_err.append(((vel_sum[k + 1] - vel_sum[k + 1 - window]) - (cmd_sum[k + 1] - cmd_sum[k + 1 - window]))
+                           / window)
         # CoM tracking: measured horizontal CoM against the MPC's reference.
         if k % 4 == 0 and controller.plan is not None:
             com_err.append(float(np.linalg.norm(data.subtree_com[root][:2] - controller.plan.com_at(ref.t_s)[0])))

@@ -84,6 +84,7 @@ test detects without clipping.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import itertools
 import math
@@ -240,6 +241,8 @@ class ComMpcSolution:
 
     def com_at(self, t_s: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
         """CoM position [m], velocity [m/s], acceleration [m/s^2] at ``t_s`` (exact LIP solution)."""
+        if isinstance(t_s, (float, int)):
+            return self._com_at_scalar(float(t_s))
         t = np.asarray(t_s, dtype=float)
         tt = np.atleast_1d(t)
         times, wps = self.waypoint_times_s, self.waypoints_xy_m
@@ -265,6 +268,36 @@ class ComMpcSolution:
         acc = omega * omega * err
         if t.ndim == 0:
             return pos[0], vel[0], acc[0]
+        return pos, vel, acc
+
+    def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""
+        times, wps = self.waypoint_times_s, self.waypoints_xy_m
+        n_seg = len(times) - 1
+        t_first, t_last = float(times[0]), float(times[-1])
+        j = min(max(bisect.bisect_right(times, t) - 1, 0), n_seg - 1)
+        if t > t_last:
+            anchor, sx, sy = n_seg, 0.0, 0.0
+        else:
+            anchor = j
+            if t < t_first:
+                sx = sy = 0.0
+            else:
+                h = max(float(times[j + 1] - times[j]), 1e-12)
+                sx = float(wps[j + 1, 0] - wps[j, 0]) / h
+                sy = float(wps[j + 1, 1] - wps[j, 1]) / h
+        s = t - float(times[anchor])
+        omega = self.omega_rps
+        ch, sh = math.cosh(omega * s), math.sinh(omega * s)
+        px, py = float(wps[anchor, 0]), float(wps[anchor, 1])
+        cx, cy = self.waypoint_com_xy_m[anchor]
+        vx, vy = self.waypoint_com_vel_xy_mps[anchor]
+        ex, ey = float(cx) - px, float(cy) - py
+        dex, dey = float(vx) - sx, float(vy) - sy
+        errx, erry = ex * ch + dex * sh / omega, ey * ch + dey * sh / omega
+        pos = np.array([px + sx * s + errx, py + sy * s + erry])
+        vel = np.array([sx + ex * omega * sh + dex * ch, sy + ey * omega * sh + dey * ch])
+        acc = np.array([omega * omega * errx, omega * omega * erry])
         return pos, vel, acc
 
     def com_path(self, dt_s: float = 0.02) -> tuple[FloatArray, FloatArray]:

@@ -32,7 +32,7 @@ from engine.gait.footsteps import (
     stance_offset,
 )
 from engine.gait.heel_toe import foot_rig, stance_pitch
-from engine.gait.path_frame import PathFrame, predict
+from engine.gait.path_frame import PathFrame, arc_displacement, predict
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.gait.swing import nominal_swing
@@ -313,22 +313,31 @@ class GaitPlanner:
         return predict(poses[k], vels[k], dt_s - times[k])
 
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal
+        (plain floats: 61 pieces of a few multiplications each, rebuilt every planner tick)."""
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(self.command_goal)
         self.command_clamped = clamped
-        limits = np.abs(np.asarray(self.command_rate_limits, dtype=float))
+        h = PATH_TABLE_STEP_S
+        lim = [abs(float(x)) * h for x in self.command_rate_limits]
+        g = [float(x) for x in goal]
         n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
         times = np.arange(n) * PATH_TABLE_STEP_S
-        poses = np.empty((n, 3))
-        vels = np.empty((n, 3))
-        pose, v = self.path.pose(), self.command.copy()
-        h = PATH_TABLE_STEP_S
+        poses = [None] * n
+        vels = [None] * n
+        px, py, pyaw = float(self.path.x), float(self.path.y), float(self.path.yaw)
+        v = [float(x) for x in self.command]
+        cos, sin = math.cos, math.sin
         for i in range(n):
-            dv = np.clip(goal - v, -limits * h, limits * h)
-            poses[i], vels[i] = pose, v + 0.5 * dv  # the piece's mean velocity
-            pose = predict(pose, vels[i], h)
-            v = v + dv
-        return times, poses, vels
+            dv = [min(max(g[j] - v[j], -lim[j]), lim[j]) for j in range(3)]
+            mean = [v[j] + 0.5 * dv[j] for j in range(3)]
+            poses[i] = (px, py, pyaw)
+            vels[i] = mean
+            dx, dy, th = arc_displacement(mean, h)
+            c, s_ = cos(pyaw), sin(pyaw)
+            px, py, pyaw = px + c * dx - s_ * dy, py + s_ * dx + c * dy, pyaw + th
+            v = [v[j] + dv[j] for j in range(3)]
+        return times, np.array(poses), np.array(vels)
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:
         """Move the path frame by ``path_follows_feet`` × (dx, dy)."""
