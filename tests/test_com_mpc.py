@@ -750,3 +750,18 @@ def test_benchmark_captured_replays_an_npz(tmp_path) -> None:
     stats = benchmark_captured(str(path))
     assert stats["n"] == 40 and stats["solved_fraction"] == 1.0 and stats["fallback_count"] == 0
     assert stats["max_iterations"] <= 25 and 0.0 < stats["median_us"] <= stats["p99_us"]
+
+
+def test_scalar_com_at_matches_the_vectorised_evaluation() -> None:
+    """The controller's scalar fast path computes what the array path (the original) does."""
+    supports = example_walking_supports(n_steps=4)
+    plan = ComMpc().solve(0.0, np.zeros(2), np.array([0.05, -0.02]), np.zeros(2), COM_HEIGHT_M, supports)
+    assert plan.ok
+    times = np.concatenate([[-0.3, plan.t_start_s, plan.t_end_s, plan.t_end_s + 0.4], plan.waypoint_times_s,
+                            np.linspace(plan.t_start_s - 0.1, plan.t_end_s + 0.1, 157)])
+    pos, vel, acc = plan.com_at(times)
+    for k, t in enumerate(times):
+        p, v, a = plan.com_at(float(t))
+        np.testing.assert_allclose(p, pos[k], rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(v, vel[k], rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(a, acc[k], rtol=1e-13, atol=1e-12)

@@ -168,7 +168,7 @@ class WbcReference:
                   self.pelvis_height_rate_mps, self.external_wrench, self.foot_lin_acc_mps2, self.foot_ang_acc_radps2,
                   self.com_z_m)
         try:
-            flat = np.concatenate([np.ravel(a) for a in arrays if a is not None], dtype=float)
+            flat = np.concatenate([a for a in arrays if a is not None], axis=None, dtype=float)
             return math.isfinite(float(flat.sum()))
         except (TypeError, ValueError):
             return False

@@ -32,7 +32,7 @@ from engine.gait.footsteps import (
     stance_offset,
 )
 from engine.gait.heel_toe import foot_rig, stance_pitch
-from engine.gait.path_frame import PathFrame, arc_displacement, predict
+from engine.gait.path_frame import PathFrame, predict
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.gait.swing import nominal_swing
@@ -313,31 +313,45 @@ class GaitPlanner:
         return predict(poses[k], vels[k], dt_s - times[k])
 
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal
-        (plain floats: 61 pieces of a few multiplications each, rebuilt every planner tick)."""
+        """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
+
+        The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then
+        evaluated at once and chained by cumulative sums (rebuilt every planner tick)."""
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(self.command_goal)
         self.command_clamped = clamped
         h = PATH_TABLE_STEP_S
-        lim = [abs(float(x)) * h for x in self.command_rate_limits]
-        g = [float(x) for x in goal]
         n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
         times = np.arange(n) * PATH_TABLE_STEP_S
-        poses = [None] * n
-        vels = [None] * n
-        px, py, pyaw = float(self.path.x), float(self.path.y), float(self.path.yaw)
-        v = [float(x) for x in self.command]
-        cos, sin = math.cos, math.sin
-        for i in range(n):
-            dv = [min(max(g[j] - v[j], -lim[j]), lim[j]) for j in range(3)]
-            mean = [v[j] + 0.5 * dv[j] for j in range(3)]
-            poses[i] = (px, py, pyaw)
-            vels[i] = mean
-            dx, dy, th = arc_displacement(mean, h)
-            c, s_ = cos(pyaw), sin(pyaw)
-            px, py, pyaw = px + c * dx - s_ * dy, py + s_ * dx + c * dy, pyaw + th
-            v = [v[j] + dv[j] for j in range(3)]
-        return times, np.array(poses), np.array(vels)
+        vels = np.empty((n, 3))
+        for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
+            g, lim, v = float(goal[j]), abs(float(self.command_rate_limits[j])) * h, float(self.command[j])
+            column = vels[:, j]
+            for i in range(n):
+                dv = min(max(g - v, -lim), lim)
+                column[i] = v + 0.5 * dv  # the piece's mean velocity
+                if dv == 0.0:
+                    column[i + 1:] = v
+                    break
+                v = v + dv
+        # Exact arcs of every piece (path_frame.arc_displacement, vectorised) chained from the path pose.
+        w = vels[:, 2]
+        th = w * h
+        small = np.abs(th) < 1e-9
+        w_safe = np.where(small, 1.0, w)
+        sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
+        cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
+        dx = vels[:, 0] * sinc - vels[:, 1] * cosc
+        dy = vels[:, 0] * cosc + vels[:, 1] * sinc
+        poses = np.empty((n, 3))
+        poses[0] = (self.path.x, self.path.y, self.path.yaw)
+        np.cumsum(th[:-1], out=poses[1:, 2])
+        poses[1:, 2] += poses[0, 2]
+        c, s_ = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
+        np.cumsum(c * dx[:-1] - s_ * dy[:-1], out=poses[1:, 0])
+        np.cumsum(s_ * dx[:-1] + c * dy[:-1], out=poses[1:, 1])
+        poses[1:, :2] += poses[0, :2]
+        return times, poses, vels
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:
         """Move the path frame by ``path_follows_feet`` × (dx, dy)."""
