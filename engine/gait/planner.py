@@ -144,6 +144,7 @@ class GaitPlanner:
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._hull_cache: dict[tuple, np.ndarray] = {}
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -535,7 +536,7 @@ class GaitPlanner:
             if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
                 polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
             else:
-                polygon = convex_hull_2d(np.vstack([footholds[s].corners(length, width) for s in down]))
+                polygon = self._support_hull(tuple(footholds[s] for s in down), length, width)
             phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
             if t1 >= horizon_s:
                 break
@@ -548,6 +549,19 @@ class GaitPlanner:
                         footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds)}
             prev_phi = b
         return phases
+
+    def _support_hull(self, holds: tuple[Foothold, ...], length: float, width: float) -> np.ndarray:
+        """Convex hull of the soles on ``holds``; latched footholds recur tick after tick, so the
+        hulls are kept (by value: Foothold is frozen) until the cache is full."""
+        key = (holds, length, width)
+        hull = self._hull_cache.get(key)
+        if hull is None:
+            if len(self._hull_cache) >= 64:
+                self._hull_cache.clear()
+            hull = convex_hull_2d(np.vstack([h.corners(length, width) for h in holds]))
+            hull.flags.writeable = False  # shared between calls
+            self._hull_cache[key] = hull
+        return hull
 
     def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
         blend = self.blend
