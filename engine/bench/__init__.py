@@ -49,6 +49,12 @@ def _estimator() -> list[dict]:
     return [{"section": "estimator", "robot": "g1", **{k: (round(v, 1) if isinstance(v, float) else v) for k, v in r.items()}}]
 
 
+def _qp() -> list[dict]:
+    from engine.bench.qp import bench_qp
+
+    return bench_qp()
+
+
 def _stack() -> list[dict]:
     from engine.bench.stack import bench_stack
 
@@ -56,5 +62,6 @@ def _stack() -> list[dict]:
 
 
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
-    "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "estimator": _estimator, "stack": _stack,
+    "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "qp": _qp, "estimator": _estimator,
+    "stack": _stack,
 }

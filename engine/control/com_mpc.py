@@ -102,6 +102,9 @@ from scipy.linalg.lapack import dpotrs as _dpotrs
 from scipy.linalg.lapack import dtrtrs as _dtrtrs
 from numpy.typing import ArrayLike, NDArray
 
+from engine.control import qp_backends
+from engine.control.qp_backends import QpProblem
+
 __all__ = [
     "GRAVITY_MPS2",
     "ComMpc",
@@ -656,6 +659,21 @@ class _Condensed:
     rhs: FloatArray  # (m,)
     row_var: NDArray[np.intp]  # (m,) waypoint variable index 0..N-1
 
+    def standard_form(self) -> QpProblem:
+        """The same QP over x = p.ravel() (waypoints 1..N, x and y interleaved) for the maintained
+        backends. Note its Hessian carries W_s β βᵀ explicitly (condition number ~W_s)."""
+        n = self.d_mat.shape[0]
+        h_axis = self.d_mat + self.stability_weight * np.outer(self.beta, self.beta)
+        h = np.zeros((2 * n, 2 * n))
+        h[0::2, 0::2] = h_axis
+        h[1::2, 1::2] = h_axis
+        f = -(self.g + self.stability_weight * self.r0[None, :] * self.beta[:, None]).ravel()
+        c = np.zeros((len(self.rhs), 2 * n))
+        rows = np.arange(len(self.rhs))
+        c[rows, 2 * self.row_var] = self.normals[:, 0]
+        c[rows, 2 * self.row_var + 1] = self.normals[:, 1]
+        return QpProblem(h, f, c=c, c_lo=np.full(len(self.rhs), -np.inf), c_up=self.rhs.copy())
+
     def h_inv(self, g: FloatArray) -> FloatArray:
         """``H^-1 g`` for ``g`` (N, 2)."""
         return self.hess_inv @ g
@@ -902,7 +920,7 @@ class ComMpc:
         instead of a fallback.
     time_limit_s : float or None
         Same, as a wall-time limit on the QP solve [s] (``None``: no limit).
-    solver : {"active_set", "osqp"}
+    solver : {"active_set", "osqp", "daqp", "proxsuite", "quadprog"}
         QP solver of the condensed problem.
 
     Attributes
@@ -938,8 +956,9 @@ class ComMpc:
     ) -> None:
         if not (preview_s > 0.0 and math.isfinite(preview_s)):
             raise ValueError("preview_s must be positive")
-        if solver not in ("active_set", "osqp"):
-            raise ValueError(f"solver: expected 'active_set' or 'osqp', got {solver!r}")
+        choices = ("active_set", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
+        if solver not in choices:
+            raise ValueError(f"solver: expected one of {', '.join(choices)}, got {solver!r}")
         self.preview_s = float(preview_s)
         self.weights = weights if weights is not None else ComMpcWeights()
         w = self.weights
@@ -1050,6 +1069,10 @@ class ComMpc:
         deadline = t_qp + self.time_limit_s
         if self.solver == "osqp":
             wps, iterations, outcome, message = self._solve_osqp(problem, qp, deadline)
+        elif self.solver != "active_set":  # a maintained backend on the standard form
+            result = qp_backends.solve(qp.standard_form(), self.solver)
+            wps = result.x.reshape(-1, 2) if result.ok else qp.p_free
+            iterations, outcome, message = 0, (_AS_OPTIMAL if result.ok else _AS_INFEASIBLE), result.status
         else:
             wps, iterations, outcome, message = self._solve_active_set(problem, qp, deadline)
         qp_time = time.perf_counter() - t_qp
