@@ -13,12 +13,14 @@ coefficient ``μ``. Tasks (:mod:`engine.control.tasks`): both feet (6-D pose; da
 when flat on the ground), pelvis height and orientation, horizontal CoM (PD on the CoM MPC's
 reference plus its acceleration), upper-body joints, angular-momentum damping.
 
-Two solvers for the same QP. The default is dense and exact (:class:`DenseQpSolver`): q̈ is
-eliminated in closed form, leaving a ≤32-variable box QP in ρ solved by a warm-started
-primal active set — one or two small Cholesky solves per tick, equalities exact to
-rounding. :class:`OsqpQpSolver` keeps a fixed sparsity pattern and only updates values each
-tick (``Px, Ax, q, l, u``, warm start); it is the dense solver's fallback and the
-``qp_backend="osqp"`` option (measured slower: ``studio bench wbc``). The floating-base
+Solvers for the same QP, selected by ``qp_backend``. The default is DAQP (:class:`DaqpQpSolver`,
+a dense dual active set in C on preallocated arrays: fastest and equal to rounding in
+``studio bench qp``). :class:`DenseQpSolver` is the hand-written exact alternative
+(``"dense"``): q̈ is eliminated in closed form, leaving a ≤32-variable box QP in ρ solved by a
+warm-started primal active set. :class:`OsqpQpSolver` keeps a fixed sparsity pattern and only
+updates values each tick (``Px, Ax, q, l, u``, warm start); it is the fallback of both and the
+``"osqp"`` option. ``"proxsuite"`` and ``"quadprog"`` go through
+:mod:`engine.control.qp_backends` (measured slower). The floating-base
 acceleration is then made exactly consistent with the rigid-body dynamics (6×6 solve of
 the base rows of Eq. 15), torques follow from Eq. 15 (plus the model's viscous joint
 damping), and joint position/velocity set-points come from integrating q̈, clipped to a
@@ -582,22 +584,72 @@ class OsqpQpSolver:
         return x[:nv].copy(), np.clip(x[nv:], 0.0, qp.rho_up)
 
 
+class DaqpQpSolver:
+    """:class:`CentroidalQp` in DAQP (dense dual active set, C), its arrays preallocated: the
+    Hessian's two blocks, the centroidal equalities (sense 5: immutable equality) and the torque
+    rows are written in place each tick. Bounds first (DAQP's simple bounds), then the rows."""
+
+    def __init__(self, nv: int, n_rho: int, n_tau: int):
+        import daqp
+
+        self._solve = daqp.solve
+        self.nv, self.n_rho, self.n_tau = nv, n_rho, n_tau
+        n = nv + n_rho
+        self._h = np.zeros((n, n))
+        self._f = np.zeros(n)
+        self._a = np.zeros((6 + n_tau, n))
+        self._up = np.zeros(n + 6 + n_tau)
+        self._lo = np.zeros(n + 6 + n_tau)
+        self._up[:6], self._lo[:6] = 1e20, -1e20  # the floating base is free
+        self._sense = np.zeros(n + 6 + n_tau, dtype=np.int32)
+        self._sense[n:n + 6] = 5
+        self.status = ""
+        self.iterations = 0
+
+    def solve(self, qp: CentroidalQp) -> tuple[FloatArray, FloatArray] | None:
+        nv, n = self.nv, self.nv + self.n_rho
+        h, a, lo, up = self._h, self._a, self._lo, self._up
+        h[:nv, :nv] = qp.p_qq
+        h[nv:, nv:] = qp.r_rr
+        self._f[:nv] = qp.c_q
+        a[:6, :nv] = qp.a_h
+        np.negative(qp.g_rho, out=a[:6, nv:])
+        lo[6:nv], up[6:nv] = qp.qdd_joint_lo, qp.qdd_joint_up
+        lo[nv:n], up[nv:n] = 0.0, qp.rho_up
+        lo[n:n + 6] = up[n:n + 6] = qp.b
+        if qp.tau_qdd is not None:
+            a[6:, :nv] = qp.tau_qdd
+            a[6:, nv:] = qp.tau_rho
+            np.subtract(qp.tau_lo, qp.tau_bias, out=lo[n + 6:])
+            np.subtract(qp.tau_up, qp.tau_bias, out=up[n + 6:])
+        else:
+            a[6:] = 0.0
+            lo[n + 6:], up[n + 6:] = -1e20, 1e20
+        x, _, flag, info = self._solve(h, self._f, a, up, lo, self._sense)
+        self.status = f"daqp exitflag {flag}"
+        self.iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
+        if flag not in (1, 2) or not math.isfinite(float(np.sum(x))):
+            return None
+        x = np.asarray(x)
+        return x[:nv].copy(), np.minimum(np.maximum(x[nv:], 0.0), qp.rho_up)
+
+
 # ----------------------------------------------------------------------------- the controller
 
 
 class TaskSpaceInverseDynamics:
     """The paper's whole-body QP (Eqs. 15–25) for a biped with two rectangular soles.
 
-    ``qp_backend``: ``"dense"`` (exact active set, OSQP as its fallback; the default: fastest in
-    ``studio bench qp``), ``"osqp"`` (fixed sparsity pattern, warm started) or a maintained
-    backend of :mod:`engine.control.qp_backends` (``"daqp"``, ``"proxsuite"``, ``"quadprog"``).
+    ``qp_backend``: ``"daqp"`` (default: fastest in ``studio bench qp``), ``"dense"`` (the
+    hand-written exact active set), ``"osqp"`` (fixed sparsity pattern, warm started; the others'
+    fallback) or ``"proxsuite"`` / ``"quadprog"`` (:mod:`engine.control.qp_backends`).
     """
 
     name = "task-space-id"
 
     def __init__(self, robot: RobotModel, gains: WbcGains | None = None,
                  upper_body_joints: Sequence[str] | None = None, dt_s: float = CONTROL_PERIOD_S,
-                 qp_backend: str = "dense"):
+                 qp_backend: str = "daqp"):
         if set(robot.config.soles) != set(SIDES):
             raise ValueError(f"{robot.name}: the inverse dynamics needs left and right soles")
         choices = ("dense", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
@@ -659,6 +711,7 @@ class TaskSpaceInverseDynamics:
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
         self.osqp_solver = OsqpQpSolver(self.nv, self.n_rho)
+        self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints)
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
         self.last_tau = np.zeros(self.n_joints)
@@ -714,9 +767,12 @@ class TaskSpaceInverseDynamics:
         self.qp = qp
         t2 = time.perf_counter()
         solution, backend, iterations, message = None, self.qp_backend, 0, ""
-        if self.qp_backend == "dense":
+        if self.qp_backend == "dense":  # (the default, "daqp", is the next branch)
             solution = self.dense_solver.solve(qp)
             iterations = self.dense_solver.iterations
+        elif self.qp_backend == "daqp":
+            solution = self.daqp_solver.solve(qp)
+            iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
         elif self.qp_backend != "osqp":
             result = qp_backends.solve(qp.standard_form(), self.qp_backend)
             message = result.status
@@ -735,7 +791,7 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
         cmd = self._setpoints(state, qdd, tau)
         self.last_tau = tau
-        status = "solved" if backend == "dense" or "inaccurate" not in message else "solved_inaccurate"
+        status = "solved" if backend in ("dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
         self.diagnostics = WbcDiagnostics(
             status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
             pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
