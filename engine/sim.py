@@ -8,11 +8,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from engine.constants import CONTROL_PERIOD_S  # noqa: F401 - re-exported: the control tick
 from engine.control.controller import Controller, JointCommand, RobotState, StandingPdController
 from engine.control.static_balance import static_contact_torques
 from engine.robot.model import RobotModel
 
-CONTROL_PERIOD_S = 0.002  # 500 Hz, one physics step per control tick
 FALL_HEIGHT_FRACTION = 0.55  # base below this fraction of its standing height → fallen
 FALL_TILT_RAD = 1.0  # base tilted more than this from upright → fallen
 
@@ -93,7 +93,7 @@ class Simulation:
 
     def enable_imu(self, noise: object | None = None, seed: int = 0) -> None:
         """Attach the simulated IMU: controllers then receive ``state.imu`` samples."""
-        from engine.control.estimator import ImuNoise, MujocoImu
+        from engine.imu import ImuNoise, MujocoImu
 
         self.imu = MujocoImu(self.model, noise=noise if noise is not None else ImuNoise(), seed=seed)
 

@@ -17,7 +17,8 @@ import numpy as np
 from engine.control.walking_controller import WalkingController
 from engine.gait.command_schedule import CommandSchedule
 from engine.gait.style import SIDES, Style
-from engine.geometry import convex_hull_2d
+from engine.constants import GRAVITY_MPS2
+from engine.geometry.polygon import convex_hull_2d, point_in_polygon
 from engine.robot.model import RobotModel
 from engine.sim import Simulation
 
@@ -43,23 +44,6 @@ class PushSpec:
         if not all(math.isfinite(v) for v in (t, fx, fy, fz, dur)) or t < 0 or dur <= 0:
             raise ValueError(f"--push: expected finite numbers with t ≥ 0 and dur > 0, got {text!r}")
         return cls(t, (fx, fy, fz), dur)
-
-
-def _point_in_polygon(p: np.ndarray, poly: np.ndarray, margin: float) -> bool:
-    if len(poly) < 3:
-        if len(poly) == 2:  # a line contact: distance to the segment
-            a, b = poly
-            d = b - a
-            s = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-12), 0, 1)
-            return float(np.linalg.norm(p - (a + s * d))) <= margin
-        return len(poly) == 1 and float(np.linalg.norm(p - poly[0])) <= margin
-    for i in range(len(poly)):
-        a, b = poly[i], poly[(i + 1) % len(poly)]
-        edge = b - a
-        cross = edge[0] * (p[1] - a[1]) - edge[1] * (p[0] - a[0])
-        if cross < -margin * float(np.linalg.norm(edge)):
-            return False
-    return True
 
 
 class ContactMeter:
@@ -171,12 +155,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         # CoP inside the support polygon of the feet the controller has on the ground (the plan's,
         # plus a landing foot from the moment it touches down a few ms early).
         cop, fz = meter.cop(data)
-        if cop is not None and fz > 0.2 * robot.mass_kg * 9.81:
+        if cop is not None and fz > 0.2 * robot.mass_kg * GRAVITY_MPS2:
             support = controller.wbc_contact.any(axis=1)  # the feet the controller stands on
             corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
             if corners:
                 cop_checks += 1
-                cop_inside += _point_in_polygon(cop, convex_hull_2d(np.array(corners)), COP_MARGIN_M)
+                cop_inside += point_in_polygon(cop, convex_hull_2d(np.array(corners)), COP_MARGIN_M)
         if record and k % 4 == 0:
             tel = controller.telemetry
             fb = tel.feedback

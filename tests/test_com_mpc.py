@@ -491,14 +491,15 @@ def test_empty_intersection_falls_back_to_closing_polygon() -> None:
 
 def test_solver_failure_uses_fallback(monkeypatch) -> None:
     """A failing QP solver gives a flagged, finite fallback (centroid plan, CoM integrated)."""
-    import engine.control.com_mpc as com_mpc
+    import engine.control.mpc.active_set as active_set
+    import engine.control.mpc.controller as com_mpc
 
     supports = walk(0.2, 0.4, 0.1, n_steps=4)
 
     def broken(*args, **kwargs):
         raise RuntimeError("solver exploded")
 
-    for failure in (broken, lambda *a, **k: ([], np.zeros(0), 3, com_mpc._AS_INFEASIBLE)):
+    for failure in (broken, lambda *a, **k: ([], np.zeros(0), 3, active_set._AS_INFEASIBLE)):
         monkeypatch.setattr(com_mpc, "_dual_active_set", failure)
         sol = ComMpc().solve(0.2, *PUSHED_STATE, COM_HEIGHT_M, window(supports, 0.2))
         assert sol.status == "solver_failed_centroid_fallback"

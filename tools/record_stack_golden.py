@@ -19,7 +19,7 @@ from dataclasses import fields
 import numpy as np
 
 from engine.atomic_io import atomic_write_bytes
-from engine.control.inverse_dynamics import WbcReference
+from engine.control.wbc import WbcReference
 from engine.control.walking_controller import WalkingController
 from engine.gait.command_schedule import preset
 from engine.gait.style import load_style, styles_dir

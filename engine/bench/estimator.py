@@ -6,7 +6,8 @@ import time
 
 import numpy as np
 
-from engine.control.estimator import EstimatorParams, ImuNoise, MujocoImu, StateEstimator
+from engine.control.estimation import EstimatorParams, StateEstimator
+from engine.imu import ImuNoise, MujocoImu
 from engine.robot.model import load_robot
 from engine.sim import Simulation
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from engine.atomic_io import atomic_write_bytes
 from engine.bench.mpc_problems import closed_loop_like_problems
-from engine.control.com_mpc import ComMpc, SupportInterval
+from engine.control.mpc import ComMpc, SupportInterval
 
 
 def save_problems(path: str | Path, problems: Sequence[tuple[tuple, dict]]) -> None:

@@ -7,17 +7,11 @@ import math
 
 import numpy as np
 
-from engine.control.com_mpc import (
-    GRAVITY_MPS2,
-    ComMpc,
-    ComMpcSolution,
-    FloatArray,
-    SupportInterval,
-    _make_region,
-    _Region,
-    convex_hull,
-    propagate_lip,
-)
+from engine.constants import GRAVITY_MPS2
+from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval, propagate_lip
+from engine.control.mpc.regions import _make_region, _Region
+from engine.control.mpc.types import FloatArray
+from engine.geometry.polygon import convex_hull
 
 def _foot_rectangle(center_xy_m: FloatArray, yaw_rad: float, length_m: float, width_m: float) -> FloatArray:
     half = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]]) * [0.5 * length_m, 0.5 * width_m]

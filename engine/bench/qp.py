@@ -82,7 +82,7 @@ def _table(name: str, problems: list[QpProblem], ours: Callable[[int], np.ndarra
 
 
 def bench_wbc_qps() -> list[dict]:
-    from engine.control.inverse_dynamics import DenseQpSolver
+    from engine.control.wbc.qp import DenseQpSolver
 
     qps = record_wbc_qps()
     nv, n_rho = qps[0].p_qq.shape[0], qps[0].r_rr.shape[0]
@@ -102,7 +102,9 @@ def bench_wbc_qps() -> list[dict]:
 
 def bench_mpc_qps(n: int = 150) -> list[dict]:
     from engine.bench.mpc_problems import closed_loop_like_problems
-    from engine.control.com_mpc import GRAVITY_MPS2, ComMpc, _Segments
+    from engine.constants import GRAVITY_MPS2
+    from engine.control.mpc import ComMpc
+    from engine.control.mpc.lip import _Segments
 
     calls = closed_loop_like_problems(n, seed=2, pull=0.0, state_noise=(0.0, 0.0))
     mpc = ComMpc(max_intervals=16)

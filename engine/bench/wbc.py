@@ -9,13 +9,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.control.controller import RobotState
-from engine.control.inverse_dynamics import (
+from engine.control.wbc import (
     TaskSpaceInverseDynamics,
     TrackingController,
     WbcDiagnostics,
     WbcReference,
 )
-from engine.control.placo_wbc import PlacoWbc
+from engine.control.wbc.placo_peer import PlacoWbc
 from engine.robot.model import load_robot
 from engine.sim import Simulation
 

@@ -22,6 +22,7 @@ from engine.control.estimator import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
 from engine.gait.footsteps import Foothold
+from engine.geometry.polygon import clip_into_polygon
 from engine.gait.offline_plan import planner_for
 from engine.gait.planner import PLANNER_RATE_HZ, GaitReference
 from engine.gait.style import SIDES, Style, StyleContext
@@ -534,32 +535,7 @@ def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = ANKLE_LO
     return max(trims, default=0.0)
 
 
-def _clip_to_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """``p`` if inside the convex polygon, else its centroid-ward projection onto it: the point
-    c + s (p − c) with s the largest multiple of 2⁻³⁰ inside (what a 30-step bisection on the
-    segment finds), computed from the half-planes directly."""
-    from engine.control.com_mpc import polygon_centroid, polygon_halfplanes
-
-    normals, offsets = polygon_halfplanes(polygon)
-    bound = offsets + 1e-9
-    if len(offsets) == 0 or np.all(normals @ p <= bound):
-        return p
-    c = polygon_centroid(polygon)
-    d = p - c
-    den, num = normals @ d, bound - normals @ c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s_max = float(np.min(np.where(den > 0.0, num / den, np.inf), initial=1.0))
-    unit = 2.0 ** -30
-    k = min(max(math.floor(s_max / unit), 0), 2 ** 30 - 1)
-
-    def inside(j: int) -> bool:
-        return bool(np.all(normals @ (c + (j * unit) * d) <= bound))
-
-    while k > 0 and not inside(k):  # rounding at the boundary: step to the dyadic the bisection ends on
-        k -= 1
-    while k + 1 < 2 ** 30 and inside(k + 1):
-        k += 1
-    return c + (k * unit) * d
+_clip_to_polygon = clip_into_polygon  # the initial-CoP clip (engine.geometry.polygon)
 
 
 def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
