@@ -24,8 +24,8 @@ from engine.control.estimator import (
     StateEstimator,
     _inv_sym,
     _quat_step,
-    benchmark_estimator,
 )
+from engine.bench.estimator import benchmark_estimator
 from engine.robot.model import load_robot
 from engine.sim import Simulation
 

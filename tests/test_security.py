@@ -164,12 +164,7 @@ def test_style_browser_uses_the_same_gate(g1_ctx, tmp_path):
 
 # ----------------------------------------------------------------------------- no pickle
 
-# Known offender being moved by another branch; the lead removes this entry at merge.
-PICKLE_EXCEPTIONS = {
-    # (the issue says inverse_dynamics.py; benchmark_captured lives in com_mpc.py)
-    "engine/control/com_mpc.py": "benchmark_captured loads a pickle; branch `speed` moves it out of production code "
-                                 "to npz",
-}
+PICKLE_EXCEPTIONS: dict[str, str] = {}  # none: the captured MPC problems are npz now (engine/bench/mpc.py)
 
 
 def _pickle_uses(path: Path) -> list[str]:

@@ -22,6 +22,7 @@ from engine.control.estimator import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
 from engine.gait.footsteps import Foothold
+from engine.geometry.polygon import clip_into_polygon
 from engine.gait.offline_plan import planner_for
 from engine.gait.planner import PLANNER_RATE_HZ, GaitReference
 from engine.gait.style import SIDES, Style, StyleContext
@@ -534,22 +535,7 @@ def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = ANKLE_LO
     return max(trims, default=0.0)
 
 
-def _clip_to_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """``p`` if inside the convex polygon, else its centroid-ward projection onto it."""
-    from engine.control.com_mpc import polygon_centroid, polygon_halfplanes
-
-    normals, offsets = polygon_halfplanes(polygon)
-    if len(offsets) == 0 or np.all(normals @ p <= offsets + 1e-9):
-        return p
-    c = polygon_centroid(polygon)
-    lo, hi = 0.0, 1.0  # bisection on the segment centroid → p
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        if np.all(normals @ (c + mid * (p - c)) <= offsets + 1e-9):
-            lo = mid
-        else:
-            hi = mid
-    return c + lo * (p - c)
+_clip_to_polygon = clip_into_polygon  # the initial-CoP clip (engine.geometry.polygon)
 
 
 def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:

@@ -49,7 +49,7 @@ from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
 
 SCHEMA = "motion-studio/style"
 VERSION = 1
-SIDES = ("left", "right")
+from engine.constants import SIDES  # noqa: E402 - re-exported (the feet, in the engine's order)
 SWING_CHANNELS = ("x", "y", "z", "yaw", "heel_pitch", "toe_pitch", "roll")
 PELVIS_CHANNELS = ("z", "yaw", "pitch", "roll")
 BOUNDARY_TOL = 1e-6
