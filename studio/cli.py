@@ -290,9 +290,10 @@ def cmd_walk(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from engine.bench import SECTIONS as ENGINE_SECTIONS
     from studio.bench_edit import bench_edit_latency
+    from studio.bench_engine import bench_engine
     from studio.bench_soak import bench_soak
 
-    SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "soak": bench_soak}  # noqa: N806 - the studio's on top
+    SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
     sections = args.sections or [s for s in SECTIONS if s != "soak"]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:

@@ -3,9 +3,9 @@
 Each section is a function returning rows (dicts), its body in this package's module of the
 same concept: ``sim`` (MuJoCo alone), ``reference`` (sampler + planner), ``mpc`` (CoM MPC
 solves), ``wbc`` (our inverse dynamics against placo's), ``qp`` (the QP backends on recorded
-problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``engine`` (the engine process's pacing),
-``retarget`` (UVM/SMR beside the STMR paper's tables) and ``tmr`` (the temporal stage's costs). The studio
-adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`) and ``soak`` (:mod:`studio.bench_soak`, not
+problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables) and ``tmr`` (the temporal stage's costs). The studio
+adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`), ``engine`` (the engine process's pacing
+and restart through the studio's link, :mod:`studio.bench_engine`) and ``soak`` (:mod:`studio.bench_soak`, not
 in the default run): the engine never imports the studio.
 """
 
@@ -63,12 +63,6 @@ def _stack() -> list[dict]:
     return bench_stack()
 
 
-def _engine() -> list[dict]:
-    from engine.bench.reliability import bench_engine
-
-    return bench_engine()
-
-
 def _retarget() -> list[dict]:
     from engine.bench.retarget import bench_retarget
 
@@ -83,5 +77,5 @@ def _tmr() -> list[dict]:
 
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "qp": _qp, "estimator": _estimator,
-    "stack": _stack, "engine": _engine, "retarget": _retarget, "tmr": _tmr,
+    "stack": _stack, "retarget": _retarget, "tmr": _tmr,
 }

@@ -1,4 +1,4 @@
-"""Bench sections for the engine process (issue 14): timing figures that tests must not assert.
+"""Bench section for the engine process as the studio runs it: timing figures that tests must not assert.
 
 ``studio bench engine``: real-time factor and publish rate of ``python -m engine`` (paced to wall clock),
 and the time the studio's link takes to notice a kill -9 of the engine and have a new one publishing.
