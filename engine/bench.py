@@ -205,7 +205,12 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": bench_sim, "reference": bench_reference, "mpc": bench_mpc, "wbc": bench_wbc,
     "estimator": bench_estimator, "stack": bench_stack, "edit": bench_edit_latency,
+    "retarget": lambda: __import__("engine.bench_retarget", fromlist=["bench_retarget"]).bench_retarget(),
 }
+# Reliability sections live in their own module (issue 14).
+SECTIONS["engine"] = lambda: __import__("engine.bench_reliability", fromlist=["x"]).bench_engine()
+# `studio bench soak --minutes M --clients C` drives a whole studio (not in the default run).
+SECTIONS["soak"] = lambda **kw: __import__("studio.bench_soak", fromlist=["x"]).bench_soak(**kw)
 
 
 def _bench_tmr() -> list[dict]:
