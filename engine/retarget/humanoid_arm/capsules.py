@@ -132,10 +132,25 @@ class CapsuleModel:
         d = self.signed_distances(x)
         return [(self.capsules[i].name, self.capsules[j].name, float(d[k])) for k, (i, j) in enumerate(self.pairs) if d[k] < 0]
 
-    def interpolation_free(self, x0: np.ndarray, x1: np.ndarray, step_rad: float = 0.05) -> bool:
+    def signed_distances_batch(self, xs: np.ndarray) -> np.ndarray:
+        """(B, P) signed distances of B poses in one vectorised segment test (forward kinematics per pose)."""
+        pm, d = self.ub.pin_model, self.ub.data
+        import pinocchio as pin
+
+        h = np.empty((len(xs), len(self._frames), 4, 4))
+        for k, x in enumerate(xs):
+            pin.framesForwardKinematics(pm, d, self.ub.full_q(x))
+            h[k] = [d.oMf[f].homogeneous for f in self._frames]
+        a = np.einsum("bcij,cj->bci", h[:, :, :3, :3], self._a) + h[:, :, :3, 3]
+        b = np.einsum("bcij,cj->bci", h[:, :, :3, :3], self._b) + h[:, :, :3, 3]
+        dist, _, _ = segment_distance(a[:, self._ia], b[:, self._ia], a[:, self._ib], b[:, self._ib])
+        return dist - self._r[self._ia] - self._r[self._ib]
+
+    def interpolation_free(self, x0: np.ndarray, x1: np.ndarray, step_rad: float = 0.1) -> bool:
         """Linear interpolation x0 → x1 collision-free at every ``step_rad`` of the largest joint change."""
         n = max(1, int(np.ceil(np.max(np.abs(x1 - x0)) / step_rad)))
-        return all(self.is_free(x0 + (x1 - x0) * (k / n)) for k in range(1, n + 1))
+        s = np.arange(1, n + 1)[:, None] / n
+        return bool(np.all(self.signed_distances_batch(x0 + s * (x1 - x0)) >= 0.0))
 
     # --- the fixer (§III)
     def fix(self, x: np.ndarray, margin_m: float = 0.002, max_iters: int = 60, damping: float = 1e-3) -> tuple[np.ndarray, bool]:
