@@ -55,6 +55,10 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    from studio import cli_arms
+
+    cli_arms.register(sub)
     return parser
 
 
@@ -73,6 +77,10 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_plan(args)
         if args.subcommand == "walk":
             return cmd_walk(args)
+        if args.subcommand in ("train-arms", "puppet", "stream-bvh"):
+            from studio import cli_arms
+
+            return cli_arms.dispatch(args) or 0
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

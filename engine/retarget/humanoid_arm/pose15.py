@@ -99,6 +99,7 @@ class MocapPoints:
     frame: np.ndarray
     fps: float
     skeleton: str
+    up_leg: np.ndarray | None = None  # (F, 2, 3) hip joints (right, left)
 
     def pose15(self) -> np.ndarray:
         return pose15_from_points(self.hips, self.shoulder, self.elbow, self.hand, self.frame)
@@ -111,7 +112,8 @@ def bvh_points(motion: BvhMotion, up_axis: str = "y") -> MocapPoints:
     pair = lambda names: np.stack([g(names[0]), g(names[1])], axis=1)  # noqa: E731
     up = np.eye(3)["xyz".index(up_axis)]
     frame = body_frame(g(sk.hips), g(sk.up_leg[0]), g(sk.up_leg[1]), up)
-    return MocapPoints(g(sk.hips), pair(sk.shoulder), pair(sk.elbow), pair(sk.hand), frame, motion.fps, sk.name)
+    return MocapPoints(g(sk.hips), pair(sk.shoulder), pair(sk.elbow), pair(sk.hand), frame, motion.fps, sk.name,
+                       pair(sk.up_leg))
 
 
 def pose15_from_bvh(motion: BvhMotion, up_axis: str = "y") -> np.ndarray:

@@ -22,16 +22,9 @@ import numpy as np
 from engine.retarget.humanoid_arm.capsules import CapsuleModel
 from engine.retarget.humanoid_arm.graph import TransitionGraph
 from engine.retarget.humanoid_arm.lwr import LatentLWR
+from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
 from engine.retarget.humanoid_arm.pose15 import check_pose15
 from engine.retarget.humanoid_arm.upper_body import UpperBody
-from engine.retarget.humanoid_arm.wae import SharedLatentWAE, load_weights
-
-WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
-
-
-def weights_path(robot: str, folder: Path | None = None) -> Path:
-    return (folder or WEIGHTS_DIR) / f"{robot}_lwl2"
-
 
 @dataclass
 class RetargetStep:
@@ -48,7 +41,7 @@ class RetargetStep:
 
 
 class ArmRetargeter:
-    def __init__(self, ub: UpperBody, capsules: CapsuleModel, model: SharedLatentWAE, robot_poses: np.ndarray,
+    def __init__(self, ub: UpperBody, capsules: CapsuleModel, model, robot_poses: np.ndarray,
                  graph: TransitionGraph | None, meta: dict, k_max: int = 3, feed_forward=None):
         self.ub, self.capsules, self.model, self.meta = ub, capsules, model, meta
         self.robot_poses = robot_poses
@@ -73,10 +66,10 @@ class ArmRetargeter:
         path = Path(path) if path is not None else weights_path(robot)
         if path.suffix in (".json", ".safetensors"):
             path = path.with_suffix("")
+        check_metadata(path, robot)  # before importing torch: a wrong file fails fast
+        from engine.retarget.humanoid_arm.wae import load_weights
+
         model, extra, meta = load_weights(path)
-        if meta.get("robot") != robot:
-            raise ValueError(f"{path.with_suffix('.json')}: robot: expected weights for {robot}, these are for "
-                             f"{meta.get('robot')!r}")
         ub = capsules.ub if capsules is not None else UpperBody(robot)
         if list(meta.get("joint_names", [])) != ub.joint_names:
             raise ValueError(f"{path.with_suffix('.json')}: joint_names: expected {ub.joint_names}, got {meta.get('joint_names')}")
@@ -133,4 +126,4 @@ class ArmRetargeter:
         return self.ub.clip(self.feed_forward(np.atleast_2d(pose15))[0])
 
 
-__all__ = ["ArmRetargeter", "RetargetStep", "weights_path", "WEIGHTS_DIR"]
+__all__ = ["ArmRetargeter", "RetargetStep", "check_metadata", "weights_path"]

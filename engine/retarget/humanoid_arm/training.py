@@ -19,7 +19,7 @@ from engine.retarget.humanoid_arm.datasets import ArmDatasets, DatasetSizes, bui
 from engine.retarget.humanoid_arm.feed_forward import save_feed_forward, train_feed_forward
 from engine.retarget.humanoid_arm.graph import TransitionGraph
 from engine.retarget.humanoid_arm.la_dpp import la_dpp_indices
-from engine.retarget.humanoid_arm.puppeteer import weights_path
+from engine.retarget.humanoid_arm.metadata import weights_path
 from engine.retarget.humanoid_arm.upper_body import UpperBody
 from engine.retarget.humanoid_arm.wae import DomainData, SharedLatentWAE, TrainConfig, save_weights, train_wae
 
@@ -43,7 +43,7 @@ class ArmTrainingPlan:
 
     @classmethod
     def quick(cls) -> "ArmTrainingPlan":
-        return cls(DatasetSizes.quick(), TrainConfig(iterations=250, batch_size=64, la_dpp_chunk=1024),
+        return cls(DatasetSizes.quick(), TrainConfig(iterations=200, batch_size=64, la_dpp_chunk=1024),
                    latent_dim=6, hidden=48, graph_nodes=200, graph_neighbours=6, ff_iterations=300)
 
 
