@@ -202,9 +202,16 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
     return [row]
 
 
+def bench_arms() -> list[dict]:
+    """LWL2 mocap → arms against per-frame IK and a feed-forward baseline (body in engine/bench_arms.py)."""
+    from engine.bench_arms import bench_arms as run
+
+    return run()
+
+
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": bench_sim, "reference": bench_reference, "mpc": bench_mpc, "wbc": bench_wbc,
-    "estimator": bench_estimator, "stack": bench_stack, "edit": bench_edit_latency,
+    "estimator": bench_estimator, "stack": bench_stack, "edit": bench_edit_latency, "arms": bench_arms,
 }
 
 
