@@ -123,3 +123,22 @@ def test_bad_datagrams_are_named(payload, field):
 def test_stream_bvh_rejects_a_bad_target():
     res = run_studio("stream-bvh", str(_clip("141_16.bvh")), "--to", "tcp://127.0.0.1:9")
     assert res.returncode == 2 and "udp://HOST:PORT" in res.stderr
+
+
+def test_shipped_g1_weights_retarget_a_held_out_clip_collision_free():
+    from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
+
+    path = weights_path("g1")
+    if not path.with_suffix(".json").is_file():
+        pytest.skip("no shipped g1 weights")
+    meta = check_metadata(path, "g1")
+    assert "131_01.bvh" in meta["datasets"]["training_clips"] and "Bandai" not in meta["licence_of_training_data"]
+    arms = ArmRetargeter.load("g1")
+    poses = bvh_points(load_bvh(_clip("141_16.bvh"))).pose15()[::4]
+    previous = None
+    for p in poses:
+        step = arms.retarget(p)
+        assert arms.capsules.is_free(step.x)
+        if previous is not None and step.transition != "hold":
+            assert arms.capsules.interpolation_free(previous, step.x)
+        previous = step.x
