@@ -51,6 +51,10 @@ class ArmRetargeter:
         self.current: np.ndarray | None = None
         self.graph_fallbacks = 0
         self.holds = 0
+        # warm up torch and the k-d tree so the first live frame is not the slowest
+        from engine.retarget.humanoid_arm.pose15 import pose15_from_robot
+
+        self.lwr.query(self.model.encode("mocap", pose15_from_robot(ub, ub.neutral()))[0])
 
     @property
     def robot(self) -> str:
