@@ -34,7 +34,10 @@ class ArmTrainingPlan:
     hidden: int = 128
     graph_nodes: int = 3000
     graph_neighbours: int = 10
-    control_period_s: float = 1.0 / 30.0  # the mocap frame period: one graph edge per frame
+    # A graph edge must be coverable within this period at the joints' URDF velocity limits. One mocap frame
+    # (1/30 s) gives G1 (30–37 rad/s) ~1 rad edges but TALOS (2.7–5.4 rad/s) 0.1–0.2 rad: no edges among a
+    # few thousand nodes in 10-D; 0.2 s keeps both graphs connected enough (the paper: 10 k nodes).
+    control_period_s: float = 0.2
     ff_iterations: int = 2000
 
     @classmethod
@@ -54,6 +57,17 @@ def robot_features(ub: UpperBody, poses: np.ndarray) -> np.ndarray:
         p = ub.points(x)
         out[i] = np.concatenate([p["hand"].ravel(), p["elbow"].ravel()])
     return out
+
+
+def build_transition_graph(cm: CapsuleModel, poses: np.ndarray, feats: np.ndarray, plan: ArmTrainingPlan,
+                           rng: np.random.Generator, progress: Callable[[int, int], None] | None = None):
+    """LA-DPP-sampled nodes of the robot table and their collision-free, one-period edges."""
+    ub = cm.ub
+    node_idx = np.sort(la_dpp_indices(feats, min(plan.graph_nodes, len(poses)), rng))
+    velocity = np.array(ub.pin_model.velocityLimit)[ub.v_index]
+    max_step = np.maximum(velocity * plan.control_period_s, 0.05)
+    graph = TransitionGraph.build(poses[node_idx], max_step, cm.interpolation_free, plan.graph_neighbours, progress)
+    return node_idx, graph
 
 
 def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progress: Progress | None = None,
@@ -76,12 +90,7 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
               should_stop=should_stop)
     t_train = time.perf_counter() - t0 - t_data
     ff = train_feed_forward(ds.glue_mocap, ds.glue_robot, plan.ff_iterations, plan.hidden, plan.train.seed)
-    # transition graph over LA-DPP-sampled table poses
-    node_idx = np.sort(la_dpp_indices(feats, min(plan.graph_nodes, len(ds.robot)), rng))
-    velocity = np.array(ub.pin_model.velocityLimit)[ub.v_index]
-    max_step = np.maximum(velocity * plan.control_period_s, 0.05)
-    graph = TransitionGraph.build(ds.robot[node_idx], max_step, cm.interpolation_free, plan.graph_neighbours,
-                                  progress=lambda i, n: say("graph", i, n))
+    node_idx, graph = build_transition_graph(cm, ds.robot, feats, plan, rng, lambda i, n: say("graph", i, n))
     if should_stop is not None and should_stop():
         raise KeyboardInterrupt
     out = out or weights_path(robot)
@@ -107,4 +116,4 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
     return {"weights": str(out.with_suffix(".safetensors")), **{k: meta[k] for k in ("dataset_sizes", "graph", "timing_s")}}
 
 
-__all__ = ["ArmTrainingPlan", "train_arms", "robot_features"]
+__all__ = ["ArmTrainingPlan", "train_arms", "robot_features", "build_transition_graph"]
