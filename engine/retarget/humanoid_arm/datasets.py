@@ -33,6 +33,7 @@ class DatasetSizes:
     glue_synthetic: int = 300  # synthetic human poses retargeted into the glue set
     robot: int = 20_000
     mocap_synthetic: int = 5_000
+    robot_glue: int = 0  # robot-domain poses paired with their own 15-d pose (the robot as a mocap skeleton)
 
     @classmethod
     def quick(cls) -> "DatasetSizes":
@@ -109,6 +110,12 @@ def build_datasets(robot: str, sizes: DatasetSizes = DatasetSizes(), seed: int =
 
     robot_set = perturbed_robot_poses(cm, np.concatenate([glue_robot_a, ub.neutral()[None]]), sizes.robot, rng, progress)
     robot_set = np.concatenate([glue_robot_a, robot_set])
+    if sizes.robot_glue:
+        from engine.retarget.humanoid_arm.pose15 import pose15_from_robot
+
+        pick = rng.choice(len(robot_set), size=min(sizes.robot_glue, len(robot_set)), replace=False)
+        glue_mocap_a = np.concatenate([glue_mocap_a, [pose15_from_robot(ub, x) for x in robot_set[pick]]])
+        glue_robot_a = np.concatenate([glue_robot_a, robot_set[pick]])
     mocap_set = np.concatenate([clip, human.sample(sizes.mocap_synthetic, rng)])
     info = {"training_clips": [p.name for p in clips], "sizes": asdict(sizes), "seed": seed,
             "glue_dropped_not_freed": total - len(glue_mocap), "licence": sources.TRAINING_LICENCE}
