@@ -73,6 +73,10 @@ def _parser() -> argparse.ArgumentParser:
     from studio import cli_tmr
 
     cli_tmr.register(sub)
+
+    from studio import cli_arms
+
+    cli_arms.register(sub)
     return parser
 
 
@@ -99,6 +103,10 @@ def main(argv: list[str] | None = None) -> int:
             from studio import cli_tmr
 
             return cli_tmr.cmd_tmr(args) if args.subcommand == "tmr" else cli_tmr.cmd_retarget_batch(args)
+        if args.subcommand in ("train-arms", "puppet", "stream-bvh"):
+            from studio import cli_arms
+
+            return cli_arms.dispatch(args) or 0
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -3,7 +3,8 @@
 Each section is a function returning rows (dicts), its body in this package's module of the
 same concept: ``sim`` (MuJoCo alone), ``reference`` (sampler + planner), ``mpc`` (CoM MPC
 solves), ``wbc`` (our inverse dynamics against placo's), ``qp`` (the QP backends on recorded
-problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables) and ``tmr`` (the temporal stage's costs). The studio
+problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables), ``tmr`` (the temporal stage's costs) and ``arms``
+(LWL2 against per-frame IK and a feed-forward baseline). The studio
 adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`), ``engine`` (the engine process's pacing
 and restart through the studio's link, :mod:`studio.bench_engine`) and ``soak`` (:mod:`studio.bench_soak`, not
 in the default run): the engine never imports the studio.
@@ -75,7 +76,13 @@ def _tmr() -> list[dict]:
     return bench_tmr()
 
 
+def _arms() -> list[dict]:
+    from engine.bench.arms import bench_arms
+
+    return bench_arms()
+
+
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "qp": _qp, "estimator": _estimator,
-    "stack": _stack, "retarget": _retarget, "tmr": _tmr,
+    "stack": _stack, "retarget": _retarget, "tmr": _tmr, "arms": _arms,
 }
