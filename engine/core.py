@@ -99,6 +99,8 @@ class EngineCore:
             self.emit(msg.Notice("error", str(exc)))
         except (ValueError, KeyError, TypeError) as exc:
             self.emit(msg.Notice("error", f"{command.kind}: {exc}"))
+        except Exception as exc:  # noqa: BLE001 - a malformed command must not kill the engine (a restart replays it)
+            self.emit(msg.Notice("error", f"{command.kind}: refused ({type(exc).__name__}: {exc})"))
 
     def _handle(self, command: msg.Command) -> None:
         if isinstance(command, msg.Reset):

@@ -31,11 +31,17 @@ LIMIT_RED = np.array([230, 40, 40])
 
 
 class Studio:
-    def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None):
+    def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None,
+                 token: str | None = None):
         load_robot_config(robot)  # fail fast, before any server or process starts
         self.robot_name = robot
         self.styles_folder = styles_folder
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
+        self.token = token
+        if token:
+            from studio.access import require_token
+
+            require_token(self.server, token)  # before any client can see a style
         self.server.scene.set_up_direction("+z")
         self.server.gui.configure_theme(control_layout="fixed", control_width="large", dark_mode=False, show_logo=False)
         self.server.initial_camera.position = (2.0, -2.2, 1.3)
@@ -114,10 +120,10 @@ class Studio:
                     self._style_folders.append(folder)
             return
         session = StyleSession(robot, folder=(self.styles_folder / robot) if self.styles_folder else None)
+        session.warn = lambda text: self._notify("warning", text)
         opened = session.open(cfg.default_style)
         if not opened.ok:
             self._notify("error", opened.message)
-        self.session = session
         from studio.panels.sample_editor import SampleEditor
         from studio.panels.style_browser import StyleBrowser
 
@@ -140,6 +146,7 @@ class Studio:
             with folder:
                 self.curve_editor = self._make_curve_editor(session)
             self._style_folders.append(folder)
+        self.session = session  # published once its panels exist: other threads see a complete set
         session.subscribe(self._on_style_change)
         self._send_style()
 
@@ -347,8 +354,10 @@ class Studio:
             else:
                 state = "paused" if frame.paused else ("fallen" if frame.fallen else "running")
                 x, y = (float(v) for v in frame.body_pos[0][:2])
+                yaw_deg = float(np.degrees(self.robot_yaw_rad()))
                 text = (f"Engine {state} · pid {pid} · {frame.mode} mode · t = {frame.sim_time_s:.1f} s · "
-                        f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m")
+                        f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m, "
+                        f"yaw {yaw_deg:+.0f}°")
             self.robot_panel.show_status(text)
             try:
                 self.plots.render()
@@ -356,9 +365,19 @@ class Studio:
                 pass
 
 
-def serve(robot: str, host: str, port: int) -> None:
-    studio = Studio(robot, host, port).start()
-    print(f"Motion Studio: {studio.url}  (robot {robot}; Ctrl+C to stop)", flush=True)
+def serve(robot: str, host: str, port: int, token: str | None = None) -> None:
+    from studio.access import browser_url
+
+    studio = Studio(robot, host, port, token=token).start()
+    url = browser_url(host, studio.server.get_port(), token) if token or host != "127.0.0.1" else studio.url
+    print(f"Motion Studio: {url}  (robot {robot}; Ctrl+C to stop)", flush=True)
+
+    def terminate(signum, frame):  # SIGTERM: stop like Ctrl+C (engine shut down; autosaves are atomic)
+        raise KeyboardInterrupt
+
+    import signal
+
+    signal.signal(signal.SIGTERM, terminate)
     try:
         while True:
             time.sleep(1.0)

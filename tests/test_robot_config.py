@@ -62,7 +62,7 @@ def test_wrong_type_and_unknown_field(tmp_path):
         load_config(_write(tmp_path, "g1", text.replace("sole_width_m = 0.055", 'sole_width_m = "wide"', 1)))
     with pytest.raises(RobotConfigError, match=r"g1.toml: model.rot_link: unknown field \(did you mean 'root_link'\?\)"):
         load_config(_write(tmp_path, "g1", text.replace("root_link", "rot_link")))
-    with pytest.raises(RobotConfigError, match=r"g1.toml: not valid TOML"):
+    with pytest.raises(RobotConfigError, match=r"g1.toml: expected valid TOML"):
         load_config(_write(tmp_path, "g1", text + "\n[[[broken"))
 
 

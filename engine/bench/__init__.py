@@ -3,8 +3,10 @@
 Each section is a function returning rows (dicts), its body in this package's module of the
 same concept: ``sim`` (MuJoCo alone), ``reference`` (sampler + planner), ``mpc`` (CoM MPC
 solves), ``wbc`` (our inverse dynamics against placo's), ``qp`` (the QP backends on recorded
-problems), ``estimator`` and ``stack`` (the full stack against MuJoCo alone). The studio adds
-``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`): the engine never imports the studio.
+problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``engine`` (the engine process's pacing),
+``retarget`` (UVM/SMR beside the STMR paper's tables) and ``tmr`` (the temporal stage's costs). The studio
+adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`) and ``soak`` (:mod:`studio.bench_soak`, not
+in the default run): the engine never imports the studio.
 """
 
 from __future__ import annotations
@@ -61,7 +63,25 @@ def _stack() -> list[dict]:
     return bench_stack()
 
 
+def _engine() -> list[dict]:
+    from engine.bench.reliability import bench_engine
+
+    return bench_engine()
+
+
+def _retarget() -> list[dict]:
+    from engine.bench.retarget import bench_retarget
+
+    return bench_retarget()
+
+
+def _tmr() -> list[dict]:
+    from engine.bench.tmr import bench_tmr
+
+    return bench_tmr()
+
+
 SECTIONS: dict[str, Callable[[], list[dict]]] = {
     "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "qp": _qp, "estimator": _estimator,
-    "stack": _stack,
+    "stack": _stack, "engine": _engine, "retarget": _retarget, "tmr": _tmr,
 }

@@ -141,7 +141,9 @@ class _Reader:
         self.data = data
 
     def fail(self, field_path: str, message: str) -> RobotConfigError:
-        return RobotConfigError(f"{self.path.name}: {field_path}: {message}")
+        from engine.safe_io import one_line
+
+        return RobotConfigError(one_line(self.path.name, field_path, message))  # clipped: user keys can be long
 
     def get(self, table: dict[str, Any], key: str, prefix: str, kind: type | tuple[type, ...], default: Any = ...) -> Any:
         where = f"{prefix}{key}"
@@ -190,12 +192,17 @@ _TOP_FIELDS = {
 def load_config(path: Path) -> RobotConfig:
     """Parse and validate one robot config file."""
     path = Path(path)
+    from engine.safe_io import ReadError, read_text
+
     try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise RobotConfigError(f"{path.name}: file not found") from None
+        data = tomllib.loads(read_text(path, max_bytes=1024 * 1024, source=path.name))
+    except ReadError as exc:
+        raise RobotConfigError(str(exc)) from None
     except tomllib.TOMLDecodeError as exc:
-        raise RobotConfigError(f"{path.name}: not valid TOML: {exc}") from None
+        raise RobotConfigError(f"{path.name}: expected valid TOML ({exc})") from None
+    except (RecursionError, ValueError) as exc:  # deep nesting; integers beyond Python's digit limit
+        raise RobotConfigError(f"{path.name}: expected valid TOML ({type(exc).__name__}: too deeply nested or too large)"
+                               ) from None
     r = _Reader(path, data)
     r.unknown(data, _TOP_FIELDS, "")
 

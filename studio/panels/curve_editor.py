@@ -1308,7 +1308,7 @@ class CurveEditor:
 
     def _update_drag(self, event: Any) -> None:
         drag = self._drag
-        if drag is None:
+        if drag is None or self.session.style is None:  # no drag, or the style was closed mid-drag
             return
         dt, dv = self._delta(drag, event)
         curves, notes = self._drag_curves(drag, dt, dv)
@@ -1334,7 +1334,7 @@ class CurveEditor:
             return
         final = self._style_with(drag.last_curves) if drag.last_curves else None
         if final is None:
-            drag.group.cancel()
+            drag.group.commit(None)  # the style was closed mid-drag: back to the base (there is no cancel())
             result = EditResult(True, "no change")
         else:
             result = drag.group.commit(final)

@@ -1,9 +1,10 @@
 """Modes and the virtual joystick.
 
 Edit mode walks the selected sample's cycle at its velocity (paper §6.1); test mode steers
-with the joystick (§6.2): two in-scene drag pads that spring back to centre (left: forward /
-sideways, right: turn) and hold buttons, plus a stop button. Playback speed gives slow
-motion. Commands are sent at most 20 times a second.
+with the joystick (§6.2): two in-scene drag pads beside the robot that turn with it and spring
+back to centre (left: forward / sideways, right: turn), hold buttons (walk while held; a tap
+latches the direction until ■ Stop), and a stop button. Playback speed gives slow motion.
+Commands are sent at most 20 times a second.
 """
 
 from __future__ import annotations
@@ -20,9 +21,74 @@ from engine import protocol as msg
 if TYPE_CHECKING:
     from studio.app import Studio
 
-HOLD_TIMEOUT_S = 0.5  # a hold button stops counting this long after its last repeat (spring back)
+HOLD_TIMEOUT_S = 2.0  # safety net: a hold with no repeat for this long ends even if its release was missed
+TAP_MAX_S = 0.35  # a press released sooner than this is a tap: it latches that direction (cruise) until ■ Stop
 PAD_RADIUS_M = 0.12
 SEND_PERIOD_S = 0.05
+
+
+class JoystickState:
+    """What the joystick asks for, from hold buttons, taps and the two pads (unit-free, in [-1, 1] per axis).
+
+    The browser sends a hold message when a button is pressed and then about 20 times a second while it
+    stays down, and a click when it is released. Under software WebGL the repeats can be a second apart, so
+    a hold lasts until its release (the click) — the timeout is only a safety net for a lost release. A
+    release within ``TAP_MAX_S`` of the press is a tap: it latches that direction until ■ Stop, a tap on
+    the same button again, or a tap in the opposite direction. Axes: 0 forward, 1 left, 2 turn left.
+    """
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic):
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._pressed_at: dict[tuple[int, float], float] = {}  # (axis, sign) → time the press began
+        self._last_repeat: dict[tuple[int, float], float] = {}
+        self.latched = np.zeros(3)
+        self.pad = np.zeros(3)
+
+    def hold(self, axis: int, sign: float) -> None:
+        now = self.clock()
+        key = (axis, sign)
+        with self._lock:
+            if now - self._last_repeat.get(key, -np.inf) > HOLD_TIMEOUT_S:
+                self._pressed_at[key] = now  # a new press (or one whose release was lost)
+            self._last_repeat[key] = now
+
+    def release(self, axis: int, sign: float) -> None:
+        """The button was released (its click arrived): a tap toggles the latch; a hold ends, latch cleared."""
+        now = self.clock()
+        with self._lock:
+            began = self._pressed_at.pop((axis, sign), None)
+            self._last_repeat.pop((axis, sign), None)
+            tap = began is None or now - began <= TAP_MAX_S
+            self.latched[axis] = (0.0 if self.latched[axis] == sign else sign) if tap else 0.0
+
+    def set_pad(self, axes: slice | int, values) -> None:
+        with self._lock:
+            self.pad[axes] = values
+
+    def stop(self) -> None:
+        with self._lock:
+            self._pressed_at.clear()
+            self._last_repeat.clear()
+            self.latched[:] = 0.0
+            self.pad[:] = 0.0
+
+    def unit_command(self) -> np.ndarray:
+        """Latched directions, overridden on an axis while one of its buttons is held, plus the pads."""
+        now = self.clock()
+        with self._lock:
+            held = np.zeros(3)
+            pressed = set()
+            for (axis, sign), t in self._last_repeat.items():
+                if now - t <= HOLD_TIMEOUT_S:  # else no repeat for long: its release was lost
+                    held[axis] += sign
+                    pressed.add(axis)
+            v = np.array([held[a] if a in pressed else self.latched[a] for a in range(3)]) + self.pad
+        return np.clip(v, -1.0, 1.0)
+
+    @property
+    def latched_any(self) -> bool:
+        return bool(np.any(self.latched))
 
 
 class DrivePanel:
@@ -44,13 +110,12 @@ class DrivePanel:
             self.turn_left = server.gui.add_button("⟲ turn left")
             self.turn_right = server.gui.add_button("⟳ turn right")
             self.stop = server.gui.add_button("■ Stop", color="red")
-        self._held: dict[tuple[int, float], float] = {}
-        self._pad = np.zeros(3)
+        self.joystick = JoystickState()
         self._sent = np.full(3, np.nan)
-        self._lock = threading.Lock()
         for button, axis, sign in ((self.fwd, 0, 1.0), (self.back, 0, -1.0), (self.left, 1, 1.0), (self.right, 1, -1.0),
                                    (self.turn_left, 2, 1.0), (self.turn_right, 2, -1.0)):
             button.on_hold(lambda _, a=axis, s=sign: self.hold(a, s), callback_hz=20.0)
+            button.on_click(lambda _, a=axis, s=sign: self.release(a, s))  # the click arrives on release
         self.stop.on_click(lambda _: self.stop_now())
         self.mode.on_click(lambda e: self.set_mode(e.target.value.lower()))
         self.speed.on_update(lambda _: studio.link.send(msg.SetPlaybackSpeed(float(self.speed.value))))
@@ -68,35 +133,30 @@ class DrivePanel:
 
     # ------------------------------------------------------------------ joystick
     def hold(self, axis: int, sign: float) -> None:
-        with self._lock:
-            self._held[(axis, sign)] = time.monotonic()
+        self.joystick.hold(axis, sign)
+
+    def release(self, axis: int, sign: float) -> None:
+        self.joystick.release(axis, sign)
+        if self.studio.mode == "test":
+            self._send(self.command())
 
     def stop_now(self) -> None:
-        with self._lock:
-            self._held.clear()
-            self._pad[:] = 0.0
+        self.joystick.stop()
         self._send(np.zeros(3), force=True)
 
     def command(self) -> np.ndarray:
         """Current joystick command (m/s, m/s, rad/s), scaled to the style's sample velocities."""
-        limits = self.studio.velocity_limits()
-        now = time.monotonic()
-        v = np.zeros(3)
-        with self._lock:
-            for (axis, sign), t in list(self._held.items()):
-                if now - t <= HOLD_TIMEOUT_S:
-                    v[axis] += sign
-                else:
-                    del self._held[(axis, sign)]
-            v += self._pad
-        return np.clip(v, -1.0, 1.0) * limits
+        return self.joystick.unit_command() * self.studio.velocity_limits()
 
     def _send(self, v: np.ndarray, force: bool = False) -> None:
         if force or not np.allclose(v, self._sent, atol=1e-4):
             self._sent = v.copy()
             self.studio.link.send(msg.SetVelocityCommand(float(v[0]), float(v[1]), float(v[2])))
-        self.readout.content = ("Command: stopped" if not np.any(v) else
-                                f"Command: vx {v[0]:+.2f} m/s · vy {v[1]:+.2f} m/s · wz {v[2]:+.2f} rad/s")
+        text = ("Command: stopped" if not np.any(v) else
+                f"Command: vx {v[0]:+.2f} m/s · vy {v[1]:+.2f} m/s · wz {v[2]:+.2f} rad/s")
+        if self.joystick.latched_any:
+            text += " (latched: ■ Stop or tap the button again to release)"
+        self.readout.content = text
 
     def _loop(self) -> None:
         while not self._stop.wait(SEND_PERIOD_S):
@@ -112,7 +172,10 @@ class DrivePanel:
         pos = self.studio.robot_position()
         if pos is None:
             return
-        self.pads_root.position = (pos[0] + 0.5, pos[1] + 0.45, 0.0)
+        yaw = float(self.studio.robot_yaw_rad())
+        c, s = np.cos(yaw), np.sin(yaw)
+        self.pads_root.position = (pos[0] + 0.5 * c - 0.45 * s, pos[1] + 0.5 * s + 0.45 * c, 0.0)
+        self.pads_root.wxyz = (np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2))  # pad axes = robot forward / left
         follow = getattr(self.studio, "follow_robot", None)
         if follow is not None:
             follow(pos)
@@ -141,32 +204,29 @@ class DrivePanel:
                                     position=tuple(center + np.array([0.0, 0.0, 0.02]) + [-PAD_RADIUS_M - 0.05, 0, 0]))
         knob = self.server.scene.add_icosphere(f"{root}/knob", radius=0.035, color=(60, 60, 220),
                                                position=tuple(center + [0, 0, 0.03]))
-        state = {"center_world": None}
 
         @knob.on_drag
         def _(event) -> None:
             try:
-                base = np.asarray(self.pads_root.position) + center
                 if event.phase == "end":
                     knob.position = tuple(center + [0, 0, 0.03])
-                    with self._lock:
-                        if name == "move":
-                            self._pad[0:2] = 0.0
-                        else:
-                            self._pad[2] = 0.0
+                    self.joystick.set_pad(slice(0, 2) if name == "move" else 2, 0.0)
                     return
-                d = np.asarray(event.end_position)[:2] - base[:2]
+                # The pad turns with the robot: its local x is the robot's forward, y its left.
+                w, _, _, z = self.pads_root.wxyz
+                yaw = 2.0 * np.arctan2(z, w)
+                c, s = np.cos(yaw), np.sin(yaw)
+                world = np.asarray(event.end_position)[:2] - np.asarray(self.pads_root.position)[:2]
+                d = np.array([c * world[0] + s * world[1], -s * world[0] + c * world[1]]) - center[:2]
                 norm = float(np.linalg.norm(d))
                 if norm > PAD_RADIUS_M:
                     d *= PAD_RADIUS_M / norm
                 knob.position = tuple(center + [d[0], d[1], 0.03])
-                with self._lock:
-                    if name == "move":
-                        self._pad[0:2] = d / PAD_RADIUS_M
-                    else:
-                        self._pad[2] = d[1] / PAD_RADIUS_M  # drag left to turn left
+                if name == "move":
+                    self.joystick.set_pad(slice(0, 2), d / PAD_RADIUS_M)
+                else:
+                    self.joystick.set_pad(2, d[1] / PAD_RADIUS_M)  # drag left to turn left
             except Exception:  # noqa: BLE001
                 pass
 
-        del state
         return knob

@@ -12,34 +12,71 @@ from tests.e2e.browser import open_page, wait_for_text
 pytestmark = pytest.mark.e2e
 
 
-def pelvis_x(page) -> float:
-    match = re.search(r"pelvis at x ([+-]\d+\.\d+) m", page.inner_text("body"))
-    assert match, "no robot position in the status line"
-    return float(match.group(1))
+STATUS = re.compile(r"t = (?P<t>[+-]?\d+\.\d+) s .*pelvis at x (?P<x>[+-]\d+\.\d+) m, y (?P<y>[+-]\d+\.\d+) m, "
+                    r"yaw (?P<yaw>[+-]\d+)°")
+
+
+def robot_status(page) -> dict[str, float]:
+    """Simulated time (s), pelvis position (m) and yaw (deg) from the status line."""
+    match = STATUS.search(page.inner_text("body"))
+    assert match, "no simulated time or robot pose in the status line"
+    return {k: float(v) for k, v in match.groupdict().items()}
+
+
+def hold_for_simulated_time(page, button_name: str, sim_seconds: float, done=lambda start, now: False,
+                            wall_cap_s: float = 240.0) -> tuple[dict, dict]:
+    """Press and hold a joystick button until the simulation (not the wall clock) has run ``sim_seconds``:
+    the result does not depend on how fast the machine simulates or renders."""
+    button = page.get_by_role("button", name=button_name)
+    start = robot_status(page)
+    button.hover()
+    page.mouse.down()
+    now = start
+    deadline = time.monotonic() + wall_cap_s
+    try:
+        while time.monotonic() < deadline:
+            page.wait_for_timeout(250)
+            now = robot_status(page)
+            now["fallen"] = "Engine fallen" in page.inner_text("body")
+            HISTORY.append(now)
+            if now["t"] - start["t"] >= sim_seconds or done(start, now):
+                break
+    finally:
+        page.mouse.up()
+    return start, now
+
+
+HISTORY: list[dict] = []
+
+
+def history() -> str:
+    """The statuses seen while holding, for a failure message."""
+    return "; ".join(f"t {h['t']:.1f} x {h['x']:+.2f} yaw {h['yaw']:+.0f}{' FALLEN' if h.get('fallen') else ''}"
+                     for h in HISTORY[-40:])
 
 
 def test_joystick_drives_the_robot(served_studio, artifacts):
+    """Hold ▲ forward: the robot walks forward; hold ⟲ turn left: it turns. Measured in simulated time."""
     with open_page(served_studio.url, 1100, 720) as page:
         wait_for_text(page, "Engine running")
-        x0 = pelvis_x(page)
         page.get_by_role("button", name="Test").click()
         wait_for_text(page, "test mode", timeout_ms=30_000)
-        time.sleep(1.5)  # the weight shift before the first step
-        forward = page.get_by_role("button", name="▲ forward")
-        forward.hover()
-        page.mouse.down()
-        deadline = time.monotonic() + 12.0
-        moved = 0.0
-        while time.monotonic() < deadline:
-            time.sleep(1.0)
-            moved = pelvis_x(page) - x0
-            if moved > 0.3:
-                break
+        start, end = hold_for_simulated_time(page, "▲ forward", 5.0,
+                                             done=lambda s, n: n["x"] - s["x"] > 0.3)
         page.screenshot(path=str(artifacts / "studio_test_mode_joystick.png"))
-        page.mouse.up()
-        assert moved > 0.3, f"the robot moved only {moved:.2f} m while the stick was held forward"
+        moved = end["x"] - start["x"]
+        assert moved > 0.3, (f"the robot moved only {moved:.2f} m in {end['t'] - start['t']:.1f} s of simulated "
+                             f"time while ▲ forward was held: {history()}")
         assert "Engine running" in page.inner_text("body")  # it did not fall
+
+        def turned_deg(s: dict, n: dict) -> float:  # signed, wrapped to (-180, 180]: left is positive
+            return -((s["yaw"] - n["yaw"] + 180.0) % 360.0 - 180.0)
+
+        start, end = hold_for_simulated_time(page, "⟲ turn left", 5.0, done=lambda s, n: turned_deg(s, n) > 20)
+        turned = turned_deg(start, end)
+        assert turned > 20, f"holding ⟲ turn left turned the robot by {turned:+.0f}° in simulated time: {history()}"
         page.get_by_role("button", name="■ Stop").click()
+        wait_for_text(page, "Command: stopped", timeout_ms=30_000)
 
 
 def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path, artifacts):
@@ -53,6 +90,7 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
     from studio.app import Studio
     from studio.panels.curve_editor import KnotRef, project_to_screen
     from tests.conftest import REPO, free_port
+    from tests.e2e.browser import wait_until
 
     styles = tmp_path / "styles"
     (styles / "g1").mkdir(parents=True)
@@ -100,7 +138,10 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
             page.get_by_text("Curves", exact=True).first.click()
             client = next(iter(studio.server.get_clients().values()))
             editor.look_at_graph(client)
-            time.sleep(2.0)
+            asked, t_asked = np.array(client.camera.position), time.time()
+            # the browser echoes its camera once it has applied ours (the server-side state updates at once)
+            wait_until(lambda: client.camera.update_timestamp > t_asked
+                  and np.allclose(client.camera.position, asked, atol=1e-3), 30, "the browser's camera on the graph")
             cam = client.camera
             box = page.locator("canvas").first.bounding_box()
             u, v = project_to_screen(editor.knot_world_position(apex), cam.position, cam.wxyz, cam.fov, cam.aspect)
@@ -113,7 +154,8 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
             page.mouse.down()
             for i in range(1, 5):
                 page.mouse.move(x, y - dy * i / 4)
-                time.sleep(0.4)
+                if i == 1:
+                    wait_until(lambda: editor._drag is not None, 30, "the knot drag to start")
             page.mouse.up()
             deadline = time.monotonic() + 20
             while time.monotonic() < deadline and studio.session.style.sample("in_place").curve("left_foot.z") == before:

@@ -39,7 +39,8 @@ def studio(tmp_path):
 def test_switching_robots_switches_styles_and_panels(studio):
     assert studio.session.robot == "g1" and studio.curve_editor is not None
     studio.robot_panel.robot.value = "talos"
-    wait(lambda: studio.session is not None and studio.session.robot == "talos")
+    wait(lambda: studio.session is not None and studio.session.robot == "talos" and studio.sample_editor is not None
+         and studio.sample_editor.session is studio.session)  # the panels are built after the session
     assert studio.session.style.robot == "talos"
     lo, hi = studio.session.ctx.pelvis_height_range_m
     slider = studio.sample_editor.attributes["pelvis_height_m"]

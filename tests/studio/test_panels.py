@@ -12,7 +12,7 @@ import viser
 
 from engine import protocol as msg
 from engine.gait.style import load_style
-from studio.panels.drive_panel import DrivePanel
+from studio.panels.drive_panel import HOLD_TIMEOUT_S, DrivePanel, JoystickState
 from studio.panels.sample_editor import SampleEditor
 from studio.panels.style_browser import StyleBrowser
 from studio.style_session import StyleSession
@@ -148,6 +148,9 @@ class FakeStudio:
     def robot_position(self):
         return np.zeros(3)
 
+    def robot_yaw_rad(self):
+        return 0.0
+
 
 def test_drive_panel_joystick_springs_back_and_stops(server):
     studio = FakeStudio()
@@ -159,8 +162,9 @@ def test_drive_panel_joystick_springs_back_and_stops(server):
         drive.hold(0, 1.0)
         drive.hold(2, -1.0)
         np.testing.assert_allclose(drive.command(), [0.5, 0.0, -1.0])
-        time.sleep(0.65)  # no more hold repeats: the stick springs back
-        np.testing.assert_allclose(drive.command(), [0.0, 0.0, 0.0])
+        drive.release(0, 1.0)  # released after a short press: a tap latches forward
+        drive.release(2, -1.0)
+        np.testing.assert_allclose(drive.command(), [0.5, 0.0, -1.0])
         drive.hold(1, 1.0)
         drive.stop_now()
         np.testing.assert_allclose(drive.command(), 0.0)
@@ -169,3 +173,58 @@ def test_drive_panel_joystick_springs_back_and_stops(server):
         assert isinstance(studio.link.sent[-1], msg.SetPlaybackSpeed) and studio.link.sent[-1].speed == 0.25
     finally:
         drive._stop.set()
+
+
+class FakeClock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_joystick_hold_lasts_until_release_even_with_slow_repeats():
+    """Under software WebGL the browser's hold repeats can be a second apart: the hold must not drop out."""
+    clock = FakeClock()
+    joy = JoystickState(clock)
+    joy.hold(0, 1.0)
+    for _ in range(10):  # repeats 1.2 s apart (a 1 FPS browser)
+        clock.t += 1.2
+        np.testing.assert_allclose(joy.unit_command(), [1.0, 0.0, 0.0])
+        joy.hold(0, 1.0)
+    clock.t += 0.3
+    joy.release(0, 1.0)  # a long hold ends at release and latches nothing
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+
+
+def test_joystick_lost_release_times_out():
+    clock = FakeClock()
+    joy = JoystickState(clock)
+    joy.hold(2, 1.0)
+    clock.t += HOLD_TIMEOUT_S + 0.1
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+    joy.release(2, 1.0)  # the late release of a long press is not a tap: nothing latches
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+    assert not joy.latched_any
+
+
+def test_joystick_tap_latches_and_toggles():
+    clock = FakeClock()
+    joy = JoystickState(clock)
+    joy.hold(0, 1.0)
+    clock.t += 0.1
+    joy.release(0, 1.0)
+    clock.t += 30.0  # a latch does not time out
+    np.testing.assert_allclose(joy.unit_command(), [1.0, 0.0, 0.0])
+    assert joy.latched_any
+    joy.hold(0, -1.0)  # holding back overrides the latched forward while held
+    np.testing.assert_allclose(joy.unit_command(), [-1.0, 0.0, 0.0])
+    clock.t += 2.0
+    joy.hold(0, -1.0)
+    clock.t += 0.5
+    joy.release(0, -1.0)  # a long hold takes manual control: the latch is cleared
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+    joy.release(2, 1.0)  # a click without a hold message (a very quick tap) latches too
+    np.testing.assert_allclose(joy.unit_command(), [0.0, 0.0, 1.0])
+    joy.release(2, 1.0)  # tapping the same button again releases it
+    np.testing.assert_allclose(joy.unit_command(), 0.0)

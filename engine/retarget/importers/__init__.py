@@ -1,1 +1,92 @@
-"""Importers: one module per source format, each returning a KeypointMotion."""
+"""Importers: one module per source format, each returning a KeypointMotion (legs FL, FR, RL, RR; w,x,y,z).
+
+``import_source(path)`` detects the format from the file's content (``fmt`` forces one). Every failure is
+an ``ImportFormatError`` whose message is one line naming the file, the field and what was expected.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from engine.retarget.motion import KeypointMotion, MotionFormatError
+
+
+class ImportFormatError(MotionFormatError):
+    pass
+
+
+FORMATS = ("keypoint-npz", "stmr-keypoints", "motion-imitation", "dog-keypoints", "videowalk", "dog-bvh")
+
+
+def detect_format(path: Path) -> str:
+    name = path.name
+    if path.is_dir():
+        raise ImportFormatError(f"{name}: expected a motion file, got a directory")
+    if not path.is_file():
+        raise ImportFormatError(f"{name}: file not found")
+    head = path.read_bytes()[:4096]
+    if head[:2] == b"PK":
+        import numpy as np
+
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                keys = set(f.files)
+        except Exception:
+            raise ImportFormatError(f"{name}: expected an npz archive") from None
+        if "format" in keys:
+            return "keypoint-npz"
+        if {"keypoints", "keypoint_names", "base_pos", "base_rotmat"} <= keys:
+            return "stmr-keypoints"
+        raise ImportFormatError(f"{name}: expected a keypoint-motion npz or an STMR *_keypoints.npz, found arrays {sorted(keys)}")
+    text = head.decode("utf-8", errors="replace").lstrip()
+    if text.startswith("HIERARCHY"):
+        return "dog-bvh"
+    if text.startswith("{"):
+        if '"Frames"' in text or '"FrameDuration"' in text or '"LoopMode"' in text:
+            return "motion-imitation"
+        if "_thigh" in text and "_foot" in text:
+            return "videowalk"
+        raise ImportFormatError(f"{name}: expected motion_imitation frames (LoopMode, FrameDuration, Frames) or videowalk keypoints")
+    first = text.splitlines()[0] if text else ""
+    cols = [c for c in first.replace("\t", ",").split(",") if c.strip()]
+    if len(cols) == 81:
+        return "dog-keypoints"
+    raise ImportFormatError(f"{name}: unknown format; expected one of {', '.join(FORMATS)}")
+
+
+def import_source(path: str | Path, fmt: str | None = None) -> KeypointMotion:
+    path = Path(path)
+    fmt = fmt or detect_format(path)
+    if fmt == "keypoint-npz":
+        return KeypointMotion.load(path)
+    if fmt == "stmr-keypoints":
+        from engine.retarget.importers.stmr import import_stmr_keypoints
+
+        return import_stmr_keypoints(path)
+    if fmt == "motion-imitation":
+        from engine.retarget.importers.motion_imitation import import_frames
+
+        return import_frames(path)
+    if fmt == "dog-keypoints":
+        from engine.retarget.importers.dog_keypoints import import_dog_keypoints
+
+        return import_dog_keypoints(path)
+    if fmt == "videowalk":
+        from engine.retarget.importers.videowalk import import_videowalk
+
+        return import_videowalk(path)
+    if fmt == "dog-bvh":
+        from engine.retarget.importers.dog_bvh import import_dog_bvh
+
+        return import_dog_bvh(path)
+    raise ImportFormatError(f"{path.name}: --format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+
+
+def read_json(path: Path) -> object:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise ImportFormatError(f"{path.name}: expected UTF-8 JSON text") from None
+    except json.JSONDecodeError as exc:
+        raise ImportFormatError(f"{path.name}: expected JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") from None

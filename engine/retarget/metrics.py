@@ -1,0 +1,94 @@
+"""Retargeting metrics as STMR defines them (§VIII-C/D/E).
+
+* foot slide (§VIII-D): for every contact segment longer than 0.5 s, the L1 distance of the foot position
+  between the segment's first and last frame; reported as the mean (and max) over segments, in mm;
+* contact IoU (§VIII-D): intersection over union of the source schedule and the result's contacts, the latter
+  *detected* from the result's feet (foot sphere within 5 mm of the height map, or below it: a sliding foot
+  is still a contact), so a method that does not keep the feet down is measured, not trusted;
+* max penetration: deepest foot-sphere point below the height map, mm;
+* keypoint error: mean Euclidean distance of the result's 16 keypoints to the retargeting target (the UVM
+  keypoints of Eq. 1), mm;
+* DTW-normalised keypoint L1 (§VIII-C): L1 distance between result and target keypoint trajectories after
+  dynamic time warping, as a percentage of the target's total keypoint path length;
+* travel distance and recovery rate (§VIII-E): horizontal base displacement, and baseless / with-base × 100.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.retarget.contacts import contact_iou, segments
+from engine.retarget.quadruped.heightmap import HeightMap
+
+MIN_SEGMENT_S = 0.5
+
+
+def foot_slide_mm(feet: np.ndarray, contact: np.ndarray, fps: float, min_segment_s: float = MIN_SEGMENT_S) -> dict:
+    slides = []
+    for leg in range(contact.shape[1]):
+        for start, end, value in segments(contact[:, leg]):
+            if value and (end - start) / fps > min_segment_s:
+                slides.append(float(np.abs(feet[end - 1, leg] - feet[start, leg]).sum()) * 1000.0)
+    return {"mean": float(np.mean(slides)) if slides else None, "max": float(np.max(slides)) if slides else None,
+            "segments": len(slides)}
+
+
+def detect_contacts(feet: np.ndarray, radius_m: np.ndarray, fps: float, heightmap: HeightMap,
+                    contact_height_m: float = 0.005) -> np.ndarray:
+    """Contacts of a result motion, seen from its feet alone: the foot sphere on (or in) the height map."""
+    ground = heightmap.heights(feet[:, :, :2]) + np.asarray(radius_m)[None, :]
+    return feet[:, :, 2] - ground < contact_height_m
+
+
+def penetration_mm(feet: np.ndarray, radius_m: np.ndarray, heightmap: HeightMap) -> float:
+    ground = heightmap.heights(feet[:, :, :2])
+    depth = ground - (feet[:, :, 2] - np.asarray(radius_m)[None, :])
+    return max(0.0, float(depth.max()) * 1000.0)
+
+
+def keypoint_error_mm(result: np.ndarray, target: np.ndarray) -> float:
+    ok = np.all(np.isfinite(target), axis=-1)
+    return float(np.linalg.norm(result - np.nan_to_num(target), axis=-1)[ok].mean()) * 1000.0
+
+
+def dtw_keypoint_l1_percent(result: np.ndarray, target: np.ndarray) -> float:
+    """DTW-aligned L1 keypoint distance over the target's total keypoint path length, in %."""
+    a = result.reshape(len(result), -1)
+    b = np.nan_to_num(target).reshape(len(target), -1)
+    cost = np.abs(a[:, None, :] - b[None, :, :]).sum(axis=2).tolist()
+    n, m = len(a), len(b)
+    inf = float("inf")
+    prev = [0.0] + [inf] * m  # accumulated cost of row i-1 (index 0: the empty prefix)
+    prev_steps = [0] * (m + 1)
+    for i in range(n):
+        row, row_steps = [inf] * (m + 1), [0] * (m + 1)
+        ci = cost[i]
+        for j in range(1, m + 1):
+            diag, up, left = prev[j - 1], prev[j], row[j - 1]
+            if diag <= up and diag <= left:
+                best, st = diag, prev_steps[j - 1]
+            elif up <= left:
+                best, st = up, prev_steps[j]
+            else:
+                best, st = left, row_steps[j - 1]
+            row[j] = ci[j - 1] + best
+            row_steps[j] = st + 1
+        prev, prev_steps = row, row_steps
+        prev[0] = inf
+    total, steps = prev[m], prev_steps[m]
+    per_step = total / max(steps, 1)  # mean L1 over the warped path (all keypoints)
+    path = np.abs(np.diff(np.nan_to_num(target), axis=0)).sum()  # L1 path length, all keypoints
+    return float(per_step * len(target) / max(path, 1e-9) * 100.0)
+
+
+def travel_distance_m(base_pos: np.ndarray, axis: np.ndarray | None = None) -> float:
+    d = base_pos[-1, :2] - base_pos[0, :2]
+    return float(abs(d @ axis[:2])) if axis is not None else float(np.linalg.norm(d))
+
+
+def recovery_rate_percent(baseless_m: float, with_base_m: float) -> float:
+    return 100.0 * baseless_m / with_base_m if with_base_m > 1e-9 else float("nan")
+
+
+__all__ = ["foot_slide_mm", "detect_contacts", "penetration_mm", "keypoint_error_mm", "dtw_keypoint_l1_percent",
+           "travel_distance_m", "recovery_rate_percent", "contact_iou"]

@@ -1,0 +1,329 @@
+"""The two motion formats of the retargeting side: what sources import to, what methods produce.
+
+``KeypointMotion`` — a source motion as the paper's 16 keypoints (§IV-A): 4 legs × (hip, thigh, knee, foot),
+legs in the engine's order FL, FR, RL, RR (keypoint ``4 * leg + k``), positions in metres, world frame, z up.
+
+``RobotMotion`` — a motion of one robot: ``qpos`` (T, 7 + n) in MuJoCo order (xyz, quaternion w,x,y,z,
+joints in ``joint_names`` order). Nothing here is quadruped-specific, so a biped recording is one too
+(contact then has one column per foot of that robot, named by ``foot_names``).
+
+Both are npz files written atomically and read with ``allow_pickle=False``. Validation errors are one line
+naming the file and the field (``MotionFormatError``).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.atomic_io import atomic_write_bytes
+
+LEGS = ("FL", "FR", "RL", "RR")
+KEYPOINT_KINDS = ("hip", "thigh", "knee", "foot")
+KEYPOINT_NAMES = tuple(f"{leg}_{kind}" for leg in LEGS for kind in KEYPOINT_KINDS)
+N_KEYPOINTS = len(KEYPOINT_NAMES)
+FOOT_INDEX = tuple(4 * i + 3 for i in range(4))  # κ(j): keypoint index of foot j
+KEYPOINT_FORMAT = "keypoint-motion/1"
+ROBOT_FORMAT = "robot-motion/1"
+
+
+class MotionFormatError(ValueError):
+    """A malformed motion: the message is one line naming the file and the field."""
+
+
+def _fail(where: str, field_name: str, what: str) -> MotionFormatError:
+    return MotionFormatError(f"{where}: {field_name}: {what}")
+
+
+def _finite(where: str, name: str, arr: np.ndarray) -> None:
+    if not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        raise _fail(where, name, f"expected finite numbers, found {arr[tuple(bad)]} at index {tuple(int(b) for b in bad)}")
+
+
+def _float_array(where: str, name: str, value: Any, shape: tuple) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise _fail(where, name, f"expected numbers of shape {_shape_text(shape)}") from None
+    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+        raise _fail(where, name, f"expected shape {_shape_text(shape)}, got {arr.shape}")
+    _finite(where, name, arr)
+    return arr
+
+
+def _shape_text(shape: tuple) -> str:
+    return "(" + ", ".join("T" if s is None and i == 0 else ("n" if s is None else str(s)) for i, s in enumerate(shape)) + ")"
+
+
+def _fps(where: str, value: Any) -> float:
+    try:
+        fps = float(np.asarray(value).reshape(()))
+    except (TypeError, ValueError):
+        raise _fail(where, "fps", f"expected a number, got {value!r}") from None
+    if not np.isfinite(fps) or fps <= 0 or fps > 10000:
+        raise _fail(where, "fps", f"expected 0 < fps ≤ 10000, got {fps}")
+    return fps
+
+
+def _names(where: str, name: str, value: Any, n: int) -> list[str]:
+    arr = np.asarray(value)
+    if arr.ndim != 1 or len(arr) != n or arr.dtype.kind not in "US":
+        raise _fail(where, name, f"expected {n} names, got {arr.shape} {arr.dtype}")
+    return [str(x) for x in arr]
+
+
+def _contact(where: str, value: Any, t: int, k: int) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.shape != (t, k):
+        raise _fail(where, "contact", f"expected shape ({t}, {k}), got {arr.shape}")
+    if arr.dtype != bool:
+        if arr.dtype.kind not in "iuf" or not np.all(np.isin(arr, (0, 1))):
+            raise _fail(where, "contact", "expected booleans (0/1)")
+        arr = arr.astype(bool)
+    return arr
+
+
+def _quat(where: str, name: str, value: Any, t: int) -> np.ndarray:
+    q = _float_array(where, name, value, (t, 4))
+    norm = np.linalg.norm(q, axis=1)
+    if np.any(np.abs(norm - 1.0) > 1e-3):
+        i = int(np.argmax(np.abs(norm - 1.0)))
+        raise _fail(where, name, f"expected unit quaternions (w,x,y,z), frame {i} has norm {norm[i]:.4f}")
+    return q / norm[:, None]
+
+
+@dataclass
+class KeypointMotion:
+    """Source keypoints (T, 16, 3), legs FL, FR, RL, RR × (hip, thigh, knee, foot), world frame, metres."""
+
+    fps: float
+    keypoints: np.ndarray
+    contact: np.ndarray  # (T, 4) bool, feet in LEGS order
+    keypoint_names: list[str] = field(default_factory=lambda: list(KEYPOINT_NAMES))
+    foot_names: list[str] = field(default_factory=lambda: list(LEGS))
+    base_pos: np.ndarray | None = None  # (T, 3)
+    base_quat: np.ndarray | None = None  # (T, 4) w,x,y,z
+    source: dict = field(default_factory=dict)  # free metadata: file, format, licence note, …
+    known: np.ndarray | None = None  # (16,) bool: keypoints the source measured (False: filled from the target)
+
+    def __post_init__(self) -> None:
+        self.validate(self.source.get("file", "<keypoint motion>"))
+
+    @property
+    def frames(self) -> int:
+        return int(self.keypoints.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        return self.frames / self.fps
+
+    @property
+    def feet(self) -> np.ndarray:
+        return self.keypoints[:, list(FOOT_INDEX)]
+
+    def validate(self, where: str) -> None:
+        self.fps = _fps(where, self.fps)
+        self.keypoints = _float_array(where, "keypoints", self.keypoints, (None, N_KEYPOINTS, 3))
+        t = self.keypoints.shape[0]
+        if t < 2:
+            raise _fail(where, "keypoints", f"expected at least 2 frames, got {t}")
+        self.keypoint_names = _names(where, "keypoint_names", self.keypoint_names, N_KEYPOINTS)
+        if tuple(self.keypoint_names) != KEYPOINT_NAMES:
+            raise _fail(where, "keypoint_names", f"expected {', '.join(KEYPOINT_NAMES)}")
+        self.foot_names = _names(where, "foot_names", self.foot_names, 4)
+        if tuple(self.foot_names) != LEGS:
+            raise _fail(where, "foot_names", f"expected {', '.join(LEGS)} (the engine's leg order)")
+        self.contact = _contact(where, self.contact, t, 4)
+        if self.base_pos is not None:
+            self.base_pos = _float_array(where, "base_pos", self.base_pos, (t, 3))
+        if self.base_quat is not None:
+            self.base_quat = _quat(where, "base_quat", self.base_quat, t)
+        if self.known is None:
+            self.known = np.ones(N_KEYPOINTS, dtype=bool)
+        self.known = np.asarray(self.known, dtype=bool).reshape(N_KEYPOINTS)
+        if not isinstance(self.source, dict):
+            raise _fail(where, "source", "expected a JSON object")
+
+    def save(self, path: str | Path) -> None:
+        arrays = {
+            "format": np.array(KEYPOINT_FORMAT), "fps": np.array(self.fps), "keypoints": self.keypoints,
+            "keypoint_names": np.array(self.keypoint_names), "contact": self.contact,
+            "foot_names": np.array(self.foot_names), "known": self.known,
+            "source": np.array(json.dumps(self.source)),
+        }
+        if self.base_pos is not None:
+            arrays["base_pos"] = self.base_pos
+        if self.base_quat is not None:
+            arrays["base_quat"] = self.base_quat
+        _write_npz(path, arrays)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "KeypointMotion":
+        where = Path(path).name
+        data = _read_npz(path)
+        if str(data.get("format", "")) != KEYPOINT_FORMAT:
+            raise _fail(where, "format", f"expected {KEYPOINT_FORMAT!r}, got {str(data.get('format', 'nothing'))!r}")
+        for key in ("fps", "keypoints", "contact"):
+            if key not in data:
+                raise _fail(where, key, "missing")
+        source = _source(where, data)
+        source.setdefault("file", where)
+        return cls(
+            fps=data["fps"], keypoints=data["keypoints"], contact=data["contact"],
+            keypoint_names=data.get("keypoint_names", np.array(KEYPOINT_NAMES)),
+            foot_names=data.get("foot_names", np.array(LEGS)), base_pos=data.get("base_pos"),
+            base_quat=data.get("base_quat"), source=source, known=data.get("known"),
+        )
+
+
+@dataclass
+class RobotMotion:
+    """A robot's motion: qpos (T, 7+n) in MuJoCo order (xyz, quat w,x,y,z, joints in ``joint_names`` order)."""
+
+    fps: float
+    qpos: np.ndarray
+    joint_names: list[str]
+    contact: np.ndarray  # (T, F) bool, one column per foot in foot_names
+    robot: str
+    method: str
+    foot_names: list[str] = field(default_factory=lambda: list(LEGS))
+    keypoints: np.ndarray | None = None  # (T, K, 3) robot sites (quadrupeds: the 16 keypoints)
+    keypoint_names: list[str] | None = None
+    qvel: np.ndarray | None = None  # (T, 6+n) MuJoCo qvel (world linear, body angular, joints)
+    ctrl: np.ndarray | None = None  # (T, n) actuator commands (temporal stage)
+    source: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.validate(self.source.get("file", "<robot motion>"))
+
+    @property
+    def frames(self) -> int:
+        return int(self.qpos.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        return self.frames / self.fps
+
+    @property
+    def base_pos(self) -> np.ndarray:
+        return self.qpos[:, 0:3]
+
+    @property
+    def base_quat(self) -> np.ndarray:
+        return self.qpos[:, 3:7]
+
+    @property
+    def joints(self) -> np.ndarray:
+        return self.qpos[:, 7:]
+
+    def validate(self, where: str) -> None:
+        self.fps = _fps(where, self.fps)
+        self.qpos = _float_array(where, "qpos", self.qpos, (None, None))
+        t, nq = self.qpos.shape
+        if t < 1:
+            raise _fail(where, "qpos", "expected at least 1 frame, got 0")
+        if nq < 7:
+            raise _fail(where, "qpos", f"expected (T, 7 + n) columns, got {nq}")
+        self.qpos[:, 3:7] = _quat(where, "qpos[:, 3:7]", self.qpos[:, 3:7], t)
+        self.joint_names = _names(where, "joint_names", self.joint_names, nq - 7)
+        self.foot_names = _names(where, "foot_names", self.foot_names, len(self.foot_names))
+        self.contact = _contact(where, self.contact, t, len(self.foot_names))
+        if not isinstance(self.robot, str) or not self.robot:
+            raise _fail(where, "robot", "expected a robot name")
+        if not isinstance(self.method, str) or not self.method:
+            raise _fail(where, "method", "expected a method name")
+        if self.keypoints is not None:
+            self.keypoints = _float_array(where, "keypoints", self.keypoints, (t, None, 3))
+            k = self.keypoints.shape[1]
+            if self.keypoint_names is None:
+                self.keypoint_names = list(KEYPOINT_NAMES) if k == N_KEYPOINTS else [f"k{i}" for i in range(k)]
+            self.keypoint_names = _names(where, "keypoint_names", self.keypoint_names, k)
+        if self.qvel is not None:
+            self.qvel = _float_array(where, "qvel", self.qvel, (t, nq - 1))
+        if self.ctrl is not None:
+            self.ctrl = _float_array(where, "ctrl", self.ctrl, (t, None))
+
+    def save(self, path: str | Path) -> None:
+        arrays = {
+            "format": np.array(ROBOT_FORMAT), "fps": np.array(self.fps), "qpos": self.qpos,
+            "joint_names": np.array(self.joint_names), "contact": self.contact,
+            "foot_names": np.array(self.foot_names), "robot": np.array(self.robot), "method": np.array(self.method),
+            "source": np.array(json.dumps(self.source)), "metrics": np.array(json.dumps(self.metrics)),
+        }
+        if self.keypoints is not None:
+            arrays["keypoints"] = self.keypoints
+            arrays["keypoint_names"] = np.array(self.keypoint_names)
+        if self.qvel is not None:
+            arrays["qvel"] = self.qvel
+        if self.ctrl is not None:
+            arrays["ctrl"] = self.ctrl
+        _write_npz(path, arrays)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "RobotMotion":
+        where = Path(path).name
+        data = _read_npz(path)
+        if str(data.get("format", "")) != ROBOT_FORMAT:
+            raise _fail(where, "format", f"expected {ROBOT_FORMAT!r}, got {str(data.get('format', 'nothing'))!r}")
+        for key in ("fps", "qpos", "joint_names", "contact", "robot", "method"):
+            if key not in data:
+                raise _fail(where, key, "missing")
+        source = _source(where, data)
+        source.setdefault("file", where)
+        metrics = json.loads(str(data["metrics"])) if "metrics" in data else {}
+        return cls(
+            fps=data["fps"], qpos=data["qpos"], joint_names=data["joint_names"], contact=data["contact"],
+            robot=str(data["robot"]), method=str(data["method"]),
+            foot_names=data.get("foot_names", np.array(LEGS)), keypoints=data.get("keypoints"),
+            keypoint_names=data.get("keypoint_names"), qvel=data.get("qvel"), ctrl=data.get("ctrl"),
+            source=source, metrics=metrics if isinstance(metrics, dict) else {},
+        )
+
+
+def load_motion(path: str | Path) -> KeypointMotion | RobotMotion:
+    """Either kind of motion file, by its ``format`` field."""
+    data = _read_npz(path)
+    fmt = str(data.get("format", ""))
+    if fmt == KEYPOINT_FORMAT:
+        return KeypointMotion.load(path)
+    if fmt == ROBOT_FORMAT:
+        return RobotMotion.load(path)
+    raise _fail(Path(path).name, "format", f"expected {KEYPOINT_FORMAT!r} or {ROBOT_FORMAT!r}, got {fmt or 'nothing'!r}")
+
+
+def _source(where: str, data: dict) -> dict:
+    if "source" not in data:
+        return {}
+    try:
+        source = json.loads(str(data["source"]))
+    except json.JSONDecodeError:
+        raise _fail(where, "source", "expected a JSON object") from None
+    if not isinstance(source, dict):
+        raise _fail(where, "source", "expected a JSON object")
+    return source
+
+
+def _write_npz(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _read_npz(path: str | Path) -> dict[str, np.ndarray]:
+    where = Path(path).name
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            return {k: f[k] for k in f.files}
+    except FileNotFoundError:
+        raise MotionFormatError(f"{where}: file not found") from None
+    except (ValueError, OSError, EOFError) as exc:
+        raise MotionFormatError(f"{where}: expected an npz motion file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+    except Exception as exc:  # zipfile.BadZipFile and friends
+        raise MotionFormatError(f"{where}: expected an npz motion file ({type(exc).__name__})") from None

@@ -1,0 +1,141 @@
+"""The outer loop of TMR (STMR §VI, Eqs. 15–18): Bayesian optimisation of the temporal parameters.
+
+A Gaussian process with a Matérn kernel (ν = 5/2) is fitted to the scores seen so far and the next α maximises
+expected improvement — both from the maintained ``bayesian-optimization`` library. The search runs in log2 α
+(bounds [−B, B] per segment), starts with the identity α = 1 and random samples (the warm start), and stops
+when the budget is spent or when the suggestions have settled on the best point (convergence).
+
+Evaluations run in parallel batches on an executor (``engine.retarget.quadruped.tmr.ray_jobs``): while a batch
+is out, the pending points are registered with a constant lie (the worst score so far) so that the next
+suggestions spread out instead of repeating. Every evaluation reports progress (k of N, best score, current α)
+and the search can be cancelled between evaluations.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from engine.retarget.quadruped.tmr.ddp import Cancelled
+
+
+@dataclass
+class BOSettings:
+    budget: int = 10  # evaluations at most
+    init_points: int = 3  # warm start: the identity + (init_points − 1) random points
+    parallel: int = 1  # evaluations in flight at once
+    xi: float = 0.05  # exploration of expected improvement (Eq. 18)
+    noise: float = 1e-3  # GP observation noise (normalised scores): tracking scores are not smooth in α
+    convergence_log2: float = 0.05  # suggestions within this of the best point count as "settled"
+    patience: int = 3  # settled suggestions in a row without improvement → converged
+    seed: int = 0
+
+
+@dataclass
+class BOProgress:
+    evaluation: int  # evaluations finished
+    budget: int
+    best_score: float
+    best_log2_alpha: np.ndarray
+    current_log2_alpha: np.ndarray  # the point just evaluated
+
+
+@dataclass
+class BOResult:
+    best_log2_alpha: np.ndarray
+    best_score: float
+    best_payload: Any
+    history: list[tuple[np.ndarray, float]] = field(default_factory=list)
+    converged: bool = False
+    payloads: list[Any] = field(default_factory=list)  # one per history entry
+
+    @property
+    def evaluations(self) -> int:
+        return len(self.history)
+
+
+def _keys(dims: int) -> list[str]:
+    return [f"b{i:02d}" for i in range(dims)]
+
+
+def _suggest(dims: int, bound: float, observed: list[tuple[np.ndarray, float]], pending: list[np.ndarray],
+             settings: BOSettings, rng: np.random.Generator) -> np.ndarray:
+    from bayes_opt import BayesianOptimization, acquisition
+
+    keys = _keys(dims)
+    opt = BayesianOptimization(
+        f=None, pbounds={k: (-bound, bound) for k in keys},
+        acquisition_function=acquisition.ExpectedImprovement(xi=settings.xi),
+        random_state=int(rng.integers(2**31)), verbose=0, allow_duplicate_points=True)
+    opt.set_gp_params(alpha=settings.noise)
+    lie = min(s for _, s in observed)
+    for x, s in observed:
+        opt.register(params=dict(zip(keys, map(float, x))), target=float(s))
+    for x in pending:
+        opt.register(params=dict(zip(keys, map(float, x))), target=float(lie))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # sklearn's GP convergence notes on tiny data sets
+        params = opt.suggest()
+    return np.array([params[k] for k in keys], dtype=float)
+
+
+def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callable[[list[Any]], list[tuple[Any, float, Any]]],
+                   dims: int, bound: float, settings: BOSettings | None = None,
+                   progress: Callable[[BOProgress], None] | None = None,
+                   cancel: Callable[[], bool] | None = None, abort: Callable[[list[Any]], None] | None = None) -> BOResult:
+    """Maximise a score of log2 α ∈ [−bound, bound]^dims.
+
+    ``evaluate_submit(x)`` starts an evaluation and returns a handle; ``collect(handles)`` blocks until at least one
+    is done and returns ``(handle, score, payload)`` for each finished one; ``abort(handles)`` cancels running ones.
+    """
+    settings = settings or BOSettings()
+    if settings.budget < 1:
+        raise ValueError("budget must be ≥ 1")
+    rng = np.random.default_rng(settings.seed)
+    warm = [np.zeros(dims)] + [rng.uniform(-bound, bound, dims) for _ in range(max(settings.init_points, 1) - 1)]
+    observed: list[tuple[np.ndarray, float]] = []
+    payloads: list[Any] = []
+    running: dict[Any, np.ndarray] = {}
+    submitted = 0
+    settled = 0
+    converged = False
+
+    def next_point() -> np.ndarray:
+        if submitted < len(warm):
+            return warm[submitted]
+        if not observed:  # still waiting for the warm start: spread at random
+            return rng.uniform(-bound, bound, dims)
+        return _suggest(dims, bound, observed, list(running.values()), settings, rng)
+
+    try:
+        while True:
+            if cancel is not None and cancel():
+                raise Cancelled()
+            while not converged and submitted < settings.budget and len(running) < max(settings.parallel, 1):
+                x = np.clip(next_point(), -bound, bound)
+                if observed and submitted >= len(warm):
+                    best_x = observed[int(np.argmax([s for _, s in observed]))][0]
+                    settled = settled + 1 if np.max(np.abs(x - best_x)) < settings.convergence_log2 else 0
+                running[evaluate_submit(x)] = x
+                submitted += 1
+            if not running:
+                break
+            for handle, score, payload in collect(list(running)):
+                x = running.pop(handle)
+                score = float(score) if np.isfinite(score) else -1e9
+                observed.append((x, score))
+                payloads.append(payload)
+                best_i = int(np.argmax([s for _, s in observed]))
+                if progress is not None:
+                    progress(BOProgress(len(observed), settings.budget, observed[best_i][1], observed[best_i][0].copy(), x.copy()))
+            if settled >= settings.patience:
+                converged = True
+    except BaseException:
+        if abort is not None and running:
+            abort(list(running))
+        raise
+    best_i = int(np.argmax([s for _, s in observed]))
+    return BOResult(observed[best_i][0], observed[best_i][1], payloads[best_i], observed, converged, payloads)

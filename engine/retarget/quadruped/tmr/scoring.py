@@ -1,0 +1,87 @@
+"""How well a tracked motion does: the TMR score C(α) (STMR Eq. 15) and the tracking figures of §VIII-C.
+
+C(α) = −d_b − d_E + w_c · IoU − w_α · mean(log2 α)² − fall penalty, where d_b is the mean L1 distance of the
+base position (m), d_E the mean L1 distance of the base Euler angles (rad, wrapped), IoU the contact IoU of the
+rollout against the deformed schedule; the α term is the paper's "regularise extreme values of the temporal
+parameters" (§VI) — it makes a motion that every α tracks equally well keep its timing.
+
+``dtw_keypoint_l1_pct``: the keypoint trajectories aligned by dynamic time warping (so a re-timed motion is not
+penalised for its timing), the mean per-keypoint L1 distance along the warping path as a percentage of the mean
+keypoint path length of the reference (the paper's "normalised keypoint L1 distance with DTW"); NaN when the
+reference hardly moves (mean keypoint path under 1 cm).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+FALL_PENALTY = 1.0
+MIN_PATH_LENGTH_M = 0.01
+
+
+def _euler(quat_wxyz: np.ndarray) -> np.ndarray:
+    q = np.asarray(quat_wxyz, dtype=float)
+    return Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_euler("xyz")
+
+
+def base_position_l1_m(qpos: np.ndarray, qpos_ref: np.ndarray) -> float:
+    return float(np.mean(np.sum(np.abs(qpos[:, 0:3] - qpos_ref[:, 0:3]), axis=1)))
+
+
+def base_euler_l1_rad(qpos: np.ndarray, qpos_ref: np.ndarray) -> float:
+    d = _euler(qpos[:, 3:7]) - _euler(qpos_ref[:, 3:7])
+    d = (d + np.pi) % (2 * np.pi) - np.pi
+    return float(np.mean(np.sum(np.abs(d), axis=1)))
+
+
+def contact_iou(contact: np.ndarray, contact_ref: np.ndarray) -> float:
+    a, b = np.asarray(contact, bool), np.asarray(contact_ref, bool)
+    union = np.sum(a | b)
+    return float(np.sum(a & b) / union) if union else 1.0
+
+
+def tracking_error_mm(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:
+    """Mean Euclidean keypoint error per frame and keypoint (mm), time-aligned."""
+    return float(np.mean(np.linalg.norm(keypoints - keypoints_ref, axis=-1)) * 1e3)
+
+
+def tmr_score(qpos: np.ndarray, contact: np.ndarray, qpos_ref: np.ndarray, contact_ref: np.ndarray,
+              log2_alpha: np.ndarray, fell: bool, w_contact: float = 0.2, w_alpha: float = 0.05) -> dict:
+    d_b = base_position_l1_m(qpos, qpos_ref)
+    d_e = base_euler_l1_rad(qpos, qpos_ref)
+    iou = contact_iou(contact, contact_ref)
+    reg = float(np.mean(np.square(log2_alpha)))
+    score = -d_b - d_e + w_contact * iou - w_alpha * reg - (FALL_PENALTY if fell else 0.0)
+    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "contact_iou": iou, "alpha_penalty": w_alpha * reg}
+
+
+def dtw_keypoint_l1_pct(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:
+    """DTW-normalised keypoint L1 distance (%): see the module docstring."""
+    a = np.asarray(keypoints, float).reshape(len(keypoints), -1, 3)
+    b = np.asarray(keypoints_ref, float).reshape(len(keypoints_ref), -1, 3)
+    n, m = len(a), len(b)
+    # pairwise cost: mean over keypoints of the L1 distance (m)
+    cost = np.empty((n, m))
+    for i in range(n):
+        cost[i] = np.mean(np.sum(np.abs(b - a[i]), axis=2), axis=1)
+    acc = np.full((n + 1, m + 1), np.inf)
+    steps = np.zeros((n + 1, m + 1), dtype=np.int64)
+    acc[0, 0] = 0.0
+    for i in range(1, n + 1):
+        row = cost[i - 1]
+        up, up_steps = acc[i - 1], steps[i - 1]
+        cur, cur_steps = acc[i], steps[i]
+        for j in range(1, m + 1):
+            best, n_steps = up[j - 1], up_steps[j - 1]
+            if up[j] < best:
+                best, n_steps = up[j], up_steps[j]
+            if cur[j - 1] < best:
+                best, n_steps = cur[j - 1], cur_steps[j - 1]
+            cur[j] = row[j - 1] + best
+            cur_steps[j] = n_steps + 1
+    mean_l1 = acc[n, m] / max(int(steps[n, m]), 1)
+    length = float(np.mean(np.sum(np.linalg.norm(np.diff(b, axis=0), axis=2), axis=0)))
+    if length < MIN_PATH_LENGTH_M:
+        return float("nan")  # a motion that hardly moves has no meaningful normalisation
+    return float(100.0 * mean_l1 / length)

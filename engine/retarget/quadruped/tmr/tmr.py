@@ -1,0 +1,221 @@
+"""TMR, the temporal stage of STMR (§IV-B, §VI): RobotMotion (kinematic) → RobotMotion (dynamic).
+
+For each temporal parameter α the Bayesian optimisation proposes, the kinematic motion is deformed in time
+(s_α over S segments, LI of the configurations as control targets), tracked by box-iLQR in the robot's full
+MuJoCo model, replayed open-loop from the initial state, and scored (Eq. 15). The best evaluation is the result:
+its replayed ``qpos``/``qvel``, the torques ``ctrl``, the PD targets that reproduce those torques, α and the
+durations before and after.
+
+``evaluate_alpha`` is a plain function of plain arrays, so it runs unchanged inside a Ray worker.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from engine.retarget.quadruped.tmr.bayes_opt import BOProgress, BOSettings, bayes_optimise
+from engine.retarget.quadruped.tmr.ddp import Cancelled, ILQRSettings, MotionTracker, TrackingTarget
+from engine.retarget.quadruped.tmr.deformation import (
+    DEFAULT_LOG2_BOUND,
+    TemporalDeformation,
+    check_log2_bound,
+    check_segments,
+    finite_difference_qvel,
+    interpolate_qpos,
+    sample_contact,
+)
+from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+from engine.retarget.quadruped.tmr.motion_io import RobotMotion
+from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor
+from engine.retarget.quadruped.tmr.scoring import dtw_keypoint_l1_pct, tmr_score, tracking_error_mm
+
+
+@dataclass
+class TMRSettings:
+    segments: int = 1  # S (the paper uses 1 for short clips, 3 for long varied ones)
+    log2_bound: float = DEFAULT_LOG2_BOUND  # log2 α ∈ [−B, B]
+    budget: int = 8  # BO evaluations at most
+    init_points: int = 3  # warm start (the identity + random)
+    parallel: int = 1  # evaluations in flight (Ray workers)
+    w_contact: float = 0.2  # w_c of Eq. 15
+    w_alpha: float = 0.05  # regularisation of extreme α
+    timestep_s: float = 0.01  # control interval of the tracker
+    mode: str = "receding"  # "receding" (MuJoCo MPC style) or "full" horizon iLQR
+    window_s: float = 0.25
+    replan_s: float = 0.05
+    window_iterations: int = 2
+    full_iterations: int = 30
+    polish_iterations: int = 0  # full-horizon iLQR iterations after the receding pass (flips need the whole flight)
+    seed: int = 0
+
+
+@dataclass
+class Evaluation:
+    log2_alpha: np.ndarray
+    score: dict
+    fell: bool
+    tracking_error_mm: float
+    duration_s: float
+    qpos: np.ndarray
+    qvel: np.ndarray
+    ctrl: np.ndarray
+    contact_sim: np.ndarray
+    contact_target: np.ndarray
+    keypoints: np.ndarray
+    keypoints_target: np.ndarray
+    wall_time_s: float
+
+
+@dataclass
+class TMRResult:
+    motion: RobotMotion  # the dynamic motion
+    summary: dict
+    evaluations: list[dict] = field(default_factory=list)
+
+
+def deformed_target(robot, qpos: np.ndarray, contact: np.ndarray, fps: float, deformation: TemporalDeformation,  # noqa: ANN001
+                    tracker: MotionTracker) -> TrackingTarget:
+    """LI(s_α(t_k)) at the tracker's control instants: configurations, velocities, schedule, keypoints."""
+    t_control = deformation.control_times(tracker.dt_s)
+    # equal spacing is what the tracker needs: drop a last, shorter interval
+    t_control = t_control[: int(np.floor(deformation.duration_s / tracker.dt_s + 1e-9)) + 1]
+    src = deformation(t_control)
+    q = interpolate_qpos(qpos, fps, src)
+    v = finite_difference_qvel(tracker.model, q, tracker.dt_s)
+    c = sample_contact(contact, fps, src)
+    return TrackingTarget(tracker.dt_s, q, v, c, keypoint_trajectory(robot, q, tracker.keypoints))
+
+
+def make_tracker(robot, settings: TMRSettings) -> MotionTracker:  # noqa: ANN001
+    return MotionTracker(robot, timestep_s=settings.timestep_s, settings=ILQRSettings(max_iterations=settings.full_iterations),
+                         mode=settings.mode, window_s=settings.window_s, replan_s=settings.replan_s,
+                         window_iterations=settings.window_iterations, polish_iterations=settings.polish_iterations)
+
+
+def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: float, log2_alpha: np.ndarray,
+                   settings: TMRSettings, cancel: Callable[[], bool] | None = None) -> Evaluation:
+    """One BO evaluation: deform, track (iLQR), replay open-loop, score. Runs in any process."""
+    from engine.robot.model import load_robot
+
+    t0 = time.perf_counter()
+    robot = load_robot(robot_name)
+    tracker = make_tracker(robot, settings)
+    source_duration = (len(qpos) - 1) / fps
+    deformation = TemporalDeformation.from_log2(log2_alpha, source_duration)
+    target = deformed_target(robot, qpos, contact, fps, deformation, tracker)
+    result = tracker.track(target, cancel=cancel)
+    score = tmr_score(result.qpos, result.contact, target.qpos, target.contact, np.asarray(log2_alpha), result.fell,
+                      settings.w_contact, settings.w_alpha)
+    return Evaluation(np.asarray(log2_alpha, float), score, result.fell,
+                      tracking_error_mm(result.keypoints, target.keypoints), target.horizon * tracker.dt_s,
+                      result.qpos, result.qvel, result.ctrl, result.contact, target.contact, result.keypoints,
+                      target.keypoints, time.perf_counter() - t0)
+
+
+def _check(motion, settings: TMRSettings) -> None:  # noqa: ANN001
+    check_log2_bound(settings.log2_bound)
+    check_segments(settings.segments, len(motion.qpos), motion.fps)
+
+
+def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any = None,  # noqa: ANN001
+                      progress: Callable[[BOProgress], None] | None = None,
+                      cancel: Callable[[], bool] | None = None) -> TMRResult:
+    """TMR of a kinematic motion (any object with fps, qpos, joint_names, contact (T, 4), robot)."""
+    from engine.robot.model import load_robot
+
+    settings = settings or TMRSettings()
+    _check(motion, settings)
+    t0 = time.perf_counter()
+    executor = executor or LocalExecutor()
+    qpos = np.asarray(motion.qpos, float)
+    contact = np.asarray(motion.contact, bool)
+    fps = float(motion.fps)
+    robot = load_robot(motion.robot)
+    _check_joint_order(robot, motion)
+
+    def submit(x: np.ndarray) -> Any:
+        return executor.submit(evaluate_alpha, motion.robot, qpos, contact, fps, x, settings,
+                               cancel if isinstance(executor, LocalExecutor) else None)
+
+    def collect(handles: list[Any]) -> list[tuple[Any, float, Evaluation]]:
+        return [(h, ev.score["score"], ev) for h, ev in executor.collect(handles)]
+
+    bo = bayes_optimise(submit, collect, settings.segments, settings.log2_bound,
+                        BOSettings(budget=settings.budget, init_points=settings.init_points, parallel=settings.parallel,
+                                   seed=settings.seed), progress=progress, cancel=cancel, abort=executor.cancel)
+    best: Evaluation = bo.best_payload
+    kin_keypoints = keypoint_trajectory(robot, qpos)
+    dtw = dtw_keypoint_l1_pct(best.keypoints, kin_keypoints)
+    out = dynamic_motion(robot, motion, best, settings)
+    alpha = (2.0 ** best.log2_alpha).tolist()
+    summary = {
+        "robot": motion.robot, "segments": settings.segments, "alpha": [round(a, 4) for a in alpha],
+        "duration_s": {"before": round((len(qpos) - 1) / fps, 4), "after": round(best.duration_s, 4)},
+        "bo_evaluations": bo.evaluations, "bo_converged": bo.converged, "score": round(best.score["score"], 5),
+        "replay_fell": bool(best.fell), "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
+        "tracking_error_mm": round(best.tracking_error_mm, 2), "contact_iou": round(best.score["contact_iou"], 4),
+        "base_l1_m": round(best.score["d_b_m"], 5), "euler_l1_rad": round(best.score["d_E_rad"], 5),
+        "wall_time_s": round(time.perf_counter() - t0, 2),
+    }
+    out.metrics = {**summary}
+    evaluations = [{"alpha": [round(2.0 ** float(v), 4) for v in x], "score": round(s, 5), "replay_fell": bool(ev.fell),
+                    "tracking_error_mm": round(ev.tracking_error_mm, 2), "duration_s": round(ev.duration_s, 3),
+                    "wall_time_s": round(ev.wall_time_s, 1)}
+                   for (x, s), ev in zip(bo.history, bo.payloads)]
+    return TMRResult(out, summary, evaluations)
+
+
+def _check_joint_order(robot, motion) -> None:  # noqa: ANN001
+    from engine.retarget.quadruped.tmr.kinematic_clips import mujoco_joint_names
+
+    expected = mujoco_joint_names(robot)
+    if list(motion.joint_names) != expected:
+        raise ValueError(f"joint_names: expected {robot.name}'s joints in MuJoCo order ({', '.join(expected)})")
+
+
+def dynamic_motion(robot, motion, ev: Evaluation, settings: TMRSettings) -> RobotMotion:  # noqa: ANN001
+    """The dynamic RobotMotion of an evaluation: at the control rate, ctrl[k] applied over [t_k, t_k+1) (the last
+    row repeats the last control), PD targets θ + (τ + K_d θ̇)/K_p with the robot's gains reproduce the torques."""
+    from engine.retarget.quadruped.tmr.kinematic_clips import mujoco_joint_names
+
+    names = mujoco_joint_names(robot)
+    act = [int(robot.mj_actuator_index[robot.joint_names.index(n)]) for n in names]
+    qadr = [int(robot.mj_qpos_index[robot.joint_names.index(n)]) for n in names]
+    dadr = [int(robot.mj_dof_index[robot.joint_names.index(n)]) for n in names]
+    kp = np.array([robot.kp[robot.joint_names.index(n)] for n in names])
+    kd = np.array([robot.kd[robot.joint_names.index(n)] for n in names])
+    tau = ev.ctrl[:, act]
+    tau = np.vstack([tau, tau[-1:]])
+    theta, dtheta = ev.qpos[:, qadr], ev.qvel[:, dadr]
+    pd = theta + (tau + kd * dtheta) / kp
+    deformation = TemporalDeformation.from_log2(ev.log2_alpha, (len(motion.qpos) - 1) / motion.fps)
+    return RobotMotion(
+        fps=1.0 / settings.timestep_s, qpos=ev.qpos, joint_names=names, contact=ev.contact_target, robot=robot.name,
+        method="stmr", keypoints=ev.keypoints, qvel=ev.qvel, ctrl=tau,
+        source={**getattr(motion, "source", {}), "kinematic_method": getattr(motion, "method", "unknown"),
+                "tmr": {k: v for k, v in asdict(settings).items()}},
+        extra={"pd_targets": pd, "pd_kp": kp, "pd_kd": kd, "alpha": 2.0 ** ev.log2_alpha,
+               "segment_knots_s": deformation.control_knots_s, "contact_sim": ev.contact_sim})
+
+
+def track_motion(motion, settings: TMRSettings | None = None, cancel: Callable[[], bool] | None = None) -> dict:  # noqa: ANN001
+    """Track any robot motion (UVM, SMR, STMR, keyframed) as it is (α = 1) with the same tracker and report the
+    figures the benchmark compares methods by: open-loop replay falls or not, tracking error (mm, against the
+    motion's own keypoints in time), DTW keypoint L1 (%)."""
+    from engine.robot.model import load_robot
+
+    settings = settings or TMRSettings()
+    robot = load_robot(motion.robot)
+    _check_joint_order(robot, motion)
+    qpos = np.asarray(motion.qpos, float)
+    ev = evaluate_alpha(motion.robot, qpos, np.asarray(motion.contact, bool), float(motion.fps), np.zeros(1), settings,
+                        cancel)
+    dtw = dtw_keypoint_l1_pct(ev.keypoints, keypoint_trajectory(robot, qpos))
+    return {"robot": motion.robot, "method": getattr(motion, "method", "unknown"), "replay_fell": bool(ev.fell),
+            "tracking_error_mm": round(ev.tracking_error_mm, 2),
+            "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
+            "contact_iou": round(ev.score["contact_iou"], 4), "wall_time_s": round(ev.wall_time_s, 2)}

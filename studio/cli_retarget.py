@@ -1,0 +1,156 @@
+"""Bodies of ``studio import``, ``studio retarget`` and ``studio export`` (quadruped retargeting, STMR).
+
+Every user error is one line naming the file and what was expected (CliError → exit 2); nothing is
+written unless the whole command succeeded (files are written atomically at the end).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from studio.cli import CliError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from engine.export import FORMATS as EXPORT_FORMATS
+    from engine.retarget.importers import FORMATS as IMPORT_FORMATS
+
+    imp = sub.add_parser("import", help="import a source motion (dog mocap, animation, video keypoints) as keypoints (npz)")
+    imp.add_argument("src", help="source file (format detected from its content)")
+    imp.add_argument("--out", required=True, help="output keypoint motion, e.g. motions/source/NAME.npz")
+    imp.add_argument("--format", default=None, choices=IMPORT_FORMATS, help="force the source format")
+
+    ret = sub.add_parser("retarget", help="retarget a source motion onto a quadruped (UVM or SMR)")
+    ret.add_argument("--source", required=True, help="any importable source or a motions/ keypoint npz")
+    ret.add_argument("--robot", required=True, help="target quadruped: go1, go2, a1, b1, anymal_c")
+    ret.add_argument("--method", default="smr", help="uvm | smr")
+    ret.add_argument("--baseless", action="store_true", help="remove the source's base trajectory and rebuild it (§VIII-E)")
+    ret.add_argument("--terrain", action="append", default=[], metavar="box:x,y,w,d,h",
+                     help="a box on the floor (metres; repeatable)")
+    ret.add_argument("--no-touchdowns", action="store_true",
+                     help="keep the source schedule even if a foot reaches the ground during a flight (Algorithm 1 lines 17-22 off)")
+    ret.add_argument("--flight", choices=("schedule", "exit"), default="schedule",
+                     help="flight arcs: land at the next scheduled contact (default; keeps the schedule, high arcs on "
+                          "slowed-down clips) or leave with the fitted exit velocity (the paper's; lands early)")
+    ret.add_argument("--format", default=None, choices=IMPORT_FORMATS, help="force the source format")
+    ret.add_argument("--out", required=True, help="output robot motion (.npz)")
+    ret.add_argument("--json", action="store_true", help="print the metrics as JSON")
+
+    exp = sub.add_parser("export", help="export a retargeted robot motion")
+    exp.add_argument("motion", help="a robot motion (.npz from studio retarget)")
+    exp.add_argument("--format", required=True, choices=EXPORT_FORMATS)
+    exp.add_argument("--out", required=True, help="output file")
+    exp.add_argument("--amp-full", action="store_true", help="amp-json: AMP_for_hardware's 61-value frames")
+
+
+def _load_source(path: str, fmt: str | None):
+    from engine.retarget.importers import import_source
+    from engine.retarget.motion import MotionFormatError
+
+    try:
+        return import_source(Path(path), fmt)
+    except MotionFormatError as exc:
+        raise CliError(str(exc)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CliError(f"{Path(path).name}: cannot read ({exc.__class__.__name__})") from None
+
+
+def _check_out(out: str, suffixes: tuple[str, ...]) -> Path:
+    path = Path(out)
+    if path.suffix.lower() not in suffixes:
+        raise CliError(f"--out {out}: expected a {' or '.join(suffixes)} file")
+    if path.is_dir():
+        raise CliError(f"--out {out}: is a directory")
+    return path
+
+
+def _write(out: Path, save) -> None:
+    try:
+        save(out)
+    except OSError as exc:
+        raise CliError(f"--out {out}: cannot write ({exc.strerror or exc.__class__.__name__})") from None
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    out = _check_out(args.out, (".npz",))
+    motion = _load_source(args.src, args.format)
+    _write(out, motion.save)
+    src = motion.source
+    print(f"{Path(args.src).name} → {out}: {motion.frames} frames at {motion.fps:g} fps ({motion.duration_s:.2f} s), "
+          f"format {src.get('format')}, contacts {src.get('contact_from', 'source')}"
+          + (f", legs {src['leg_order']} ({src['leg_order_from']})" if "leg_order" in src else ""))
+    return 0
+
+
+def _target_robot(name: str) -> str:
+    from engine.retarget.quadruped.pipeline import QUADRUPEDS
+    from engine.robot.config import RobotConfigError, load_robot_config
+
+    try:
+        cfg = load_robot_config(name)
+    except RobotConfigError as exc:
+        raise CliError(f"--robot {name}: {exc}") from None
+    if cfg.kind != "quadruped":
+        raise CliError(f"--robot {name}: expected a quadruped ({', '.join(QUADRUPEDS)}), {name} is a {cfg.kind}")
+    return name
+
+
+def cmd_retarget(args: argparse.Namespace) -> int:
+    from engine.retarget.quadruped.heightmap import parse_terrain
+    from engine.retarget.quadruped.pipeline import METHODS, RetargetOptions, retarget_detailed
+    from engine.retarget.quadruped.smr import SmrOptions
+
+    if args.method not in METHODS:
+        raise CliError(f"--method {args.method}: expected one of {', '.join(METHODS)}")
+    out = _check_out(args.out, (".npz",))
+    robot = _target_robot(args.robot)
+    try:
+        heightmap = parse_terrain(args.terrain)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    source = _load_source(args.source, args.format)
+    options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns, land_on_schedule=args.flight == "schedule"))
+    result = retarget_detailed(source, robot, args.method, options)
+    figures = result.motion.metrics
+    _write(out, result.motion.save)
+    if args.json:
+        print(json.dumps(figures, indent=1))
+    else:
+        print(f"{Path(args.source).name} → {robot} ({args.method}{', baseless' if args.baseless else ''}): "
+              f"{figures['frames']} frames, foot slide {_mm(figures['foot_slide_mm'])}, contact IoU "
+              f"{figures['contact_iou']:.3f}, penetration {figures['penetration_mm']:.2f} mm, keypoint error "
+              f"{figures['keypoint_error_mm']:.1f} mm, {figures['frames_per_s']:.0f} frames/s → {out}")
+    return 0
+
+
+def _mm(value) -> str:
+    return "n/a (no contact longer than 0.5 s)" if value is None else f"{value:.3f} mm"
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from engine.export import export_motion
+    from engine.retarget.motion import MotionFormatError, RobotMotion
+
+    suffix = {"amp-json": (".json", ".txt"), "unitree-csv": (".csv",), "npz": (".npz",)}[args.format]
+    out = _check_out(args.out, suffix)
+    try:
+        motion = RobotMotion.load(args.motion)
+    except MotionFormatError as exc:
+        raise CliError(str(exc)) from None
+    if args.amp_full and args.format != "amp-json":
+        raise CliError("--amp-full: only with --format amp-json")
+    if args.amp_full:
+        from engine.robot.config import RobotConfigError, load_robot_config
+
+        try:
+            kind = load_robot_config(motion.robot).kind
+        except RobotConfigError as exc:
+            raise CliError(f"{Path(args.motion).name}: robot: {exc}") from None
+        if kind != "quadruped" or len(motion.joint_names) != 12:
+            raise CliError(f"{Path(args.motion).name}: robot: --amp-full expects a 12-joint quadruped, got {motion.robot}")
+    _write(out, lambda path: export_motion(motion, args.format, path, amp_full=args.amp_full))
+    print(f"{Path(args.motion).name} → {out} ({args.format}{', 61-value AMP frames' if args.amp_full else ''}, "
+          f"{motion.frames} frames at {motion.fps:g} fps)")
+    return 0

@@ -1,0 +1,74 @@
+"""Temporal deformation s_α (STMR Fig. 3a): the paper's invariants as hypothesis properties."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.retarget.quadruped.tmr.deformation import (
+    DeformationError,
+    TemporalDeformation,
+    check_log2_bound,
+    check_segments,
+    interpolate_points,
+    interpolate_qpos,
+)
+
+log2s = st.lists(st.floats(-1.0, 1.0), min_size=1, max_size=5)
+
+
+@given(log2s, st.floats(0.2, 20.0))
+@settings(max_examples=60, deadline=None)
+def test_s_alpha_maps_the_deformed_clip_onto_the_source_monotonically(b: list[float], duration: float) -> None:
+    d = TemporalDeformation.from_log2(b, duration)
+    seg = duration / len(b)
+    assert d.duration_s == pytest.approx(sum(2.0**x for x in b) * seg)
+    t = np.linspace(0.0, d.duration_s, 200)
+    s = d(t)
+    assert s[0] == pytest.approx(0.0) and s[-1] == pytest.approx(duration)
+    assert np.all(np.diff(s) >= -1e-12)
+    # segment i of the source takes α_i · T/S of control time: its knots map onto the source's
+    np.testing.assert_allclose(d(d.control_knots_s), d.source_knots_s, atol=1e-9)
+    # inside segment i the source advances at rate 1/α_i
+    for i, x in enumerate(b):
+        a, c = d.control_knots_s[i], d.control_knots_s[i + 1]
+        mid = np.array([a + 0.25 * (c - a), a + 0.75 * (c - a)])
+        assert (d(mid[1]) - d(mid[0])) / (mid[1] - mid[0]) == pytest.approx(2.0 ** -x, rel=1e-6)
+
+
+def test_identity_alpha_keeps_time() -> None:
+    d = TemporalDeformation((1.0, 1.0, 1.0), 3.0)
+    t = np.linspace(0, 3, 31)
+    np.testing.assert_allclose(d(t), t)
+
+
+@given(st.integers(2, 40), st.floats(10.0, 200.0))
+@settings(max_examples=30, deadline=None)
+def test_linear_interpolation_hits_the_frames_and_keeps_unit_quaternions(frames: int, fps: float) -> None:
+    rng = np.random.default_rng(frames)
+    q = rng.standard_normal((frames, 10))
+    q[:, 3:7] /= np.linalg.norm(q[:, 3:7], axis=1, keepdims=True)
+    t_frames = np.arange(frames) / fps
+    out = interpolate_qpos(q, fps, t_frames)
+    np.testing.assert_allclose(np.abs(np.sum(out[:, 3:7] * q[:, 3:7], axis=1)), 1.0, atol=1e-9)
+    np.testing.assert_allclose(out[:, [0, 1, 2, 7, 8, 9]], q[:, [0, 1, 2, 7, 8, 9]], atol=1e-9)
+    mid = interpolate_qpos(q, fps, t_frames[:-1] + 0.5 / fps)
+    np.testing.assert_allclose(np.linalg.norm(mid[:, 3:7], axis=1), 1.0, atol=1e-9)
+    p = rng.standard_normal((frames, 16, 3))
+    np.testing.assert_allclose(interpolate_points(p, fps, t_frames[:-1] + 0.5 / fps), 0.5 * (p[:-1] + p[1:]), atol=1e-9)
+
+
+@pytest.mark.parametrize("bound", [0.0, -1.0, 2.5, float("nan")])
+def test_bad_bounds_are_refused(bound: float) -> None:
+    with pytest.raises(DeformationError):
+        check_log2_bound(bound)
+
+
+def test_segments_need_two_frames_each() -> None:
+    assert check_segments(3, 6, 50.0) == 3
+    with pytest.raises(DeformationError):
+        check_segments(0, 100, 50.0)
+    with pytest.raises(DeformationError):
+        check_segments(4, 7, 50.0)
