@@ -115,6 +115,9 @@ class RobotConfig:
     collision_face_budget: int = 400
     default_style: str | None = None
     gait: GaitLimits | None = None  # bipeds
+    # Per-robot tuning of the controllers: [control.wbc] overrides engine.control.wbc.WbcGains
+    # (field name → number; the names are checked when the controller is built).
+    wbc_gains: dict[str, float] = field(default_factory=dict)
 
     @property
     def simulated(self) -> bool:
@@ -182,7 +185,7 @@ def _kind_name(kind: type | tuple[type, ...]) -> str:
 
 _TOP_FIELDS = {
     "name", "display_name", "kind", "source", "model", "standing", "gains", "upper_body",
-    "feet", "fixes", "mesh", "default_style", "gait",
+    "feet", "fixes", "mesh", "default_style", "gait", "control",
 }
 
 
@@ -332,8 +335,12 @@ def load_config(path: Path) -> RobotConfig:
         if not lo <= gait.pelvis_height_m <= hi:
             raise r.fail("gait.pelvis_height_m", f"expected within pelvis_height_range_m [{lo}, {hi}]")
 
+    control = r.get(data, "control", "", dict, {})
+    r.unknown(control, {"wbc"}, "control.")
+    wbc_table = r.get(control, "wbc", "control.", dict, {})
+    wbc_gains = {k: r.get(wbc_table, k, "control.wbc.", float) for k in wbc_table}
     return RobotConfig(
-        gait=gait,
+        gait=gait, wbc_gains=wbc_gains,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,

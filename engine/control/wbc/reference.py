@@ -3,6 +3,8 @@ one tick (``WbcReference``), the diagnostics of a solve, and the friction pyrami
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -11,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.constants import SIDES
+from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel
 from typing import TYPE_CHECKING
 
@@ -77,12 +80,16 @@ class WbcGains:
 
     @classmethod
     def for_robot(cls, robot: RobotModel) -> WbcGains:
-        """Per-robot defaults (tuned in closed loop in MuJoCo)."""
-        if robot.name == "talos":
-            # Stiffer servos (kp 1000-1500) need a smaller share to keep the set-point PD from
-            # fighting the feed-forward torques.
-            return cls(servo_kp_scale=0.05, servo_kd_scale=0.2, swing_foot_kp=300.0, swing_foot_kd=35.0)
-        return cls()
+        """The defaults with the robot's ``[control.wbc]`` overrides from ``robots/<name>.toml``
+        (tuned in closed loop in MuJoCo). An unknown field is a config error naming the file and field."""
+        overrides = dict(getattr(robot.config, "wbc_gains", {}) or {})
+        known = {f.name for f in dataclasses.fields(cls)}
+        for key in overrides:
+            if key not in known:
+                close = difflib.get_close_matches(key, sorted(known), n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise RobotConfigError(f"{robot.config.path.name}: control.wbc.{key}: unknown WbcGains field{hint}")
+        return cls(**overrides)
 
 
 @dataclass
