@@ -100,6 +100,9 @@ SLOW_TESTS = (
     "tests/test_com_mpc.py::test_propagate_lip_matches_rk4",
     "tests/gait/test_planner.py::test_flat_feet_do_not_move_and_soles_stay_above_ground",
     "tests/test_cli.py::test_bench_sim_json",
+    "tests/gait/test_plan_cli.py::test_neutral_reaches_the_animators_speeds",  # shares the sweep-plan fixture
+    "tests/gait/test_planner.py::test_swing_feet_land_exactly_on_their_footholds_and_stay",
+    "tests/gait/test_planner.py::test_contact_events_follow_the_walk_cycle",
 )
 
 
