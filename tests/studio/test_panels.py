@@ -228,3 +228,33 @@ def test_joystick_tap_latches_and_toggles():
     np.testing.assert_allclose(joy.unit_command(), [0.0, 0.0, 1.0])
     joy.release(2, 1.0)  # tapping the same button again releases it
     np.testing.assert_allclose(joy.unit_command(), 0.0)
+
+
+def test_recovery_is_offered_only_for_edits_this_session_does_not_hold(session):
+    from dataclasses import replace
+
+    assert not session.recovery_available("neutral")  # a normal session: nothing to recover
+    sample = session.style.samples["in_place"]
+    wider = replace(sample, attributes=replace(sample.attributes, stance_width_m=0.3))
+    assert session.apply(session.style.with_sample("in_place", wider), "wider").ok
+    assert not session.recovery_available("neutral")  # its own autosave: the edits are right here
+    assert session.open("casual").ok  # the edits of neutral stay in its recovery file …
+    assert session.recovery_available("neutral")  # … and are offered
+    copy = session.recovery_path("casual")
+    copy.parent.mkdir(exist_ok=True)
+    shutil.copy(session.folder / "casual.json", copy)  # an autosave identical to the file
+    assert not session.recovery_available("casual")
+
+
+def test_saved_styles_keep_ordinary_file_modes(session):
+    import os
+
+    shipped = (session.folder / "neutral.json").stat().st_mode & 0o777
+    assert session.save_as("mine").ok
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert (session.folder / "mine.json").stat().st_mode & 0o777 == 0o666 & ~umask
+    os.chmod(session.folder / "neutral.json", 0o640)
+    assert session.open("neutral").ok and session.save().ok
+    assert (session.folder / "neutral.json").stat().st_mode & 0o777 == 0o640  # the replaced file's mode stays
+    assert shipped & 0o444
