@@ -258,3 +258,38 @@ def test_saved_styles_keep_ordinary_file_modes(session):
     assert session.open("neutral").ok and session.save().ok
     assert (session.folder / "neutral.json").stat().st_mode & 0o777 == 0o640  # the replaced file's mode stays
     assert shipped & 0o444
+
+
+def test_events_slider_spans_the_cycle_and_the_phase_bar_lines_up(server, session):
+    from studio.panels.sample_editor import phase_bar_html, timeline_max_s
+
+    assert timeline_max_s(0.8, 3.0) == pytest.approx(1.2) and timeline_max_s(2.5, 3.0) == 3.0
+    with server.gui.add_folder("timeline"):
+        editor = SampleEditor(server, session, Notes())
+    cycle = session.style.samples["in_place"].intervals.cycle_s
+    assert editor.timeline.max == pytest.approx(timeline_max_s(cycle, session.ctx.max_cycle_s))
+    assert editor.timeline.max < session.ctx.max_cycle_s  # not 0–3 s with the handles in its left third
+    bar = phase_bar_html(session.style.samples["in_place"].intervals, float(editor.timeline.max))
+    assert "transparent" in bar  # the bar spans the slider: the part after the cycle is left empty
+    editor.dropdown.value = "forward_fast"
+    fast = session.style.samples["forward_fast"].intervals.cycle_s
+    assert editor.timeline.max == pytest.approx(timeline_max_s(fast, session.ctx.max_cycle_s))
+
+
+def test_plots_follow_the_engine_clock():
+    from studio.panels.plots_panel import WINDOW_S, PlotsPanel
+
+    srv = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        plots = PlotsPanel(srv)
+        signals = {"sample_weights": np.eye(9)[2], "pelvis_z": np.array([0.7, 0.69]),
+                   "pelvis_yaw": np.array([0.0, 0.01]), "feedback": np.array([0.0, 0.0, 0.01, 0.0, 1.0])}
+        for k in range(400):  # 20 s of telemetry at 20 Hz, engine clock from 40 s
+            plots.add(40.0 + 0.05 * k, signals)
+        plots.render()
+        t = plots.weights.data[0]
+        assert t[-1] == pytest.approx(59.95) and t[0] >= 59.95 - WINDOW_S - 1e-9 and len(t) <= 120
+        assert plots.weights.scales["x"]["range"] == pytest.approx((59.95 - WINDOW_S, 59.95))
+        assert plots.tracking.scales["x"]["range"] == plots.weights.scales["x"]["range"]
+    finally:
+        srv.stop()
