@@ -55,6 +55,7 @@ from studio.style_session import EditResult, StyleSession
 log = logging.getLogger(__name__)
 
 PREVIEW_PERIOD_S = 0.1  # throttled session.apply while dragging (the engine sees edits at ~10 Hz)
+TYPING_PAUSE_S = 0.4  # a typed knot time/value applies once the keys pause this long
 AXIS_LOCK_RATIO = 4.0  # a knot drag this much more vertical than horizontal (~14°) keeps its time (and vice versa)
 DRAG_EDGE = 0.0  # a dragged knot this close (fraction of the range) to the view's edge, or beyond it, …
 DRAG_GROW = 0.25  # … grows the value range by this fraction beyond it, so the drag goes on past the view
@@ -1804,6 +1805,25 @@ class CurveEditor:
                 self._guarded(fn, event)
         return callback
 
+    def _typed(self, fn: Callable[[Any], Any]) -> Callable[[Any], None]:
+        """A GUI callback for a typed field: runs :data:`TYPING_PAUSE_S` after the last keystroke."""
+        callback = self._gui_cb(fn)
+        timer: list[threading.Timer | None] = [None]
+
+        def on_update(event: Any) -> None:
+            if self._syncing:
+                return
+            if timer[0] is not None:
+                timer[0].cancel()
+            if TYPING_PAUSE_S <= 0:
+                callback(event)
+                return
+            timer[0] = threading.Timer(TYPING_PAUSE_S, callback, args=(event,))
+            timer[0].daemon = True
+            timer[0].start()
+
+        return on_update
+
     def _sync(self, handle: Any, value: Any) -> None:
         """Set a widget value from the editor without running its edit callback."""
         prev = self._syncing
@@ -1876,9 +1896,12 @@ class CurveEditor:
         self.channel_dropdown.on_update(self._gui_cb(lambda e: self.set_active_channel(e.target.value)))
         self.normalize_checkbox.on_update(self._gui_cb(lambda e: self.frame_all()))
         self.cyclic_checkbox.on_update(self._gui_cb(lambda e: self.frame_all()))
-        self.time_input.on_update(self._gui_cb(lambda e: self.set_knot_values(t_s=e.target.value, client=e.client)))
-        self.value_input.on_update(self._gui_cb(lambda e: self.set_knot_values(value=e.target.value,
-                                                                               client=e.client)))
+        # Typed numbers apply when the typing pauses, not on every keystroke: each applied edit is
+        # validated, autosaved, sent to the engine and redrawn (under software WebGL the browser
+        # then lagged seconds behind the keys).
+        self.time_input.on_update(self._typed(lambda e: self.set_knot_values(t_s=e.target.value, client=e.client)))
+        self.value_input.on_update(self._typed(lambda e: self.set_knot_values(value=e.target.value,
+                                                                             client=e.client)))
         self.tangent_dropdown.on_update(self._gui_cb(self._on_tangent_dropdown))
         self.add_button.on_click(self._gui_cb(lambda e: self.add_knot_at_playhead(e.client)))
         self.delete_button.on_click(self._gui_cb(lambda e: self.delete_selected(e.client)))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -49,6 +50,7 @@ def session(g1_ctx, tmp_path) -> StyleSession:
 @pytest.fixture
 def editor(server, session, monkeypatch):
     monkeypatch.setattr(ce, "PREVIEW_PERIOD_S", 0.0)  # every drag update also applies a preview
+    monkeypatch.setattr(ce, "TYPING_PAUSE_S", 0.0)  # typed values apply at once
     ed = CurveEditor(server, session)
     yield ed
     ed.close()
@@ -542,3 +544,20 @@ def test_switching_to_an_empty_channel_clears_the_knot_fields(editor, session):
     assert editor.value_input.value == pytest.approx(curve(session, SWING).knots[1].value, abs=1e-6)
     editor.set_active_channel("left_foot.x")  # no curve
     assert editor.primary is None and editor.value_input.value == 0.0 and editor.value_input.disabled
+
+
+def test_typed_values_apply_once_when_the_keys_pause(server, session, monkeypatch):
+    monkeypatch.setattr(ce, "TYPING_PAUSE_S", 0.3)
+    ed = CurveEditor(server, session)
+    try:
+        ed.handle_knot_click(KnotRef(SWING, 1))
+        for typed in (0.0, 0.05, 0.055):  # keystrokes "0", ".05", "5"
+            ed.value_input.value = typed
+        assert session.undo_labels() == []  # nothing applied while typing
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not session.undo_labels():
+            time.sleep(0.05)
+        assert session.undo_labels() == [f"set knot on {SWING}"]  # one edit, the last value
+        assert curve(session, SWING).knots[1].value == pytest.approx(0.055)
+    finally:
+        ed.close()
