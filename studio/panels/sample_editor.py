@@ -28,6 +28,9 @@ ATTRIBUTE_LABELS = {
 }
 
 
+SLIDER_INSET_LEFT, SLIDER_INSET_RIGHT = "6.8rem", "0.7rem"  # where the Events slider's track begins / ends
+
+
 def timeline_max_s(cycle_s: float, max_cycle_s: float) -> float:
     """The Events slider's end: room to lengthen the cycle by half, in tenths of a second, so the four
     handles spread over the slider instead of crowding its left end."""
@@ -44,9 +47,11 @@ def phase_bar_html(iv: Intervals, span_s: float | None = None) -> str:
         parts.append(("", cycle, span_s, "transparent"))
     cells = "".join(
         f'<div title="{name} {a:.2f}–{b:.2f} s" style="flex:{max(b - a, 1e-3):.4f};background:{c};color:#fff;'
-        f'font-size:11px;text-align:center;overflow:hidden">{name} {b - a:.2f}</div>'
+        f'font-size:11px;text-align:center;overflow:hidden">{f"{name} {b - a:.2f}" if name else ""}</div>'
         for name, a, b, c in parts)
-    return (f'<div style="display:flex;height:20px;border-radius:4px;overflow:hidden;margin:2px 0">{cells}</div>'
+    # indented like the slider's track (viser puts a 7.25em − 0.6375em per folder level label on its left)
+    return (f'<div style="display:flex;height:20px;border-radius:4px;overflow:hidden;'
+            f'margin:2px {SLIDER_INSET_RIGHT} 2px {SLIDER_INSET_LEFT}">{cells}</div>'
             f'<div style="font-size:11px;color:#666">cycle {cycle:.2f} s · LLO 0 · LTD {t_ltd:.2f} · '
             f'RLO {t_rlo:.2f} · RTD {t_rtd:.2f}</div>')
 
