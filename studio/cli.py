@@ -132,6 +132,14 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise _config_error(exc) from None
     if not 0 < args.port < 65536:
         raise CliError(f"--port: expected 1..65535, got {args.port}")
+    import socket
+
+    with socket.socket() as probe:  # viser would silently take the next free port
+        try:
+            probe.bind((args.host, args.port))
+        except OSError as exc:
+            raise CliError(f"--port: {args.host}:{args.port} is not free ({exc.strerror}); "
+                           "stop what uses it or pick another with --port") from None
     from studio.access import is_loopback, token_from_env
     from studio.app import serve
 
@@ -277,13 +285,19 @@ def cmd_walk(args: argparse.Namespace) -> int:
     v = style.velocities
     requested = np.abs(schedule.values).max(axis=0)
     limits = np.array([v.x_max_mps, v.y_max_mps, v.yaw_max_radps])
-    if np.any(requested > limits + 1e-9):
+    clamped = bool(np.any(requested > limits + 1e-9))
+    if clamped:
         print(f"studio: warning: the command exceeds the style's limits (vx {v.x_max_mps}, vy {v.y_max_mps} m/s, "
               f"wz {v.yaw_max_radps} rad/s); it is clamped", file=sys.stderr)
     summary, arrays = run_walk(load_robot(args.robot), style, schedule, args.duration, pushes, wbc=args.wbc,
                                state_source=args.state, feedback=not args.no_feedback, record=out is not None)
     if out is not None:
         _save_npz(out, arrays)
+    summary["command_clamped"] = clamped
+    summary["command_limits"] = limits.tolist()
+    if len(np.unique(schedule.values, axis=0)) == 1:  # a constant command: what was asked, what was walked
+        summary["command_requested"] = schedule.values[0].tolist()
+        summary["command_applied"] = np.clip(schedule.values[0], -limits, limits).tolist()
     if args.json:
         print(json.dumps(summary, indent=1))
     else:

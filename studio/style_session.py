@@ -110,12 +110,23 @@ class StyleSession:
         return EditResult(True, f"opened {name}")
 
     def recovery_available(self, name: str) -> bool:
+        """Unsaved edits of ``name`` wait in its recovery file (a crash, or edits left by opening another
+        style) — not the open style's own autosave while its edits are still here, nor a copy of the file."""
         try:
             rec = self.recovery_path(name)
         except StyleError:
             return False
         target = self.folder / f"{name}.json"
-        return rec.is_file() and (not target.is_file() or rec.stat().st_mtime > target.stat().st_mtime)
+        if not rec.is_file():
+            return False
+        if self.path is not None and self.path.stem == name and self.dirty:
+            return False  # the recovery file mirrors the edits this session holds
+        try:
+            if target.is_file() and rec.stat().st_mtime <= target.stat().st_mtime:
+                return False
+            return not target.is_file() or json.loads(rec.read_text()) != json.loads(target.read_text())
+        except (OSError, ValueError):
+            return True
 
     def recover(self, name: str) -> EditResult:
         """Open the autosaved (unsaved) edits of ``name``; the session is dirty afterwards."""

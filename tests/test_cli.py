@@ -54,3 +54,29 @@ def test_bench_sim_json():
 def test_bench_rejects_unknown_section():
     out = run_studio("bench", "nosuch")
     assert out.returncode == 2 and "unknown bench section 'nosuch'" in out.stderr
+
+
+def test_serve_on_a_busy_port_fails_naming_the_port():
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        out = run_studio("serve", "--port", str(port), timeout=120)
+    assert out.returncode == 2, out.stdout + out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"127.0.0.1:{port}" in lines[0] and "not free" in lines[0], out.stderr
+
+
+def test_walk_json_records_the_clamped_command():
+    import json
+
+    out = run_studio("walk", "--command", "99,0,0", "--duration", "0.2", "--json", timeout=600)
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary["command_clamped"] is True
+    assert summary["command_requested"] == [99.0, 0.0, 0.0]
+    assert summary["command_applied"][0] == summary["command_limits"][0] < 99.0
+    calm = json.loads(run_studio("walk", "--command", "0.1,0,0", "--duration", "0.2", "--json", timeout=600).stdout)
+    assert calm["command_clamped"] is False and calm["command_applied"] == calm["command_requested"]
