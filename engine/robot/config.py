@@ -30,6 +30,7 @@ def robots_dir() -> Path:
 
 RobotKind = Literal["biped", "quadruped", "source-skeleton"]
 KINDS: tuple[str, ...] = ("biped", "quadruped", "source-skeleton")
+SOURCE_PACKAGES: tuple[str, ...] = ("example-robot-data", "local")
 
 
 class RobotConfigError(ValueError):
@@ -115,6 +116,9 @@ class RobotConfig:
     collision_face_budget: int = 400
     default_style: str | None = None
     gait: GaitLimits | None = None  # bipeds
+    # Where source.urdf/srdf live: "example-robot-data" (the package's share folder) or
+    # "local" (relative to this config file's folder: project-made robots such as the dino).
+    source_package: str = "example-robot-data"
 
     @property
     def simulated(self) -> bool:
@@ -205,7 +209,10 @@ def load_config(path: Path) -> RobotConfig:
         raise r.fail("kind", f"expected one of {', '.join(KINDS)}, got {kind!r}")
 
     source = r.get(data, "source", "", dict)
-    r.unknown(source, {"urdf", "srdf"}, "source.")
+    r.unknown(source, {"urdf", "srdf", "package"}, "source.")
+    source_package = r.get(source, "package", "source.", str, "example-robot-data")
+    if source_package not in SOURCE_PACKAGES:
+        raise r.fail("source.package", f"expected one of {', '.join(SOURCE_PACKAGES)}, got {source_package!r}")
     urdf = r.get(source, "urdf", "source.", str)
     srdf = r.get(source, "srdf", "source.", str, None)
 
@@ -326,7 +333,7 @@ def load_config(path: Path) -> RobotConfig:
             raise r.fail("gait.pelvis_height_m", f"expected within pelvis_height_range_m [{lo}, {hi}]")
 
     return RobotConfig(
-        gait=gait,
+        gait=gait, source_package=source_package,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,
