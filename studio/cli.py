@@ -52,6 +52,10 @@ def _parser() -> argparse.ArgumentParser:
     walk.add_argument("--out", default=None, help="write the recorded run (.npz)")
     walk.add_argument("--json", action="store_true", help="print the summary as JSON")
 
+    from studio.cli_library import add_parser as add_library_parser
+
+    add_library_parser(sub)
+
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -73,6 +77,10 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_plan(args)
         if args.subcommand == "walk":
             return cmd_walk(args)
+        if args.subcommand == "library":
+            from studio.cli_library import cmd_library
+
+            return cmd_library(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
