@@ -346,33 +346,40 @@ def talos_neutral() -> Style:
 
 
 def dino_neutral() -> Style:
+    # A short-legged character (ω = √(g/z) ≈ 5 /s against G1's 3.8): quick steps. Forward slow and
+    # fast hurry the cadence so that a push (velocity adjustment → Forward Fast) is caught with
+    # short steps the legs can reach. Turns step quickly too: a stance foot that must turn more
+    # than ~0.2 rad per step lands late and slides (measured: 7 mm at 0.8 rad/s with 0.7 s cycles).
     base = Recipe(cycle_s=0.7, swing_s=0.28, swing_height_m=0.04, width_m=0.15, pelvis_height_m=0.39)
-    slow = with_(base, cycle_s=0.62, swing_s=0.25)
-    fast = with_(base, cycle_s=0.52, swing_s=0.21, swing_height_m=0.045, pelvis_height_m=0.385)
+    slow = with_(base, cycle_s=0.56, swing_s=0.23)
+    fast = with_(base, cycle_s=0.5, swing_s=0.2, swing_height_m=0.045, pelvis_height_m=0.385)
     rev = with_(slow, swing_height_m=0.035, swing_toe_pitch_rad=0.3)
     strafe = with_(base, cycle_s=0.6, swing_s=0.24, width_m=0.16)
-    return make_style("neutral", "dino", "The nominal dino gait: even timing, neck and tail held still.",
-                      SampleVelocities(0.35, 0.15, 0.1, 0.8),
-                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.56, swing_s=0.22), strafe, base), DINO)
+    turn = with_(base, cycle_s=0.6, swing_s=0.25, swing_peak=0.4, swing_height_m=0.035)
+    return make_style("neutral", "dino", "The nominal dino gait: even timing, quick steps, neck and tail held still.",
+                      SampleVelocities(0.45, 0.15, 0.1, 0.5),
+                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.52, swing_s=0.21), strafe, turn), DINO)
 
 
 def dino_strut() -> Style:
-    # Paper §8.1's "dino gait": symmetric swings, a cycle that shortens a lot as it speeds up (a
-    # casual cadence in place, short quick steps at speed), the head bobbing like a bird's and the
-    # tail swinging against the hips with the wave travelling down it.
+    # Paper §8.1's "dino gait": symmetric swings, a cycle that halves from in place to forward
+    # fast (a casual cadence in place, short quick steps at speed), the head bobbing like a
+    # bird's and the tail swinging against the hips with the wave travelling down it.
     base = Recipe(cycle_s=1.0, swing_s=0.4, swing_height_m=0.05, width_m=0.15, pelvis_height_m=0.38,
                   pelvis_bob_m=0.006, neck_pitch_rad=0.35, head_bob_rad=0.12, head_hold_rad=0.8, head_yaw_rad=0.05,
                   tail_swing_rad=0.1, tail_lag_s=0.06, tail_lift_rad=-0.1, tail_bob_rad=0.05,
                   arm_swing_rad=0.15, pelvis_yaw_rad=0.04)
-    slow = with_(base, cycle_s=0.75, swing_s=0.3, head_bob_rad=0.15, tail_swing_rad=0.12)
+    slow = with_(base, cycle_s=0.7, swing_s=0.28, head_bob_rad=0.15, tail_swing_rad=0.12)
     fast = with_(base, cycle_s=0.5, swing_s=0.2, swing_height_m=0.045, pelvis_height_m=0.375, neck_pitch_rad=0.5,
                  head_bob_rad=0.1, tail_swing_rad=0.08, tail_lag_s=0.04, tail_lift_rad=-0.15, pelvis_bob_m=0.004)
     rev = with_(slow, swing_height_m=0.035, swing_toe_pitch_rad=0.3, head_bob_rad=0.08)
     strafe = with_(base, cycle_s=0.62, swing_s=0.25, width_m=0.16, tail_swing_rad=0.14)
+    turn = with_(base, cycle_s=0.6, swing_s=0.25, swing_peak=0.4, swing_height_m=0.035, head_bob_rad=0.08,
+                 tail_swing_rad=0.08, pelvis_yaw_rad=0.0)
     return make_style("strut", "dino", "Paper §8.1's dino gait: cadence doubles with speed, bird-like head bob "
                       "(neck dips at each touchdown, head held level), tail swings against the hips.",
-                      SampleVelocities(0.35, 0.15, 0.1, 0.8),
-                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.56, swing_s=0.22), strafe, base), DINO)
+                      SampleVelocities(0.4, 0.15, 0.1, 0.5),
+                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.56, swing_s=0.22), strafe, turn), DINO)
 
 
 STYLES = {
