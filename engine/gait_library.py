@@ -37,6 +37,7 @@ AXIS_UNITS = {"vx": "m/s", "vy": "m/s", "wz": "rad/s"}
 RAMP_S = 1.5  # command ramp from standing to the cell's velocity
 MAX_POINTS_PER_AXIS = 101
 SCHEMA = "motion-studio/gait-library"
+RAY_START_ATTEMPTS = 3
 SLIP_LIMIT_MM = 2.0  # the stack's stance-slip goal: above it a cell is marked as slipping
 
 
@@ -268,8 +269,7 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
         started_here = not ray.is_initialized()
         if started_here:
             kwargs = {"address": address} if address else {"num_cpus": workers or None, "include_dashboard": False}
-            ray.init(runtime_env=runtime_env, log_to_driver=False, configure_logging=False,
-                     **{k: v for k, v in kwargs.items() if v is not None})
+            _start_ray(ray, runtime_env, {k: v for k, v in kwargs.items() if v is not None})
         remote_cell = ray.remote(num_cpus=1, max_retries=1)(run_cell)
         limit = workers or max(1, int(ray.available_resources().get("CPU", 1)))
         pending: dict = {}
@@ -300,6 +300,22 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
     atomic_write_text(run.out / "index.json", json.dumps(index, indent=1))
     write_summary_png(index, run.out / "summary.png")
     return {**index, "ran": done, "skipped": skipped}
+
+
+def _start_ray(ray, runtime_env: dict, kwargs: dict, attempts: int = RAY_START_ATTEMPTS) -> None:  # noqa: ANN001
+    """``ray.init``, retried: a local raylet that takes more than Ray's fixed 30 s to register (a
+    loaded machine) fails the first attempt; a cluster that cannot be reached is one line."""
+    last: Exception | None = None
+    for _ in range(attempts):
+        try:
+            ray.init(runtime_env=runtime_env, log_to_driver=False, configure_logging=False, **kwargs)
+            return
+        except Exception as exc:  # noqa: BLE001 - Ray raises plain Exception/ConnectionError here
+            last = exc
+            ray.shutdown()
+    where = f"the Ray cluster at {kwargs['address']}" if "address" in kwargs else "a local Ray"
+    message = str(last).splitlines()[0] if str(last) else type(last).__name__
+    raise LibraryError(f"--address: could not start {where} ({attempts} attempts): {message}")
 
 
 # ----------------------------------------------------------------------------- the figure
