@@ -313,9 +313,10 @@ def _start_ray(ray, runtime_env: dict, kwargs: dict, attempts: int = RAY_START_A
         except Exception as exc:  # noqa: BLE001 - Ray raises plain Exception/ConnectionError here
             last = exc
             ray.shutdown()
-    where = f"the Ray cluster at {kwargs['address']}" if "address" in kwargs else "a local Ray"
+    where = f"--address: could not connect to the Ray cluster at {kwargs['address']}" if "address" in kwargs \
+        else "Ray: could not start a local Ray"
     message = str(last).splitlines()[0] if str(last) else type(last).__name__
-    raise LibraryError(f"--address: could not start {where} ({attempts} attempts): {message}")
+    raise LibraryError(f"{where} ({attempts} attempts): {message}")
 
 
 # ----------------------------------------------------------------------------- the figure

@@ -47,12 +47,14 @@ def test_grid_has_the_product_of_its_axes_evenly_spaced(specs, present):
 
 
 @given(lo=finite, hi=finite, n=st.integers(-3, 0))
+@settings(deadline=None)
 def test_zero_point_grids_are_refused(lo, hi, n):
     with pytest.raises(GridError, match="at least 1 point"):
         parse_grid(f"vx={min(lo, hi)}:{max(lo, hi)}:{n}")
 
 
 @given(lo=finite, hi=finite, n=st.integers(2, 9))
+@settings(deadline=None)
 def test_reversed_bounds_are_refused(lo, hi, n):
     if lo <= hi:
         lo, hi = hi + 0.5, lo
