@@ -119,6 +119,8 @@ class RobotConfig:
     # Where source.urdf/srdf live: "example-robot-data" (the package's share folder) or
     # "local" (relative to this config file's folder: project-made robots such as the dino).
     source_package: str = "example-robot-data"
+    # [control.gait_feedback]: per-robot gait feedback gains (engine/control/gait_feedback.py names).
+    gait_feedback: dict[str, float | tuple[float, float]] = field(default_factory=dict)
 
     @property
     def simulated(self) -> bool:
@@ -184,7 +186,7 @@ def _kind_name(kind: type | tuple[type, ...]) -> str:
 
 _TOP_FIELDS = {
     "name", "display_name", "kind", "source", "model", "standing", "gains", "upper_body",
-    "feet", "fixes", "mesh", "default_style", "gait",
+    "feet", "fixes", "mesh", "default_style", "gait", "control",
 }
 
 
@@ -332,8 +334,24 @@ def load_config(path: Path) -> RobotConfig:
         if not lo <= gait.pelvis_height_m <= hi:
             raise r.fail("gait.pelvis_height_m", f"expected within pelvis_height_range_m [{lo}, {hi}]")
 
+    control = r.get(data, "control", "", dict, {})
+    r.unknown(control, {"gait_feedback"}, "control.")
+    feedback_table = r.get(control, "gait_feedback", "control.", dict, {})
+    gait_feedback: dict[str, float | tuple[float, float]] = {}
+    for key, value in feedback_table.items():
+        where = f"control.gait_feedback.{key}"
+        if isinstance(value, list):
+            if len(value) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value) \
+                    or not 0 < value[0] < value[1]:
+                raise r.fail(where, f"expected [low, high] with 0 < low < high, got {value!r}")
+            gait_feedback[key] = (float(value[0]), float(value[1]))
+        else:
+            gait_feedback[key] = r.get(feedback_table, key, "control.gait_feedback.", float)
+            if gait_feedback[key] < 0:
+                raise r.fail(where, f"expected a non-negative number, got {value!r}")
+
     return RobotConfig(
-        gait=gait, source_package=source_package,
+        gait=gait, source_package=source_package, gait_feedback=gait_feedback,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,
