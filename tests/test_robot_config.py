@@ -94,3 +94,25 @@ def test_local_source_is_read_next_to_the_config(tmp_path):
     with pytest.raises(RobotConfigError) as err:
         source_path(load_config(moved), "dino/dino.urdf")
     assert "dino.toml: source.urdf: dino/dino.urdf not found" in str(err.value)
+
+
+def test_gait_feedback_gains_come_from_the_config(tmp_path, monkeypatch):
+    from engine.control.gait_feedback import GaitFeedbackGains
+
+    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
+    dino = GaitFeedbackGains.for_robot("dino")
+    assert dino.velocity_cutoff_hz == load_robot_config("dino").gait_feedback["velocity_cutoff_hz"] == 0.5
+    assert dino.step_max_m == GaitFeedbackGains().step_max_m  # what the table leaves out keeps its default
+    text = (robots_dir() / "dino.toml").read_text()
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = 0.8\nkappa_single = [0.7, 1.5]"))
+    monkeypatch.setenv("MOTION_STUDIO_ROBOTS", str(tmp_path))
+    assert GaitFeedbackGains.for_robot("dino").kappa_single == (0.7, 1.5)
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kdd = 0.8"))
+    with pytest.raises(RobotConfigError, match=r"^dino.toml: control.gait_feedback.velocity_kdd: unknown gain"):
+        GaitFeedbackGains.for_robot("dino")
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = [0.8, 0.9]"))
+    with pytest.raises(RobotConfigError, match=r"control.gait_feedback.velocity_kd: expected a number"):
+        GaitFeedbackGains.for_robot("dino")
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = -1"))
+    with pytest.raises(RobotConfigError, match=r"control.gait_feedback.velocity_kd: expected a non-negative"):
+        load_config(tmp_path / "dino.toml")
