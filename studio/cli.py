@@ -63,6 +63,9 @@ def _parser() -> argparse.ArgumentParser:
     from studio.cli_retarget import register as register_retarget
 
     register_retarget(sub)
+    from studio.cli_library import add_parser as add_library_parser
+
+    add_library_parser(sub)
 
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
@@ -107,6 +110,10 @@ def main(argv: list[str] | None = None) -> int:
             from studio import cli_arms
 
             return cli_arms.dispatch(args) or 0
+        if args.subcommand == "library":
+            from studio.cli_library import cmd_library
+
+            return cmd_library(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

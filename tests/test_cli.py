@@ -13,10 +13,12 @@ def test_robots_table_lists_the_library_with_figures():
     lines = out.stdout.strip().splitlines()
     assert lines[0].split()[:2] == ["name", "kind"]
     rows = {line.split()[0]: line.split() for line in lines[1:]}
-    assert set(rows) == {"g1", "talos", "go1", "go2", "a1", "b1", "anymal_c", "human"}
+    assert set(rows) == {"g1", "talos", "dino", "go1", "go2", "a1", "b1", "anymal_c", "human"}
     g1 = rows["g1"]
     assert g1[1] == "biped" and g1[2] == "29" and abs(float(g1[3]) - 33.3) < 0.2 and abs(float(g1[4]) - 1.32) < 0.03
     assert rows["go1"][1] == "quadruped" and rows["go1"][2] == "12"
+    dino = rows["dino"]
+    assert dino[1] == "biped" and dino[2] == "20" and 16.0 < float(dino[3]) < 18.0 and 0.6 < float(dino[4]) < 0.8
     assert rows["human"][1] == "source-skeleton"
 
 
