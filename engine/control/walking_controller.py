@@ -42,6 +42,8 @@ LATERAL_XI_INSET_M = 0.03  # a foot lands at least this far outward of ξ at tou
 LATERAL_CAPTURE_MARGIN_M = 0.0  # ξ this far beyond the stance foot's outer edge hurries the gait
 OBSERVER_TIME_CONSTANT_S = 0.08  # push observer: response time ...
 OBSERVER_DEADBAND_N_PER_KG = 0.25  # ... and the force per kg below which model errors hide pushes
+OBSERVER_HOLD_SWING_SHARE = 0.15  # the observer holds over this last share of a swing ...
+OBSERVER_HOLD_AFTER_TOUCHDOWN_PLAN_TICKS = 5  # ... and this many planner ticks (40 ms) after touchdown
 DCM_ERROR_GROWTH_CAP = 2.5  # at most this growth of the measured ξ error is expected by touchdown
 DCM_ERROR_DEADBAND_M = 0.04  # measured ξ errors below this are left to the MPC (a push is larger)
 STEP_REACH_SHARE = 0.8  # share of the CoP's reach a step may rely on (rest: margin for tracking)
@@ -114,6 +116,7 @@ class WalkingController:
         self.observer = ExternalForceObserver(robot.mass_kg, time_constant_s=OBSERVER_TIME_CONSTANT_S,
                                               deadband_n_per_kg=OBSERVER_DEADBAND_N_PER_KG)
         self._mpc_shift = np.zeros(2)  # the MPC plans in a frame shifted by −f_ext/(m ω²)
+        self._landing = False  # a foot is landing: the observer holds
         self.state_source = state_source
         self.model = robot.pin_model
         self.data = self.model.createData()
@@ -178,6 +181,7 @@ class WalkingController:
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
+        self._landing = False
         self._com_z = None
         com = pin.centerOfMass(self.model, data, q, state.v)
         self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
@@ -196,7 +200,8 @@ class WalkingController:
         self.estimate = est
         pin.centerOfMass(self.model, self.data, est.q, est.v)
         self._com_now = (self.data.com[0].copy(), self.data.vcom[0].copy())
-        self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2], self._ground_force)
+        # Around a landing the ground force is an impact the QP did not plan: the observer holds.
+        self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2], None if self._landing else self._ground_force)
         t_est = time.perf_counter()
         self.timings = StepTimings(estimator=t_est - t_start)
         if self.tick % TICKS_PER_PLAN == 0:
@@ -252,6 +257,9 @@ class WalkingController:
         self._feet_feedforward(ref)
         self.ref = ref
         self._relatch_landed_feet(est, contact_before)
+        self._landing = any(
+            (not ref.contact[i] and ref.swing_progress[i] > 1.0 - OBSERVER_HOLD_SWING_SHARE)
+            or 0 <= self._since_touchdown[i] < OBSERVER_HOLD_AFTER_TOUCHDOWN_PLAN_TICKS for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
         # CoM MPC over the planner's contact preview; initial conditions continue the last plan.
@@ -286,7 +294,10 @@ class WalkingController:
         if not plan.ok or lost:
             # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
             # on its footholds: restart it from the robot's state and keep the more capturable one.
-            retry = self.mpc.solve(ref.t_s, com, com_vel, cop0, z_com, supports)
+            # The restart's CoP starts where it best holds the robot's ξ (a CoP can move at once;
+            # one left on the trailing foot while ξ runs past the new one throws the robot on).
+            xi = com + com_vel / math.sqrt(omega2)
+            retry = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(xi, supports[0].polygon), z_com, supports)
             if retry.ok and (not plan.ok or np.linalg.norm(retry.final_capture_point_xy_m - goal)
                              < np.linalg.norm(plan.final_capture_point_xy_m - goal)):
                 plan = retry
