@@ -17,6 +17,8 @@ import numpy as np
 from engine.robot.config import robot_names
 from engine.robot.model import load_robot
 from engine.sim import Simulation
+from engine.bench_push import bench_push
+from engine.bench_styles import bench_styles
 
 SIM_BENCH_ROBOTS = ("g1", "talos", "go1", "go2", "a1", "b1", "anymal_c")
 
@@ -202,10 +204,12 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
     return [row]
 
 
-SECTIONS: dict[str, Callable[[], list[dict]]] = {
+SECTIONS: dict[str, Callable[..., list[dict]]] = {
     "sim": bench_sim, "reference": bench_reference, "mpc": bench_mpc, "wbc": bench_wbc,
     "estimator": bench_estimator, "stack": bench_stack, "edit": bench_edit_latency,
+    "push": bench_push, "styles": bench_styles,
 }
+BATCH_SECTIONS = ("push", "styles")  # minutes to hours of closed-loop walks: only when asked for
 
 
 def percentiles_us(samples_s: list[float] | np.ndarray) -> dict[str, float]:

@@ -55,6 +55,9 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    from engine.bench_options import add_bench_options
+
+    add_bench_options(bench)  # options of the closed-loop batch sections (styles, push)
     return parser
 
 
@@ -249,15 +252,17 @@ def cmd_walk(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from engine.bench import SECTIONS
+    from engine.bench import BATCH_SECTIONS, SECTIONS
 
-    sections = args.sections or list(SECTIONS)
+    sections = args.sections or [s for s in SECTIONS if s not in BATCH_SECTIONS]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")
     rows: list[dict] = []
+    from engine.bench_options import run_section
+
     for section in sections:
-        rows.extend(SECTIONS[section]())
+        rows.extend(run_section(SECTIONS[section], args))
     if args.json:
         print(json.dumps({"rows": rows, "cpu_count": os.cpu_count()}, indent=1))
         return 0
