@@ -87,7 +87,14 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     pending = sorted(pushes, key=lambda p: p.t_s)
     rec: dict[str, list] = {k: [] for k in ("t", "qpos", "qvel", "command", "contact", "com", "com_ref", "cop",
                                             "foot_pos", "foot_ref", "kappa", "step_adjust", "velocity_adjust",
-                                            "sample_weights", "base_vel_body", "external_force")}
+                                            "sample_weights", "base_vel_body", "external_force",
+                                            "pelvis_height_ref", "pelvis_height_achieved", "pelvis_yaw_ref",
+                                            "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved")}
+    # The paper's Fig. 14 tracking quantities: pelvis height, pelvis yaw and an elbow.
+    upper = list(controller.ctx.upper_joints)
+    elbow = next((j for j in upper if "elbow" in j and "left" in j), next((j for j in upper if "elbow" in j), None))
+    elbow_ref_index = upper.index(elbow) if elbow is not None else None
+    elbow_qpos = int(robot.mj_model.joint(elbow).qposadr[0]) if elbow is not None else None
     timings: dict[str, list[float]] = {"planner": [], "mpc": [], "wbc": [], "sim": [], "estimator": []}
     slip_start: list[np.ndarray | None] = [None, None]
     contact_since = [0.0, 0.0]
@@ -181,6 +188,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["sample_weights"].append(tel.sample_weights.copy())
             rec["base_vel_body"].append(v_body)
             rec["external_force"].append(tel.external_force_n.copy())
+            rec["pelvis_height_ref"].append(ref.pelvis_z)
+            rec["pelvis_height_achieved"].append(float(data.xpos[root][2]))
+            rec["pelvis_yaw_ref"].append(math.atan2(ref.pelvis_rot[1, 0], ref.pelvis_rot[0, 0]))
+            rec["pelvis_yaw_achieved"].append(yaw)
+            rec["elbow_ref"].append(float(ref.upper_q[elbow_ref_index]) if elbow_ref_index is not None else math.nan)
+            rec["elbow_achieved"].append(float(data.qpos[elbow_qpos]) if elbow_qpos is not None else math.nan)
     wall = time.perf_counter() - wall0
     sim_time = sim.time_s
     err = np.array(vel_err) if vel_err else np.zeros((1, 3))

@@ -80,6 +80,10 @@ def _parser() -> argparse.ArgumentParser:
     from studio import cli_arms
 
     cli_arms.register(sub)
+
+    from engine.bench.options import add_bench_options
+
+    add_bench_options(bench)  # options of the closed-loop batch sections (styles, push)
     return parser
 
 
@@ -317,13 +321,15 @@ def cmd_walk(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from engine.bench import BATCH_SECTIONS
     from engine.bench import SECTIONS as ENGINE_SECTIONS
+    from engine.bench.options import run_section
     from studio.bench_edit import bench_edit_latency
     from studio.bench_engine import bench_engine
     from studio.bench_soak import bench_soak
 
     SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
-    sections = args.sections or [s for s in SECTIONS if s != "soak"]
+    sections = args.sections or [s for s in SECTIONS if s != "soak" and s not in BATCH_SECTIONS]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")
@@ -331,8 +337,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise CliError(f"--minutes/--clients: expected 0 < M ≤ 1440 and 1 ≤ C ≤ 64, got {args.minutes}, {args.clients}")
     rows: list[dict] = []
     for section in sections:
-        kwargs = {"minutes": args.minutes, "clients": args.clients} if section == "soak" else {}
-        rows.extend(SECTIONS[section](**kwargs))
+        rows.extend(run_section(SECTIONS[section], args))
     if args.json:
         print(json.dumps({"rows": rows, "cpu_count": os.cpu_count()}, indent=1))
         return 0

@@ -82,7 +82,23 @@ def _arms() -> list[dict]:
     return bench_arms()
 
 
-SECTIONS: dict[str, Callable[[], list[dict]]] = {
+def _push(**options) -> list[dict]:
+    from engine.bench.options import call_with_known
+    from engine.bench.push import bench_push
+
+    return call_with_known(bench_push, options)
+
+
+def _styles(**options) -> list[dict]:
+    from engine.bench.options import call_with_known
+    from engine.bench.styles import bench_styles
+
+    return call_with_known(bench_styles, options)
+
+
+SECTIONS: dict[str, Callable[..., list[dict]]] = {
     "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "qp": _qp, "estimator": _estimator,
     "stack": _stack, "retarget": _retarget, "tmr": _tmr, "arms": _arms,
+    "push": _push, "styles": _styles,
 }
+BATCH_SECTIONS = ("push", "styles")  # minutes to hours of closed-loop walks on Ray: only when asked for

@@ -5,11 +5,16 @@ t_RTD, T_S; t_LLO is 0) and a bar showing swing and support phases. Every edit g
 the style session: one that breaks a constraint (event order, minimum single/double
 support, attribute ranges) is refused with the validator's message and the controls snap
 back (as in the paper's Fig. 10). Curve knots rescale with their interval.
+
+Below the controls, the engine's edit-time feasibility check (engine/gait/feasibility.py) of
+the selected sample, rerun in the background after every edit (latest wins): the phase and
+what to change when the robot could not walk it, before Test is pressed.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import replace
 from typing import TYPE_CHECKING, Callable
 
@@ -80,6 +85,10 @@ class SampleEditor:
             hint="t_LTD, t_RLO, t_RTD, cycle T_S (left liftoff is 0); the slider ends at 1.5× the cycle "
                  "(pick the sample again to extend it)")
         self.message = server.gui.add_markdown("")
+        self.feasibility = server.gui.add_markdown("")
+        self._check_wanted: tuple | None = None  # (style, sample) the check should look at next
+        self._check_event = threading.Event()
+        threading.Thread(target=self._check_loop, name="feasibility-check", daemon=True).start()
         ranges = {
             "stance_width_m": ctx.stance_width_range_m, "stance_splay_rad": (-0.6, 0.6), "stance_x_bias_m": (-0.2, 0.2),
             "liftoff_transition_s": (0.0, 0.5), "touchdown_transition_s": (0.0, 0.5),
@@ -181,3 +190,44 @@ class SampleEditor:
                 self.dropdown.value = self.sample_name
         finally:
             self._syncing = False
+        self._request_check()
+
+    # ------------------------------------------------------------------ feasibility
+    def _request_check(self) -> None:
+        wanted = (self.session.style, self.sample_name)
+        if self._check_wanted is not None and wanted[0] is self._check_wanted[0] and wanted[1] == self._check_wanted[1]:
+            return
+        self._check_wanted = wanted
+        self.feasibility.content = "<small>checking the sample…</small>"
+        self._check_event.set()
+
+    def _check_loop(self) -> None:
+        from engine.gait.feasibility import check_style
+        from engine.robot.model import load_robot
+
+        while True:
+            self._check_event.wait()
+            self._check_event.clear()
+            wanted = self._check_wanted
+            if wanted is None or wanted[0] is None:
+                continue
+            style, name = wanted
+            try:
+                findings = check_style(load_robot(self.session.robot), style, samples=(name,))
+            except Exception as exc:  # noqa: BLE001 - the check must never break the panel
+                text = f"<small>feasibility check failed: {exc}</small>"
+            else:
+                text = feasibility_markdown(name, findings)
+            if self._check_wanted is wanted:  # an edit since then: its own check follows
+                self.feasibility.content = text
+
+
+def feasibility_markdown(sample: str, findings: list, limit: int = 3) -> str:
+    """The check's findings for one sample as the panel shows them."""
+    if not findings:
+        return f"✅ **{sample}**: nothing in the way of walking it"
+    lines = [f"⚠️ **{f.sample}**, around {f.phase_pct:.0f} % of the cycle: {f.message}" for f in findings[:limit]]
+    more = len(findings) - limit
+    if more > 0:
+        lines.append(f"<small>… and {more} more</small>")
+    return "\n\n".join(lines)
