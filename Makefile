@@ -1,6 +1,7 @@
 # Motion Studio — two commands do all set-up on a fresh machine:
 #   make studio   install if needed, then serve http://127.0.0.1:8080 with the default robot
 #   make test     install if needed (and Debian's chromium for the browser tests), run every test
+#   make test-fast  the development tier: unit, property and fuzz tests (no `slow`, no `e2e` markers)
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
@@ -9,7 +10,7 @@ STAMP  := $(VENV)/.installed
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup studio test chromium bench clean-cache
+.PHONY: setup studio test test-fast chromium bench clean-cache
 
 setup: $(STAMP)
 
@@ -29,6 +30,9 @@ chromium:
 
 test: setup chromium
 	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow and not e2e" $(PYTEST_ARGS)
 
 bench: setup
 	$(VENV)/bin/studio bench

@@ -99,9 +99,11 @@ class EngineCore:
         try:
             self._handle(command)
         except RobotConfigError as exc:
-            self.emit(msg.Notice("error", str(exc)))
+            self.emit(msg.Notice("error", _one_line(str(exc))))
         except (ValueError, KeyError, TypeError) as exc:
-            self.emit(msg.Notice("error", f"{command.kind}: {exc}"))
+            self.emit(msg.Notice("error", _one_line(f"{command.kind}: {exc}")))
+        except Exception as exc:  # noqa: BLE001 - a malformed command must not kill the engine (a restart replays it)
+            self.emit(msg.Notice("error", _one_line(f"{command.kind}: refused ({type(exc).__name__}: {exc})")))
 
     def _handle(self, command: msg.Command) -> None:
         if isinstance(command, msg.Reset):
@@ -299,3 +301,9 @@ def _tracked_arm_joint(upper: tuple[str, ...]) -> str:
 
 
 CONTROL_RATE_HZ = 1.0 / CONTROL_PERIOD_S
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    """A notice is one line (library errors, e.g. MuJoCo's overload lists, span several)."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"

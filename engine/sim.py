@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from engine.constants import CONTROL_PERIOD_S  # noqa: F401 - re-exported: the control tick
 from engine.control.controller import Controller, JointCommand, RobotState, StandingPdController
 from engine.control.static_balance import static_contact_torques
 from engine.robot.model import RobotModel
 
-CONTROL_PERIOD_S = 0.002  # 500 Hz, one physics step per control tick
 FALL_HEIGHT_FRACTION = 0.55  # base below this fraction of its standing height → fallen
 FALL_TILT_RAD = 1.0  # base tilted more than this from upright → fallen
 
@@ -73,6 +74,7 @@ class Simulation:
     # ------------------------------------------------------------------ control
     def reset(self, qpos: np.ndarray | None = None) -> None:
         mujoco.mj_resetData(self.model, self.data)
+        self._pushed = True  # clear any applied force on the next tick
         self.data.qpos[:] = self.robot.mj_standing_qpos() if qpos is None else qpos
         self.data.qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
@@ -91,7 +93,7 @@ class Simulation:
 
     def enable_imu(self, noise: object | None = None, seed: int = 0) -> None:
         """Attach the simulated IMU: controllers then receive ``state.imu`` samples."""
-        from engine.control.estimator import ImuNoise, MujocoImu
+        from engine.imu import ImuNoise, MujocoImu
 
         self.imu = MujocoImu(self.model, noise=noise if noise is not None else ImuNoise(), seed=seed)
 
@@ -114,19 +116,20 @@ class Simulation:
         self.data.ctrl[self.robot.mj_actuator_index] = tau
 
     def _apply_pushes(self) -> None:
+        if not self.pushes and not self._pushed:
+            return  # nothing applied last tick, nothing to apply now
         self.data.xfrc_applied[:] = 0.0
         t = self.time_s
         self.pushes = [p for p in self.pushes if t < p.start_s + p.duration_s]
         for p in self.pushes:
             self.data.xfrc_applied[p.body_id, 0:3] += p.force_n
+        self._pushed = bool(self.pushes)
 
     def detect_fall(self) -> bool:
-        z = float(self.data.qpos[2])
-        w = float(np.clip(abs(self.data.qpos[3]), 0.0, 1.0))
-        qz = self.data.qpos[4:7]
+        qpos = self.data.qpos
+        z, qx, qy = float(qpos[2]), float(qpos[4]), float(qpos[5])
         # Tilt: angle between the base z axis and world z.
-        up_z = 1.0 - 2.0 * (qz[0] ** 2 + qz[1] ** 2)
-        tilt = float(np.arccos(np.clip(up_z, -1.0, 1.0)))
-        del w
+        up_z = 1.0 - 2.0 * (qx * qx + qy * qy)
+        tilt = math.acos(min(max(up_z, -1.0), 1.0)) if math.isfinite(up_z) else math.inf
         return bool(z < FALL_HEIGHT_FRACTION * self.standing_base_z or tilt > FALL_TILT_RAD
-                    or not np.all(np.isfinite(self.data.qpos)))
+                    or not math.isfinite(float(qpos.sum())))

@@ -17,7 +17,8 @@ import numpy as np
 from engine.control.walking_controller import WalkingController
 from engine.gait.command_schedule import CommandSchedule
 from engine.gait.style import SIDES, Style
-from engine.geometry import convex_hull_2d
+from engine.constants import GRAVITY_MPS2
+from engine.geometry.polygon import convex_hull_2d, point_in_polygon
 from engine.robot.model import RobotModel
 from engine.sim import Simulation
 
@@ -43,23 +44,6 @@ class PushSpec:
         if not all(math.isfinite(v) for v in (t, fx, fy, fz, dur)) or t < 0 or dur <= 0:
             raise ValueError(f"--push: expected finite numbers with t ≥ 0 and dur > 0, got {text!r}")
         return cls(t, (fx, fy, fz), dur)
-
-
-def _point_in_polygon(p: np.ndarray, poly: np.ndarray, margin: float) -> bool:
-    if len(poly) < 3:
-        if len(poly) == 2:  # a line contact: distance to the segment
-            a, b = poly
-            d = b - a
-            s = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-12), 0, 1)
-            return float(np.linalg.norm(p - (a + s * d))) <= margin
-        return len(poly) == 1 and float(np.linalg.norm(p - poly[0])) <= margin
-    for i in range(len(poly)):
-        a, b = poly[i], poly[(i + 1) % len(poly)]
-        edge = b - a
-        cross = edge[0] * (p[1] - a[1]) - edge[1] * (p[0] - a[0])
-        if cross < -margin * float(np.linalg.norm(edge)):
-            return False
-    return True
 
 
 class ContactMeter:
@@ -103,7 +87,14 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     pending = sorted(pushes, key=lambda p: p.t_s)
     rec: dict[str, list] = {k: [] for k in ("t", "qpos", "qvel", "command", "contact", "com", "com_ref", "cop",
                                             "foot_pos", "foot_ref", "kappa", "step_adjust", "velocity_adjust",
-                                            "sample_weights", "base_vel_body", "external_force")}
+                                            "sample_weights", "base_vel_body", "external_force",
+                                            "pelvis_height_ref", "pelvis_height_achieved", "pelvis_yaw_ref",
+                                            "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved")}
+    # The paper's Fig. 14 tracking quantities: pelvis height, pelvis yaw and an elbow.
+    upper = list(controller.ctx.upper_joints)
+    elbow = next((j for j in upper if "elbow" in j and "left" in j), next((j for j in upper if "elbow" in j), None))
+    elbow_ref_index = upper.index(elbow) if elbow is not None else None
+    elbow_qpos = int(robot.mj_model.joint(elbow).qposadr[0]) if elbow is not None else None
     timings: dict[str, list[float]] = {"planner": [], "mpc": [], "wbc": [], "sim": [], "estimator": []}
     slip_start: list[np.ndarray | None] = [None, None]
     contact_since = [0.0, 0.0]
@@ -111,8 +102,10 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     cop_checks = cop_inside = 0
     fell, fall_time = False, None
     path_len, last_xy = 0.0, sim.data.qpos[:2].copy()
-    vel_window: list[np.ndarray] = []
-    cmd_window: list[np.ndarray] = []
+    window = int(1.0 / dt)
+    # Running sums of body velocity and command: 1 s means without re-summing a window every tick.
+    vel_sum = np.zeros((n + 1, 3))
+    cmd_sum = np.zeros((n + 1, 3))
     vel_err: list[np.ndarray] = []
     com_err: list[float] = []
     wall0 = time.perf_counter()
@@ -145,14 +138,11 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         v_world = data.qvel[0:3]
         wz = float(data.qvel[5]) if False else float((data.xmat[root].reshape(3, 3) @ data.qvel[3:6])[2])
         v_body = np.array([c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1], wz])
-        vel_window.append(v_body)
-        cmd_window.append(ref.command.copy())
-        window = int(1.0 / dt)
-        if len(vel_window) > window:
-            vel_window.pop(0)
-            cmd_window.pop(0)
-            if t > 2.0:
-                vel_err.append(np.mean(vel_window, axis=0) - np.mean(cmd_window, axis=0))
+        vel_sum[k + 1] = vel_sum[k] + v_body
+        cmd_sum[k + 1] = cmd_sum[k] + ref.command
+        if k + 1 > window and t > 2.0:
+            vel_err.append(((vel_sum[k + 1] - vel_sum[k + 1 - window]) - (cmd_sum[k + 1] - cmd_sum[k + 1 - window]))
+                           / window)
         # CoM tracking: measured horizontal CoM against the MPC's reference.
         if k % 4 == 0 and controller.plan is not None:
             com_err.append(float(np.linalg.norm(data.subtree_com[root][:2] - controller.plan.com_at(ref.t_s)[0])))
@@ -172,12 +162,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         # CoP inside the support polygon of the feet the controller has on the ground (the plan's,
         # plus a landing foot from the moment it touches down a few ms early).
         cop, fz = meter.cop(data)
-        if cop is not None and fz > 0.2 * robot.mass_kg * 9.81:
+        if cop is not None and fz > 0.2 * robot.mass_kg * GRAVITY_MPS2:
             support = controller.wbc_contact.any(axis=1)  # the feet the controller stands on
             corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
             if corners:
                 cop_checks += 1
-                cop_inside += _point_in_polygon(cop, convex_hull_2d(np.array(corners)), COP_MARGIN_M)
+                cop_inside += point_in_polygon(cop, convex_hull_2d(np.array(corners)), COP_MARGIN_M)
         if record and k % 4 == 0:
             tel = controller.telemetry
             fb = tel.feedback
@@ -198,6 +188,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["sample_weights"].append(tel.sample_weights.copy())
             rec["base_vel_body"].append(v_body)
             rec["external_force"].append(tel.external_force_n.copy())
+            rec["pelvis_height_ref"].append(ref.pelvis_z)
+            rec["pelvis_height_achieved"].append(float(data.xpos[root][2]))
+            rec["pelvis_yaw_ref"].append(math.atan2(ref.pelvis_rot[1, 0], ref.pelvis_rot[0, 0]))
+            rec["pelvis_yaw_achieved"].append(yaw)
+            rec["elbow_ref"].append(float(ref.upper_q[elbow_ref_index]) if elbow_ref_index is not None else math.nan)
+            rec["elbow_achieved"].append(float(data.qpos[elbow_qpos]) if elbow_qpos is not None else math.nan)
     wall = time.perf_counter() - wall0
     sim_time = sim.time_s
     err = np.array(vel_err) if vel_err else np.zeros((1, 3))

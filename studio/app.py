@@ -18,24 +18,30 @@ from engine.robot.config import load_robot_config
 from engine.robot.model import load_robot
 from studio.engine_link import EngineLink
 from studio.overlays import Overlays
-from studio.panels.drive_panel import DrivePanel
+from studio.panels.drive_panel import GHOST_OFFSETS, DrivePanel
 from studio.panels.plots_panel import PlotsPanel
 from studio.panels.robot_panel import RobotPanel
 from studio.robot_view import RobotView
 from studio.style_session import StyleSession
 
 STATUS_PERIOD_S = 0.25
-GHOST_OFFSET = (0.0, -0.9, 0.0)  # the reference ghost walks beside the simulated robot (camera side)
+PLOT_EVERY_TICKS = 2  # plots redraw at 2 Hz: each redraw costs the browser's main thread (typing, 3D)
 GRAPH_OFFSET = (-2.4, 0.6, 0.15)  # the curve graph stands well left of the robot: nothing occludes it
 LIMIT_RED = np.array([230, 40, 40])
 
 
 class Studio:
-    def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None):
+    def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None,
+                 token: str | None = None):
         load_robot_config(robot)  # fail fast, before any server or process starts
         self.robot_name = robot
         self.styles_folder = styles_folder
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
+        self.token = token
+        if token:
+            from studio.access import require_token
+
+            require_token(self.server, token)  # before any client can see a style
         self.server.scene.set_up_direction("+z")
         self.server.gui.configure_theme(control_layout="fixed", control_width="large", dark_mode=False, show_logo=False)
         self.server.initial_camera.position = (2.0, -2.2, 1.3)
@@ -43,9 +49,10 @@ class Studio:
         self.server.scene.add_grid("/ground", width=40.0, height=40.0, plane="xy", cell_size=0.25,
                                    section_size=1.0, shadow_opacity=0.2)
         self.view = RobotView(self.server)
-        self.ghost_root = self.server.scene.add_frame("/ghost", position=GHOST_OFFSET, show_axes=False, visible=False)
+        self.ghost_root = self.server.scene.add_frame("/ghost", show_axes=False, visible=False)
         self.ghost_view = RobotView(self.server, root="/ghost/robot", opacity=0.35)
         self.ghost_visible = True
+        self.ghost_offset = GHOST_OFFSETS["on robot"]
         self.overlays = Overlays(self.server)
         self.mode = "stand"
         self.robot_simulated = True
@@ -61,17 +68,17 @@ class Studio:
         self._limit_bodies: list[str] = []
         self._shade_cache: dict[str, tuple[str, float]] = {}
 
-        tabs = self.server.gui.add_tab_group()
+        tabs = self.server.gui.add_tab_group()  # text only: the tabs fit one row even in a narrow panel
         quadruped_first = load_robot_config(robot).kind == "quadruped"  # quadrupeds open on the Retarget workspace
         if quadruped_first:
-            self.tab_retarget = tabs.add_tab("Retarget", viser.Icon.DOG)
-        self.tab_robot = tabs.add_tab("Robot", viser.Icon.ROBOT)
-        self.tab_style = tabs.add_tab("Style", viser.Icon.PALETTE)
-        self.tab_sample = tabs.add_tab("Sample", viser.Icon.ADJUSTMENTS)
-        self.tab_curves = tabs.add_tab("Curves", viser.Icon.CHART_LINE)
-        self.tab_plots = tabs.add_tab("Plots", viser.Icon.CHART_DOTS)
+            self.tab_retarget = tabs.add_tab("Retarget")
+        self.tab_robot = tabs.add_tab("Robot")
+        self.tab_style = tabs.add_tab("Style")
+        self.tab_sample = tabs.add_tab("Sample")
+        self.tab_curves = tabs.add_tab("Curves")
+        self.tab_plots = tabs.add_tab("Plots")
         if not quadruped_first:
-            self.tab_retarget = tabs.add_tab("Retarget", viser.Icon.DOG)
+            self.tab_retarget = tabs.add_tab("Retarget")
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)
@@ -124,6 +131,7 @@ class Studio:
                     self._style_folders.append(folder)
             return
         session = StyleSession(robot, folder=(self.styles_folder / robot) if self.styles_folder else None)
+        session.warn = lambda text: self._notify("warning", text)
         opened = session.open(cfg.default_style)
         if not opened.ok:
             self._notify("error", opened.message)
@@ -160,16 +168,31 @@ class Studio:
             self.server.gui.add_markdown("The curve editor is not available in this build.")
             return None
         editor = CurveEditor(self.server, session)
-        editor.root_frame.position = GRAPH_OFFSET
+        editor.root_frame.position = tuple(np.asarray(self.drive.camera.robot_ground) + GRAPH_OFFSET)
+        editor.root_frame.visible = self.mode == "edit"
         look_at_graph = editor.look_at_graph
 
-        def look_at_graph_and_stay(client, *args, **kwargs):
-            self.drive.follow.value = False  # the camera stays on the graph
-            return look_at_graph(client, *args, **kwargs)
+        def look_at_graph_and_follow(client, *args, **kwargs):
+            """Frame the graph; "Camera follows robot" stays as it is (camera and graph travel together)."""
+            if not self.drive.following:
+                self.place_graph(self.drive.camera.robot_ground)  # bring it beside the robot first
+            editor.root_frame.visible = True
+            look_at_graph(client, *args, **kwargs)
+            self.drive.camera.adopt(client)
 
-        editor.look_at_graph = look_at_graph_and_stay
+        editor.look_at_graph = look_at_graph_and_follow
+        editor.on_sample_picked = self.select_sample
         editor.set_sample(self.sample_editor.sample_name if self.sample_editor else "in_place")
         return editor
+
+    def select_sample(self, name: str) -> None:
+        """One selected sample for the Sample tab, the Curves tab and the walk of Edit mode."""
+        if self.sample_editor is not None and self.sample_editor.sample_name != name:
+            self.sample_editor.select(name)  # → _on_sample
+
+    @property
+    def sample_name(self) -> str:
+        return self.sample_editor.sample_name if self.sample_editor else "in_place"
 
     def _on_sample(self, name: str) -> None:
         if self.curve_editor is not None:
@@ -237,6 +260,7 @@ class Studio:
             self.overlays.update(s)
         self.plots.add(event.sim_time_s, s)
         if "ghost_body_pos" in s and self.ghost_visible:
+            self._place_ghost()
             self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
                                              np.zeros(0), False, False, 0.0))
         self._shade_joint_limits(s.get("joint_limit_proximity"))
@@ -309,20 +333,42 @@ class Studio:
         self.link.send(msg.SetMode(mode, {"sample": sample}))
         self.overlays.set_visible(mode != "stand" and self.drive.show_overlays.value)
         self.set_ghost_visible(self.drive.show_ghost.value)
+        if self.curve_editor is not None:
+            self.curve_editor.root_frame.visible = mode == "edit"  # the graph is for editing a walking sample
+        self.drive.camera.recentre()
 
     def set_ghost_visible(self, visible: bool) -> None:
         self.ghost_visible = visible
         self.ghost_root.visible = visible and self.mode != "stand"
 
-    def follow_robot(self, position: np.ndarray) -> None:
-        """Keep the curve graph beside the robot (not while the user drags on it)."""
+    def set_ghost_offset(self, label: str) -> None:
+        """Draw the ghost on the robot or beside it (one of :data:`GHOST_OFFSETS`)."""
+        self.ghost_offset = GHOST_OFFSETS.get(label, GHOST_OFFSETS["on robot"])
+        self._place_ghost()
+
+    def _place_ghost(self) -> None:
+        """The ghost's frame: the chosen offset turned with the robot's heading (beside stays beside)."""
+        forward, left = self.ghost_offset
+        yaw = self.robot_yaw_rad() if (forward or left) else 0.0
+        c, s = np.cos(yaw), np.sin(yaw)
+        position = (c * forward - s * left, s * forward + c * left, 0.0)
+        if tuple(self.ghost_root.position) != position:
+            self.ghost_root.position = position
+
+    def place_graph(self, robot_ground) -> None:
+        """Put the curve graph at its place beside the robot (called while the camera follows the robot,
+        with the same translation as the camera, so the graph stays put on screen)."""
         editor = self.curve_editor
-        if editor is None or getattr(editor, "_drag", None) is not None:
+        if editor is None:
             return
-        target = np.array([position[0] + GRAPH_OFFSET[0], position[1] + GRAPH_OFFSET[1], GRAPH_OFFSET[2]])
-        current = np.asarray(editor.root_frame.position, dtype=float)
-        if np.linalg.norm(target - current) > 0.05:
-            editor.root_frame.position = tuple(current + 0.3 * (target - current))
+        target = tuple(float(v) for v in np.asarray(robot_ground, dtype=float) + GRAPH_OFFSET)
+        if np.linalg.norm(np.subtract(target, editor.root_frame.position)) > 1e-3:
+            editor.root_frame.position = target
+
+    @property
+    def dragging(self) -> bool:
+        """A knot or tangent handle of the curve graph is being dragged."""
+        return self.curve_editor is not None and self.curve_editor.dragging
 
     def velocity_limits(self) -> np.ndarray:
         if self.session is None or self.session.style is None:
@@ -361,19 +407,32 @@ class Studio:
                 state = "paused" if frame.paused else ("fallen" if frame.fallen else "running")
                 x, y = (float(v) for v in frame.body_pos[0][:2])
                 yaw_deg = float(np.degrees(self.robot_yaw_rad()))
-                text = (f"Engine {state} · pid {pid} · {frame.mode} mode · t = {frame.sim_time_s:.1f} s · "
+                walking = f" ({self.sample_name})" if frame.mode == "edit" else ""
+                text = (f"Engine {state} · pid {pid} · {frame.mode} mode{walking} · t = {frame.sim_time_s:.1f} s · "
                         f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m, "
                         f"yaw {yaw_deg:+.0f}°")
             self.robot_panel.show_status(text)
+            if tick % PLOT_EVERY_TICKS:
+                continue
             try:
                 self.plots.render()
             except Exception:  # noqa: BLE001 - plots are cosmetic
                 pass
 
 
-def serve(robot: str, host: str, port: int) -> None:
-    studio = Studio(robot, host, port).start()
-    print(f"Motion Studio: {studio.url}  (robot {robot}; Ctrl+C to stop)", flush=True)
+def serve(robot: str, host: str, port: int, token: str | None = None) -> None:
+    from studio.access import browser_url
+
+    studio = Studio(robot, host, port, token=token).start()
+    url = browser_url(host, studio.server.get_port(), token) if token or host != "127.0.0.1" else studio.url
+    print(f"Motion Studio: {url}  (robot {robot}; Ctrl+C to stop)", flush=True)
+
+    def terminate(signum, frame):  # SIGTERM: stop like Ctrl+C (engine shut down; autosaves are atomic)
+        raise KeyboardInterrupt
+
+    import signal
+
+    signal.signal(signal.SIGTERM, terminate)
     try:
         while True:
             time.sleep(1.0)

@@ -18,14 +18,22 @@ class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as ONE line (``studio walk: error: ...``), exit 2, like every other user error."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="studio", description="Motion Studio: author stylized walking gaits for robots.")
+    parser = _Parser(prog="studio", description="Motion Studio: author stylized walking gaits for robots.")
     sub = parser.add_subparsers(dest="subcommand", required=True)
 
     serve = sub.add_parser("serve", help="serve the studio in the browser")
     serve.add_argument("--robot", default=None, help="robot to open (default: g1)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     serve.add_argument("--port", type=int, default=8080)
+    serve.add_argument("--token", default=None, help="require this access token from browsers (env MOTION_STUDIO_TOKEN)")
 
     sub.add_parser("robots", help="list the robot library")
 
@@ -55,14 +63,27 @@ def _parser() -> argparse.ArgumentParser:
     from studio.cli_retarget import register as register_retarget
 
     register_retarget(sub)
+    from studio.cli_library import add_parser as add_library_parser
+
+    add_library_parser(sub)
 
     bench = sub.add_parser("bench", help="measure performance figures side by side")
     bench.add_argument("sections", nargs="*", help="sections to run (default: all)")
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    bench.add_argument("--minutes", type=float, default=1.0, help="soak: how long to drive the studio")
+    bench.add_argument("--clients", type=int, default=4, help="soak: headless WebSocket clients")
 
     from studio import cli_tmr
 
     cli_tmr.register(sub)
+
+    from studio import cli_arms
+
+    cli_arms.register(sub)
+
+    from engine.bench.options import add_bench_options
+
+    add_bench_options(bench)  # options of the closed-loop batch sections (styles, push)
     return parser
 
 
@@ -89,6 +110,14 @@ def main(argv: list[str] | None = None) -> int:
             from studio import cli_tmr
 
             return cli_tmr.cmd_tmr(args) if args.subcommand == "tmr" else cli_tmr.cmd_retarget_batch(args)
+        if args.subcommand in ("train-arms", "puppet", "stream-bvh"):
+            from studio import cli_arms
+
+            return cli_arms.dispatch(args) or 0
+        if args.subcommand == "library":
+            from studio.cli_library import cmd_library
+
+            return cmd_library(args)
     except CliError as exc:
         print(f"studio: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -114,9 +143,24 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise _config_error(exc) from None
     if not 0 < args.port < 65536:
         raise CliError(f"--port: expected 1..65535, got {args.port}")
+    import socket
+
+    with socket.socket() as probe:  # viser would silently take the next free port
+        try:
+            probe.bind((args.host, args.port))
+        except OSError as exc:
+            raise CliError(f"--port: {args.host}:{args.port} is not free ({exc.strerror}); "
+                           "stop what uses it or pick another with --port") from None
+    from studio.access import is_loopback, token_from_env
     from studio.app import serve
 
-    serve(robot, args.host, args.port)
+    token = args.token or token_from_env()
+    if token is not None and not token.strip():
+        raise CliError("--token: expected a non-empty token")
+    if not is_loopback(args.host) and not token:
+        print(f"studio: warning: --host {args.host}: anyone on the network can read and write styles and motions; "
+              "pass --token TOKEN (or set MOTION_STUDIO_TOKEN) to require an access token", file=sys.stderr)
+    serve(robot, args.host, args.port, token=token)
     return 0
 
 
@@ -198,6 +242,9 @@ def _npz_path(spec: str) -> Path:
     out = Path(spec)
     if out.suffix != ".npz":
         raise CliError(f"--out: expected a .npz file, got {spec!r}")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir() or not os.access(folder, os.W_OK) or out.is_dir():
+        raise CliError(f"--out: expected a writable file in an existing folder, got {spec!r}")  # before the run
     return out
 
 
@@ -211,7 +258,10 @@ def _save_npz(out: Path, arrays: dict) -> None:
 
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    atomic_write_bytes(out, buf.getvalue())
+    try:
+        atomic_write_bytes(out, buf.getvalue())
+    except OSError as exc:  # full disk, folder removed meanwhile: nothing half-written (atomic), one line
+        raise CliError(f"--out: could not write {out}: {exc.strerror or exc}") from None
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
@@ -246,13 +296,19 @@ def cmd_walk(args: argparse.Namespace) -> int:
     v = style.velocities
     requested = np.abs(schedule.values).max(axis=0)
     limits = np.array([v.x_max_mps, v.y_max_mps, v.yaw_max_radps])
-    if np.any(requested > limits + 1e-9):
+    clamped = bool(np.any(requested > limits + 1e-9))
+    if clamped:
         print(f"studio: warning: the command exceeds the style's limits (vx {v.x_max_mps}, vy {v.y_max_mps} m/s, "
               f"wz {v.yaw_max_radps} rad/s); it is clamped", file=sys.stderr)
     summary, arrays = run_walk(load_robot(args.robot), style, schedule, args.duration, pushes, wbc=args.wbc,
                                state_source=args.state, feedback=not args.no_feedback, record=out is not None)
     if out is not None:
         _save_npz(out, arrays)
+    summary["command_clamped"] = clamped
+    summary["command_limits"] = limits.tolist()
+    if len(np.unique(schedule.values, axis=0)) == 1:  # a constant command: what was asked, what was walked
+        summary["command_requested"] = schedule.values[0].tolist()
+        summary["command_applied"] = np.clip(schedule.values[0], -limits, limits).tolist()
     if args.json:
         print(json.dumps(summary, indent=1))
     else:
@@ -265,15 +321,23 @@ def cmd_walk(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from engine.bench import SECTIONS
+    from engine.bench import BATCH_SECTIONS
+    from engine.bench import SECTIONS as ENGINE_SECTIONS
+    from engine.bench.options import run_section
+    from studio.bench_edit import bench_edit_latency
+    from studio.bench_engine import bench_engine
+    from studio.bench_soak import bench_soak
 
-    sections = args.sections or list(SECTIONS)
+    SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
+    sections = args.sections or [s for s in SECTIONS if s != "soak" and s not in BATCH_SECTIONS]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")
+    if not (0 < args.minutes <= 24 * 60) or not (1 <= args.clients <= 64):
+        raise CliError(f"--minutes/--clients: expected 0 < M ≤ 1440 and 1 ≤ C ≤ 64, got {args.minutes}, {args.clients}")
     rows: list[dict] = []
     for section in sections:
-        rows.extend(SECTIONS[section]())
+        rows.extend(run_section(SECTIONS[section], args))
     if args.json:
         print(json.dumps({"rows": rows, "cpu_count": os.cpu_count()}, indent=1))
         return 0

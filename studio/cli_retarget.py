@@ -98,7 +98,7 @@ def _target_robot(name: str) -> str:
 
 
 def cmd_retarget(args: argparse.Namespace) -> int:
-    from engine.retarget.quadruped.heightmap import parse_terrain
+    from engine.retarget.heightmap import parse_terrain
     from engine.retarget.quadruped.pipeline import METHODS, RetargetOptions, retarget_detailed
     from engine.retarget.quadruped.smr import SmrOptions
 

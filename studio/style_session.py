@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import threading
 import time
 from dataclasses import dataclass
@@ -20,6 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 from engine.atomic_io import atomic_write_text
+from engine.paths import NAME_PATTERN, PathError, confined
 from engine.gait.style import (
     Style,
     StyleContext,
@@ -32,7 +32,6 @@ from engine.gait.style import (
 )
 
 UNDO_LIMIT = 200
-NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_\-]{0,63}$")
 
 
 @dataclass(frozen=True)
@@ -57,6 +56,8 @@ class StyleSession:
         self._listeners: list[Callable[[Style, str], None]] = []
         self._lock = threading.RLock()
         self.last_error = ""
+        self.warn: Callable[[str], None] | None = None  # tells the user (autosave failures)
+        self._autosave_failed = False
 
     # ------------------------------------------------------------------ listeners
     def subscribe(self, callback: Callable[[Style, str], None]) -> None:
@@ -76,19 +77,23 @@ class StyleSession:
 
     # ------------------------------------------------------------------ files
     def style_names(self) -> list[str]:
-        return sorted(p.stem for p in self.folder.glob("*.json"))
+        return sorted(p.stem for p in self.folder.glob("*.json") if NAME_PATTERN.match(p.stem))
 
     def path_for(self, name: str) -> Path:
         """``styles/<robot>/<name>.json`` — names only, so pickers never leave the folder."""
-        if not NAME_PATTERN.match(name or ""):
-            raise StyleError("name", f"expected letters, digits, '-' or '_' (max 64), got {name!r}", "style")
-        path = (self.folder / f"{name}.json").resolve()
-        if path.parent != self.folder.resolve():
-            raise StyleError("name", "expected a style inside the robot's styles folder", "style")
-        return path
+        try:
+            return confined(self.folder, name, ".json")
+        except PathError as exc:
+            raise StyleError(exc.field_path, exc.detail, "style") from None
 
     def recovery_path(self, name: str) -> Path:
-        return self.folder / ".autosave" / f"{name}.json"
+        try:
+            path = confined(self.folder / ".autosave", name, ".json")
+        except PathError as exc:
+            raise StyleError(exc.field_path, exc.detail, "recovery") from None
+        if path.parent.parent != self.folder.resolve():  # .autosave itself must not lead elsewhere
+            raise StyleError("name", "expected the .autosave folder inside the styles folder", "recovery")
+        return path
 
     def open(self, name: str) -> EditResult:
         try:
@@ -105,14 +110,28 @@ class StyleSession:
         return EditResult(True, f"opened {name}")
 
     def recovery_available(self, name: str) -> bool:
-        rec = self.recovery_path(name)
+        """Unsaved edits of ``name`` wait in its recovery file (a crash, or edits left by opening another
+        style) — not the open style's own autosave while its edits are still here, nor a copy of the file."""
+        try:
+            rec = self.recovery_path(name)
+        except StyleError:
+            return False
         target = self.folder / f"{name}.json"
-        return rec.is_file() and (not target.is_file() or rec.stat().st_mtime > target.stat().st_mtime)
+        if not rec.is_file():
+            return False
+        if self.path is not None and self.path.stem == name and self.dirty:
+            return False  # the recovery file mirrors the edits this session holds
+        try:
+            if target.is_file() and rec.stat().st_mtime <= target.stat().st_mtime:
+                return False
+            return not target.is_file() or json.loads(rec.read_text()) != json.loads(target.read_text())
+        except (OSError, ValueError):
+            return True
 
     def recover(self, name: str) -> EditResult:
         """Open the autosaved (unsaved) edits of ``name``; the session is dirty afterwards."""
-        rec = self.recovery_path(name)
         try:
+            rec = self.recovery_path(name)
             style = load_style(rec, self.ctx, expected_robot=self.robot)
         except StyleError as exc:
             return self._refuse(str(exc))
@@ -127,7 +146,12 @@ class StyleSession:
         with self._lock:
             if self.style is None or self.path is None:
                 return self._refuse("nothing to save")
-            atomic_write_text(self.path, dumps_style(self.style))
+            try:
+                atomic_write_text(self.path, dumps_style(self.style))  # the old file stays whole on failure
+            except OSError as exc:  # full disk, read-only folder, ...: say so; the edits stay open and dirty
+                kept = "" if self._autosave_failed else " and in the recovery file"
+                return self._refuse(f"could not save {self.path.name}: {exc.strerror or exc}; your edits stay "
+                                    f"open{kept}")
             self.dirty = False
             self.recovery_path(self.path.stem).unlink(missing_ok=True)
         self._notify("save")
@@ -229,7 +253,12 @@ class StyleSession:
         try:
             atomic_write_text(rec, dumps_style(self.style))
         except OSError as exc:  # a full disk must not lose the edit in memory
-            self.last_error = f"autosave failed: {exc}"
+            self.last_error = f"autosave failed: {exc.strerror or exc}; the edits are only in memory, save elsewhere"
+            if not self._autosave_failed and self.warn is not None:
+                self.warn(self.last_error)  # once per failure streak
+            self._autosave_failed = True
+        else:
+            self._autosave_failed = False
 
     def _refuse(self, message: str) -> EditResult:
         self.last_error = message

@@ -87,3 +87,26 @@ from hypothesis import settings as _hyp_settings  # noqa: E402
 _hyp_settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     _hyp_settings.load_profile("ci")
+
+
+# The fast tier (`make test-fast`: -m "not slow and not e2e") leaves out these long tests too. They were
+# the slowest of the tier (30 s to 4.5 min each on this 2-core machine under load, `--durations`); marked
+# here rather than in their files, which other branches are editing (move the marker there later).
+SLOW_TESTS = (
+    "tests/gait/test_planner.py::test_reference_is_c1_while_the_command_changes_smoothly",
+    "tests/control/test_engine_modes.py::",
+    "tests/gait/test_plan_cli.py::test_sweep_plan_has_the_documented_fields_and_properties",
+    "tests/test_robot_models.py::test_disk_cache_reproduces_a_fresh_build",
+    "tests/test_com_mpc.py::test_propagate_lip_matches_rk4",
+    "tests/gait/test_planner.py::test_flat_feet_do_not_move_and_soles_stay_above_ground",
+    "tests/test_cli.py::test_bench_sim_json",
+    "tests/gait/test_plan_cli.py::test_neutral_reaches_the_animators_speeds",  # shares the sweep-plan fixture
+    "tests/gait/test_planner.py::test_swing_feet_land_exactly_on_their_footholds_and_stay",
+    "tests/gait/test_planner.py::test_contact_events_follow_the_walk_cycle",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.nodeid.startswith(SLOW_TESTS):
+            item.add_marker(pytest.mark.slow)

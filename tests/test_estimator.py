@@ -24,8 +24,8 @@ from engine.control.estimator import (
     StateEstimator,
     _inv_sym,
     _quat_step,
-    benchmark_estimator,
 )
+from engine.bench.estimator import benchmark_estimator
 from engine.robot.model import load_robot
 from engine.sim import Simulation
 
@@ -485,7 +485,8 @@ def test_mujoco_imu_reads_the_base_frame_and_seeds_its_noise():
     assert np.allclose(mean_gyro_error, REALISTIC_IMU.gyro_bias_radps, atol=2e-3)
 
 
-def test_update_cost_is_bounded():
-    result = benchmark_estimator("g1", n_ticks=600)
-    print(f"\nStateEstimator.update on G1: median {result['median_us']:.0f} µs, p99 {result['p99_us']:.0f} µs")
-    assert result["median_us"] < 400.0  # loose: catches pathological regressions on a loaded CI machine
+def test_update_benchmark_runs():
+    """The cost itself is a figure of `studio bench estimator`, not a test assertion (machine speed)."""
+    result = benchmark_estimator("g1", n_ticks=100)
+    assert 0 < result["median_us"] <= result["p99_us"] and all(np.isfinite(v) for v in result.values()
+                                                               if isinstance(v, float))

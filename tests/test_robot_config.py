@@ -8,10 +8,10 @@ import pytest
 
 from engine.robot.config import RobotConfigError, load_config, load_robot_config, robot_names, robots_dir
 
-EXPECTED = {"g1", "talos", "go1", "go2", "a1", "b1", "anymal_c", "human"}
+EXPECTED = {"g1", "talos", "dino", "go1", "go2", "a1", "b1", "anymal_c", "human"}
 
 
-def test_library_has_the_eight_robots_default_first():
+def test_library_has_the_nine_robots_default_first():
     names = robot_names()
     assert set(names) == EXPECTED
     assert names[0] == "g1"
@@ -62,7 +62,7 @@ def test_wrong_type_and_unknown_field(tmp_path):
         load_config(_write(tmp_path, "g1", text.replace("sole_width_m = 0.055", 'sole_width_m = "wide"', 1)))
     with pytest.raises(RobotConfigError, match=r"g1.toml: model.rot_link: unknown field \(did you mean 'root_link'\?\)"):
         load_config(_write(tmp_path, "g1", text.replace("root_link", "rot_link")))
-    with pytest.raises(RobotConfigError, match=r"g1.toml: not valid TOML"):
+    with pytest.raises(RobotConfigError, match=r"g1.toml: expected valid TOML"):
         load_config(_write(tmp_path, "g1", text + "\n[[[broken"))
 
 
@@ -73,3 +73,46 @@ def test_unknown_robot_lists_known_names():
     assert "unknown robot 'g11'" in text and "talos" in text and "Did you mean 'g1'" in text
     with pytest.raises(RobotConfigError):
         load_robot_config("../robots/g1")  # no path tricks
+
+
+def test_unknown_source_package_names_the_field(tmp_path):
+    text = (robots_dir() / "dino.toml").read_text().replace('package = "local"', 'package = "elsewhere"')
+    with pytest.raises(RobotConfigError) as err:
+        load_config(_write(tmp_path, "dino", text))
+    assert str(err.value).startswith("dino.toml: source.package: expected one of example-robot-data, local")
+
+
+def test_local_source_is_read_next_to_the_config(tmp_path):
+    """A project-made robot's URDF and meshes resolve relative to its config file's folder."""
+    from engine.robot.urdf import mesh_sources, source_path
+
+    cfg = load_robot_config("dino")
+    assert source_path(cfg, cfg.urdf) == robots_dir() / "dino" / "dino.urdf"
+    meshes = mesh_sources(cfg)
+    assert meshes and all(m.is_file() and m.parent == robots_dir() / "dino" / "meshes" for m in meshes)
+    moved = _write(tmp_path, "dino", (robots_dir() / "dino.toml").read_text())
+    with pytest.raises(RobotConfigError) as err:
+        source_path(load_config(moved), "dino/dino.urdf")
+    assert "dino.toml: source.urdf: dino/dino.urdf not found" in str(err.value)
+
+
+def test_gait_feedback_gains_come_from_the_config(tmp_path, monkeypatch):
+    from engine.control.gait_feedback import GaitFeedbackGains
+
+    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
+    dino = GaitFeedbackGains.for_robot("dino")
+    assert dino.velocity_cutoff_hz == load_robot_config("dino").gait_feedback["velocity_cutoff_hz"] == 0.5
+    assert dino.step_max_m == GaitFeedbackGains().step_max_m  # what the table leaves out keeps its default
+    text = (robots_dir() / "dino.toml").read_text()
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = 0.8\nkappa_single = [0.7, 1.5]"))
+    monkeypatch.setenv("MOTION_STUDIO_ROBOTS", str(tmp_path))
+    assert GaitFeedbackGains.for_robot("dino").kappa_single == (0.7, 1.5)
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kdd = 0.8"))
+    with pytest.raises(RobotConfigError, match=r"^dino.toml: control.gait_feedback.velocity_kdd: unknown gain"):
+        GaitFeedbackGains.for_robot("dino")
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = [0.8, 0.9]"))
+    with pytest.raises(RobotConfigError, match=r"control.gait_feedback.velocity_kd: expected a number"):
+        GaitFeedbackGains.for_robot("dino")
+    _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = -1"))
+    with pytest.raises(RobotConfigError, match=r"control.gait_feedback.velocity_kd: expected a non-negative"):
+        load_config(tmp_path / "dino.toml")

@@ -1,4 +1,4 @@
-"""Author the shipped styles (styles/g1/*.json, styles/talos/neutral.json) from compact recipes.
+"""Author the shipped styles (styles/g1/*.json, styles/talos/neutral.json, styles/dino/*.json) from compact recipes.
 
 Run ``.venv/bin/python tools/author_styles.py`` to regenerate them. Each style is built with
 the style data model and validated against its robot before it is written, exactly as the
@@ -98,6 +98,15 @@ class Recipe:
     swing_toe_pitch_rad: float = 0.0  # toes point down mid-swing (walking backward leads with the toes)
     swing_x_m: list[tuple[float, float]] = field(default_factory=list)  # extra swing x profile points
     swing_y_m: list[tuple[float, float]] = field(default_factory=list)
+    # Neck and tail (characters that have them, e.g. the dino).
+    neck_pitch_rad: float | None = None  # neck carriage (mean); + leans the neck forward
+    head_bob_rad: float = 0.0  # neck pitch amplitude, twice per cycle: head lowest at each touchdown
+    head_hold_rad: float = 0.0  # head pitch counter to the neck bob (share of it): the bird-like stabilised head
+    head_yaw_rad: float = 0.0  # neck yaw sway, once per cycle, toward the stance side
+    tail_swing_rad: float = 0.0  # tail yaw amplitude, once per cycle, counter to the hips (toward the swing leg)
+    tail_lag_s: float = 0.0  # how far the tail tip lags its root (the wave travels down the tail)
+    tail_lift_rad: float | None = None  # tail pitch carriage (mean); − raises the tip
+    tail_bob_rad: float = 0.0  # tail pitch amplitude, twice per cycle
 
 
 @dataclass(frozen=True)
@@ -105,11 +114,13 @@ class Joints:
     """Upper-body joint names of a robot, by role (None when the robot lacks it)."""
 
     shoulder_pitch: tuple[str, str]
-    shoulder_roll: tuple[str, str]
-    elbow: tuple[str, str]
+    shoulder_roll: tuple[str, str] | None
+    elbow: tuple[str, str] | None
     spine_yaw: str | None
     torso_pitch: str | None
     elbow_sign: float = 1.0  # + bends the elbow on G1, − on TALOS
+    neck: tuple[str, str, str] | None = None  # (neck pitch, neck yaw, head pitch)
+    tail: tuple[str, ...] = ()  # alternating yaw, pitch, yaw from the root
 
 
 G1 = Joints(("left_shoulder_pitch_joint", "right_shoulder_pitch_joint"),
@@ -117,6 +128,9 @@ G1 = Joints(("left_shoulder_pitch_joint", "right_shoulder_pitch_joint"),
             ("left_elbow_joint", "right_elbow_joint"), "waist_yaw_joint", "waist_pitch_joint")
 TALOS = Joints(("arm_left_1_joint", "arm_right_1_joint"), ("arm_left_2_joint", "arm_right_2_joint"),
                ("arm_left_4_joint", "arm_right_4_joint"), "torso_1_joint", "torso_2_joint", elbow_sign=-1.0)
+DINO = Joints(("left_shoulder_pitch_joint", "right_shoulder_pitch_joint"), None, None, None, None,
+              neck=("neck_pitch_joint", "neck_yaw_joint", "head_pitch_joint"),
+              tail=("tail_yaw_1_joint", "tail_pitch_2_joint", "tail_yaw_3_joint"))
 
 
 def build_sample(r: Recipe, joints: Joints, ctx: StyleContext) -> GaitSample:
@@ -160,9 +174,11 @@ def build_sample(r: Recipe, joints: Joints, ctx: StyleContext) -> GaitSample:
             curves[f"joints.{sp}"] = cycle_wave(period, mean, r.arm_swing_rad, back_at)
         elif r.shoulder_pitch_rad is not None:
             curves[f"joints.{sp}"] = cycle_const(period, mean)
-        if r.shoulder_roll_rad is not None:
+        if r.shoulder_roll_rad is not None and joints.shoulder_roll:
             sign = 1.0 if side == "left" else -1.0
             curves[f"joints.{joints.shoulder_roll[i]}"] = cycle_const(period, sign * r.shoulder_roll_rad)
+        if joints.elbow is None:
+            continue
         el = joints.elbow[i]
         el_mean = ctx.standing_angles[el] if r.elbow_rad is None else joints.elbow_sign * r.elbow_rad
         if r.elbow_swing_rad:
@@ -171,10 +187,56 @@ def build_sample(r: Recipe, joints: Joints, ctx: StyleContext) -> GaitSample:
                                                  (back_at + period / 2) % period)
         elif r.elbow_rad is not None:
             curves[f"joints.{el}"] = cycle_const(period, el_mean)
+    if joints.neck:
+        _neck_curves(r, joints, ctx, curves, (t_ltd, t_rtd, period))
+    if joints.tail:
+        _tail_curves(r, joints, ctx, curves, (t_ltd, t_rlo, t_rtd, period))
     attrs = Attributes(stance_width_m=r.width_m, stance_splay_rad=r.splay_rad, stance_x_bias_m=r.x_bias_m,
                        liftoff_transition_s=r.liftoff_transition_s, touchdown_transition_s=r.touchdown_transition_s,
                        pelvis_height_m=r.pelvis_height_m)
     return GaitSample(iv, attrs, curves)
+
+
+def _neck_curves(r: Recipe, joints: Joints, ctx: StyleContext, curves: dict[str, HermiteCurve],
+                 events: tuple[float, float, float]) -> None:
+    """Bird-like neck: the neck pitches down at each touchdown (two bobs per cycle) while the head
+    pitches back against it, and the neck sways toward the stance side once per cycle."""
+    t_ltd, t_rtd, period = events
+    neck_pitch, neck_yaw, head_pitch = joints.neck
+    mean = ctx.standing_angles[neck_pitch] if r.neck_pitch_rad is None else r.neck_pitch_rad
+    head_mean = ctx.standing_angles[head_pitch] - (mean - ctx.standing_angles[neck_pitch])
+    if r.head_bob_rad:
+        curves[f"joints.{neck_pitch}"] = cycle_wave(period, mean, r.head_bob_rad, t_ltd, harmonics=2)
+        curves[f"joints.{head_pitch}"] = cycle_wave(period, head_mean, -r.head_hold_rad * r.head_bob_rad, t_ltd,
+                                                    harmonics=2)
+    elif r.neck_pitch_rad is not None:
+        curves[f"joints.{neck_pitch}"] = cycle_const(period, mean)
+        curves[f"joints.{head_pitch}"] = cycle_const(period, head_mean)
+    if r.head_yaw_rad:
+        # + yaw turns the head left: toward the left foot while it stands (right swing).
+        curves[f"joints.{neck_yaw}"] = cycle_wave(period, 0.0, r.head_yaw_rad, 0.5 * (t_ltd + t_rtd) % period)
+
+
+def _tail_curves(r: Recipe, joints: Joints, ctx: StyleContext, curves: dict[str, HermiteCurve],
+                 events: tuple[float, float, float, float]) -> None:
+    """Theropod tail: yaw segments swing once per cycle toward the swing leg's side (balancing the
+    hips), each segment ``tail_lag_s`` behind the previous; pitch segments carry and bob the tail."""
+    t_ltd, t_rlo, t_rtd, period = events
+    lag = 0.0
+    for k, joint in enumerate(joints.tail):
+        if k % 2 == 0:  # yaw: + swings the tail to the left (tip toward +y behind the body)
+            if r.tail_swing_rad:
+                # The tail is furthest right while the left leg swings (mid left swing: t_ltd / 2).
+                peak_left = (0.5 * (t_rlo + t_rtd) + lag) % period
+                curves[f"joints.{joint}"] = cycle_wave(period, 0.0, r.tail_swing_rad * (1.0 + 0.25 * k), peak_left)
+            lag += r.tail_lag_s
+        else:  # pitch
+            mean = ctx.standing_angles[joint] if r.tail_lift_rad is None else r.tail_lift_rad
+            if r.tail_bob_rad:
+                curves[f"joints.{joint}"] = cycle_wave(period, mean, r.tail_bob_rad, (t_ltd + lag) % period,
+                                                       harmonics=2)
+            elif r.tail_lift_rad is not None:
+                curves[f"joints.{joint}"] = cycle_const(period, mean)
 
 
 def make_style(name: str, robot: str, description: str, velocities: SampleVelocities,
@@ -280,14 +342,58 @@ def talos_neutral() -> Style:
                       SampleVelocities(0.4, 0.2, 0.1, 0.6), nine(base, slow, fast, slow, slow, base, base), TALOS)
 
 
+# ----------------------------------------------------------------------------- dino
+
+
+def dino_neutral() -> Style:
+    # A short-legged character (ω = √(g/z) ≈ 5 /s against G1's 3.8): quick steps. Forward slow and
+    # fast hurry the cadence so that a push (velocity adjustment → Forward Fast) is caught with
+    # short steps the legs can reach. Turns step quickly too: a stance foot that must turn more
+    # than ~0.2 rad per step lands late and slides (measured: 7 mm at 0.8 rad/s with 0.7 s cycles).
+    base = Recipe(cycle_s=0.7, swing_s=0.28, swing_height_m=0.04, width_m=0.15, pelvis_height_m=0.39)
+    slow = with_(base, cycle_s=0.56, swing_s=0.23)
+    fast = with_(base, cycle_s=0.5, swing_s=0.2, swing_height_m=0.045, pelvis_height_m=0.385)
+    rev = with_(slow, swing_height_m=0.035, swing_toe_pitch_rad=0.3)
+    strafe = with_(base, cycle_s=0.6, swing_s=0.24, width_m=0.16)
+    turn = with_(base, cycle_s=0.6, swing_s=0.25, swing_peak=0.4, swing_height_m=0.035)
+    return make_style("neutral", "dino", "The nominal dino gait: even timing, quick steps, neck and tail held still.",
+                      SampleVelocities(0.45, 0.15, 0.1, 0.5),
+                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.52, swing_s=0.21), strafe, turn), DINO)
+
+
+def dino_strut() -> Style:
+    # Paper §8.1's "dino gait": symmetric swings, a cycle that halves from in place to forward
+    # fast (a casual cadence in place, short quick steps at speed), the head bobbing like a
+    # bird's and the tail swinging against the hips with the wave travelling down it.
+    base = Recipe(cycle_s=1.0, swing_s=0.4, swing_height_m=0.05, width_m=0.15, pelvis_height_m=0.38,
+                  pelvis_bob_m=0.006, neck_pitch_rad=0.35, head_bob_rad=0.12, head_hold_rad=0.8, head_yaw_rad=0.05,
+                  tail_swing_rad=0.1, tail_lag_s=0.06, tail_lift_rad=-0.1, tail_bob_rad=0.05,
+                  arm_swing_rad=0.15, pelvis_yaw_rad=0.04)
+    slow = with_(base, cycle_s=0.7, swing_s=0.28, head_bob_rad=0.15, tail_swing_rad=0.12)
+    fast = with_(base, cycle_s=0.5, swing_s=0.2, swing_height_m=0.045, pelvis_height_m=0.375, neck_pitch_rad=0.5,
+                 head_bob_rad=0.1, tail_swing_rad=0.08, tail_lag_s=0.04, tail_lift_rad=-0.15, pelvis_bob_m=0.004)
+    rev = with_(slow, swing_height_m=0.035, swing_toe_pitch_rad=0.3, head_bob_rad=0.08)
+    strafe = with_(base, cycle_s=0.62, swing_s=0.25, width_m=0.16, tail_swing_rad=0.14)
+    turn = with_(base, cycle_s=0.6, swing_s=0.25, swing_peak=0.4, swing_height_m=0.035, head_bob_rad=0.08,
+                 tail_swing_rad=0.08, pelvis_yaw_rad=0.0)
+    return make_style("strut", "dino", "Paper §8.1's dino gait: cadence doubles with speed, bird-like head bob "
+                      "(neck dips at each touchdown, head held level), tail swings against the hips.",
+                      SampleVelocities(0.4, 0.15, 0.1, 0.5),
+                      nine(base, slow, fast, rev, with_(rev, cycle_s=0.56, swing_s=0.22), strafe, turn), DINO)
+
+
 STYLES = {
     ("g1", "neutral"): g1_neutral, ("g1", "casual"): g1_casual, ("g1", "sneak"): g1_sneak,
     ("g1", "injured"): g1_injured, ("talos", "neutral"): talos_neutral,
+    ("dino", "neutral"): dino_neutral, ("dino", "strut"): dino_strut,
 }
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    only = set((argv if argv is not None else sys.argv[1:]))  # robot names; all when empty
     for (robot, name), make in STYLES.items():
+        if only and robot not in only:
+            continue
         path = REPO / "styles" / robot / f"{name}.json"
         save_style(path, make())
         print(f"wrote {path.relative_to(REPO)}")

@@ -41,7 +41,8 @@ class ExternalForceObserver:
 
     def update(self, dt_s: float, com_vel_xy: FloatArray, ground_force_xy_n: FloatArray | None) -> FloatArray:
         """Advance by ``dt_s`` with the measured CoM velocity and the ground force applied over
-        the last step (None: unknown, the estimate holds). Returns the deadbanded estimate."""
+        the last step (None: unknown, the estimate holds and the observer re-bases on it).
+        Returns the deadbanded estimate."""
         p = self.mass_kg * np.asarray(com_vel_xy, dtype=float)
         if not np.all(np.isfinite(p)):
             return self.force_n
@@ -49,6 +50,10 @@ class ExternalForceObserver:
             self._p0 = p.copy()
             return self.force_n
         if ground_force_xy_n is None or not np.all(np.isfinite(ground_force_xy_n)):
+            # Unknown ground force (a landing impact the QP did not plan): hold the estimate and
+            # re-base the momentum integral on it, so the momentum change while holding does not
+            # show up as a push when the updates resume.
+            self._integral = p - self._p0 - self._residual / self.gain
             return self.force_n
         self._integral += (np.asarray(ground_force_xy_n, dtype=float) + self._residual) * dt_s
         self._residual = self.gain * (p - self._p0 - self._integral)

@@ -39,9 +39,28 @@ class GaitFeedbackGains:
 
     @classmethod
     def for_robot(cls, name: str) -> "GaitFeedbackGains":
-        if name == "talos":
-            return cls(time_kp_per_m=3.0, time_kd_s_per_m=0.9, step_gain=0.7)
-        return cls()
+        gains = cls(time_kp_per_m=3.0, time_kd_s_per_m=0.9, step_gain=0.7) if name == "talos" else cls()
+        return gains.with_config_overrides(name)
+
+    def with_config_overrides(self, name: str) -> "GaitFeedbackGains":
+        """These gains with robot ``name``'s ``[control.gait_feedback]`` table applied."""
+        from dataclasses import fields, replace
+
+        from engine.robot.config import RobotConfigError, load_robot_config
+
+        cfg = load_robot_config(name)
+        known = {f.name: f for f in fields(self)}
+        values = {}
+        for key, value in cfg.gait_feedback.items():
+            if key not in known:
+                raise RobotConfigError(f"{cfg.path.name}: control.gait_feedback.{key}: unknown gain; expected one of "
+                                       f"{', '.join(sorted(known))}")
+            is_pair = isinstance(getattr(self, key), tuple)
+            if is_pair != isinstance(value, tuple):
+                raise RobotConfigError(f"{cfg.path.name}: control.gait_feedback.{key}: expected "
+                                       f"{'[low, high]' if is_pair else 'a number'}, got {value!r}")
+            values[key] = value
+        return replace(self, **values) if values else self
 
 
 @dataclass

@@ -22,6 +22,7 @@ from engine.control.estimator import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
 from engine.gait.footsteps import Foothold
+from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
 from engine.gait.offline_plan import planner_for
 from engine.gait.planner import PLANNER_RATE_HZ, GaitReference
 from engine.gait.style import SIDES, Style, StyleContext
@@ -42,9 +43,13 @@ LATERAL_XI_INSET_M = 0.03  # a foot lands at least this far outward of ξ at tou
 LATERAL_CAPTURE_MARGIN_M = 0.0  # ξ this far beyond the stance foot's outer edge hurries the gait
 OBSERVER_TIME_CONSTANT_S = 0.08  # push observer: response time ...
 OBSERVER_DEADBAND_N_PER_KG = 0.25  # ... and the force per kg below which model errors hide pushes
+OBSERVER_HOLD_SWING_SHARE = 0.15  # the observer holds over this last share of a swing ...
+OBSERVER_HOLD_AFTER_TOUCHDOWN_PLAN_TICKS = 5  # ... and this many planner ticks (40 ms) after touchdown
 DCM_ERROR_GROWTH_CAP = 2.5  # at most this growth of the measured ξ error is expected by touchdown
 DCM_ERROR_DEADBAND_M = 0.04  # measured ξ errors below this are left to the MPC (a push is larger)
 STEP_REACH_SHARE = 0.8  # share of the CoP's reach a step may rely on (rest: margin for tracking)
+PUSHED_REACH_SHARE = 0.25  # ... while the observer sees a push
+RESTART_WHEN_THROWN = False  # restart the MPC when ξ leaves the double support polygon (off: a 50 N side push while walking at 0.15 m/s fell with it, recorded)
 LANDING_HEIGHT_M = 0.01  # a descending swing foot this low may touch down early ...
 TOUCHDOWN_HEIGHT_M = 0.001  # ... and its corners this close to the floor carry load
 ANKLE_LOAD_FACTOR = 1.15  # vertical load (× m g) a single-support ankle must hold the CoP under
@@ -114,6 +119,7 @@ class WalkingController:
         self.observer = ExternalForceObserver(robot.mass_kg, time_constant_s=OBSERVER_TIME_CONSTANT_S,
                                               deadband_n_per_kg=OBSERVER_DEADBAND_N_PER_KG)
         self._mpc_shift = np.zeros(2)  # the MPC plans in a frame shifted by −f_ext/(m ω²)
+        self._landing = False  # a foot is landing: the observer holds
         self.state_source = state_source
         self.model = robot.pin_model
         self.data = self.model.createData()
@@ -178,6 +184,7 @@ class WalkingController:
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
+        self._landing = False
         self._com_z = None
         com = pin.centerOfMass(self.model, data, q, state.v)
         self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
@@ -196,7 +203,11 @@ class WalkingController:
         self.estimate = est
         pin.centerOfMass(self.model, self.data, est.q, est.v)
         self._com_now = (self.data.com[0].copy(), self.data.vcom[0].copy())
-        self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2], self._ground_force)
+        # Around a landing the ground force is an impact the QP did not plan: the observer holds
+        # (planned landings, and a swing foot already on the ground early).
+        early = self.ref is not None and bool(np.any(self.wbc_contact.any(axis=1) & ~self.ref.contact))
+        self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2],
+                             None if (self._landing or early) else self._ground_force)
         t_est = time.perf_counter()
         self.timings = StepTimings(estimator=t_est - t_start)
         if self.tick % TICKS_PER_PLAN == 0:
@@ -252,6 +263,9 @@ class WalkingController:
         self._feet_feedforward(ref)
         self.ref = ref
         self._relatch_landed_feet(est, contact_before)
+        self._landing = any(
+            (not ref.contact[i] and ref.swing_progress[i] > 1.0 - OBSERVER_HOLD_SWING_SHARE)
+            or 0 <= self._since_touchdown[i] < OBSERVER_HOLD_AFTER_TOUCHDOWN_PLAN_TICKS for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
         # CoM MPC over the planner's contact preview; initial conditions continue the last plan.
@@ -283,11 +297,17 @@ class WalkingController:
         plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
         goal = supports[-1].polygon.mean(axis=0)
         lost = plan.ok and np.linalg.norm(plan.final_capture_point_xy_m - goal) > CAPTURE_TOLERANCE_M
-        if not plan.ok or lost:
+        # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
+        # continued with the CoP ramping off the trailing foot throws it further.
+        xi_robot = com + com_vel / math.sqrt(omega2)
+        thrown = RESTART_WHEN_THROWN and bool(ref.contact.all()) and not _inside_polygon(xi_robot, supports[0].polygon)
+        if not plan.ok or lost or thrown:
             # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
             # on its footholds: restart it from the robot's state and keep the more capturable one.
-            retry = self.mpc.solve(ref.t_s, com, com_vel, cop0, z_com, supports)
-            if retry.ok and (not plan.ok or np.linalg.norm(retry.final_capture_point_xy_m - goal)
+            # The restart's CoP starts where it best holds the robot's ξ (a CoP can move at once;
+            # one left on the trailing foot while ξ runs past the new one throws the robot on).
+            retry = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(xi_robot, supports[0].polygon), z_com, supports)
+            if retry.ok and (not plan.ok or thrown or np.linalg.norm(retry.final_capture_point_xy_m - goal)
                              < np.linalg.norm(plan.final_capture_point_xy_m - goal)):
                 plan = retry
                 self.replans += 1
@@ -332,10 +352,14 @@ class WalkingController:
             dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
             rel = np.array([nominal.x, nominal.y]) + adjust - dcm
             ahead = float(rel @ forward)
-            if ahead > self._reach_back_m:
-                adjust -= (ahead - self._reach_back_m) * forward
-            elif ahead < -self._reach_forward_m:
-                adjust += (-self._reach_forward_m - ahead) * forward
+            # Under a push the CoP must hold ξ against it for the whole step: land with ξ near
+            # the sole's middle (margin both ways), not at the edge of the CoP's reach.
+            share = PUSHED_REACH_SHARE if self.observer.force_n.any() else 1.0
+            back, fwd = share * self._reach_back_m, share * self._reach_forward_m
+            if ahead > back:
+                adjust -= (ahead - back) * forward
+            elif ahead < -fwd:
+                adjust += (-fwd - ahead) * forward
             outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
             if outward < LATERAL_XI_INSET_M:
                 adjust += (LATERAL_XI_INSET_M - outward) * (left if side == "left" else -left)
@@ -534,22 +558,12 @@ def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = ANKLE_LO
     return max(trims, default=0.0)
 
 
-def _clip_to_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """``p`` if inside the convex polygon, else its centroid-ward projection onto it."""
-    from engine.control.com_mpc import polygon_centroid, polygon_halfplanes
+_clip_to_polygon = clip_into_polygon  # the initial-CoP clip (engine.geometry.polygon)
 
+
+def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
     normals, offsets = polygon_halfplanes(polygon)
-    if len(offsets) == 0 or np.all(normals @ p <= offsets + 1e-9):
-        return p
-    c = polygon_centroid(polygon)
-    lo, hi = 0.0, 1.0  # bisection on the segment centroid → p
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        if np.all(normals @ (c + mid * (p - c)) <= offsets + 1e-9):
-            lo = mid
-        else:
-            hi = mid
-    return c + lo * (p - c)
+    return len(offsets) == 0 or bool(np.all(normals @ p <= offsets + 1e-9))
 
 
 def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:

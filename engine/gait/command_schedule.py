@@ -6,7 +6,6 @@ limits: forward fast, reverse, strafe both ways, turn both ways, then stop.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,7 +77,7 @@ def from_keyframes(frames: object, source: str) -> CommandSchedule:
     for i, row in enumerate(frames):
         if not isinstance(row, list) or len(row) != 4 or not all(
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in row):
-            raise CommandError(f"{source}: keyframes[{i}]: expected [t, vx, vy, wz] of finite numbers, got {row!r}")
+            raise CommandError(f"{source}: keyframes[{i}]: expected [t, vx, vy, wz] of finite numbers, got {repr(row)[:60]}")
         rows.append([float(x) for x in row])
     arr = np.array(rows)
     if np.any(np.diff(arr[:, 0]) <= 0):
@@ -104,10 +103,12 @@ def parse_command(spec: str, velocities: SampleVelocities, cwd: Path | None = No
     path = Path(spec) if cwd is None else (cwd / spec)
     if not path.is_file():
         raise CommandError(f"--command: {spec!r} is neither vx,vy,wz, a preset ({', '.join(PRESETS)}) nor a file")
+    from engine.safe_io import ReadError, read_json
+
     try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CommandError(f"{path.name}: expected JSON {{\"keyframes\": [[t, vx, vy, wz], ...]}}: {exc}") from None
+        doc = read_json(path, source=path.name)
+    except ReadError as exc:
+        raise CommandError(str(exc)) from None
     if not isinstance(doc, dict) or "keyframes" not in doc:
         raise CommandError(f"{path.name}: keyframes: missing required field")
     return from_keyframes(doc["keyframes"], path.name)

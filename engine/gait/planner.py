@@ -144,6 +144,7 @@ class GaitPlanner:
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._hull_cache: dict[tuple, np.ndarray] = {}
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -313,21 +314,44 @@ class GaitPlanner:
         return predict(poses[k], vels[k], dt_s - times[k])
 
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
+
+        The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then
+        evaluated at once and chained by cumulative sums (rebuilt every planner tick)."""
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(self.command_goal)
         self.command_clamped = clamped
-        limits = np.abs(np.asarray(self.command_rate_limits, dtype=float))
+        h = PATH_TABLE_STEP_S
         n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
         times = np.arange(n) * PATH_TABLE_STEP_S
-        poses = np.empty((n, 3))
         vels = np.empty((n, 3))
-        pose, v = self.path.pose(), self.command.copy()
-        h = PATH_TABLE_STEP_S
-        for i in range(n):
-            dv = np.clip(goal - v, -limits * h, limits * h)
-            poses[i], vels[i] = pose, v + 0.5 * dv  # the piece's mean velocity
-            pose = predict(pose, vels[i], h)
-            v = v + dv
+        for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
+            g, lim, v = float(goal[j]), abs(float(self.command_rate_limits[j])) * h, float(self.command[j])
+            column = vels[:, j]
+            for i in range(n):
+                dv = min(max(g - v, -lim), lim)
+                column[i] = v + 0.5 * dv  # the piece's mean velocity
+                if dv == 0.0:
+                    column[i + 1:] = v
+                    break
+                v = v + dv
+        # Exact arcs of every piece (path_frame.arc_displacement, vectorised) chained from the path pose.
+        w = vels[:, 2]
+        th = w * h
+        small = np.abs(th) < 1e-9
+        w_safe = np.where(small, 1.0, w)
+        sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
+        cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
+        dx = vels[:, 0] * sinc - vels[:, 1] * cosc
+        dy = vels[:, 0] * cosc + vels[:, 1] * sinc
+        poses = np.empty((n, 3))
+        poses[0] = (self.path.x, self.path.y, self.path.yaw)
+        np.cumsum(th[:-1], out=poses[1:, 2])
+        poses[1:, 2] += poses[0, 2]
+        c, s_ = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
+        np.cumsum(c * dx[:-1] - s_ * dy[:-1], out=poses[1:, 0])
+        np.cumsum(s_ * dx[:-1] + c * dy[:-1], out=poses[1:, 1])
+        poses[1:, :2] += poses[0, :2]
         return times, poses, vels
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:
@@ -512,7 +536,7 @@ class GaitPlanner:
             if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
                 polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
             else:
-                polygon = convex_hull_2d(np.vstack([footholds[s].corners(length, width) for s in down]))
+                polygon = self._support_hull(tuple(footholds[s] for s in down), length, width)
             phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
             if t1 >= horizon_s:
                 break
@@ -525,6 +549,19 @@ class GaitPlanner:
                         footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds)}
             prev_phi = b
         return phases
+
+    def _support_hull(self, holds: tuple[Foothold, ...], length: float, width: float) -> np.ndarray:
+        """Convex hull of the soles on ``holds``; latched footholds recur tick after tick, so the
+        hulls are kept (by value: Foothold is frozen) until the cache is full."""
+        key = (holds, length, width)
+        hull = self._hull_cache.get(key)
+        if hull is None:
+            if len(self._hull_cache) >= 64:
+                self._hull_cache.clear()
+            hull = convex_hull_2d(np.vstack([h.corners(length, width) for h in holds]))
+            hull.flags.writeable = False  # shared between calls
+            self._hull_cache[key] = hull
+        return hull
 
     def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
         blend = self.blend

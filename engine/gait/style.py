@@ -42,13 +42,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from engine.atomic_io import atomic_write_text
+from engine.safe_io import ReadError, one_line, read_json
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.phase_map import PhaseMap
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
 
 SCHEMA = "motion-studio/style"
 VERSION = 1
-SIDES = ("left", "right")
+from engine.constants import SIDES  # noqa: E402 - re-exported (the feet, in the engine's order)
 SWING_CHANNELS = ("x", "y", "z", "yaw", "heel_pitch", "toe_pitch", "roll")
 PELVIS_CHANNELS = ("z", "yaw", "pitch", "roll")
 BOUNDARY_TOL = 1e-6
@@ -65,7 +66,7 @@ class StyleError(ValueError):
         self.field_path = path
         self.detail = message
         self.source = source
-        super().__init__(f"{source}: {path}: {message}")
+        super().__init__(one_line(source, path, message))
 
     def with_source(self, source: str) -> "StyleError":
         return StyleError(self.field_path, self.detail, source)
@@ -263,11 +264,23 @@ def _expect(cond: bool, path: str, message: str) -> None:
 
 def _number(value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise StyleError(path, f"expected a number, got {json.dumps(value)[:40]}")
-    value = float(value)
+        raise StyleError(path, f"expected a number, got {_show(value)}")
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond float range (documents that did not come through safe_io)
+        value = math.inf
     if not math.isfinite(value):
         raise StyleError(path, f"expected a finite number, got {value}")
     return value
+
+
+def _show(value: Any) -> str:
+    """A short rendering of a user value for a message (never raises, never long)."""
+    try:
+        text = json.dumps(value)
+        return text if len(text) <= 40 else text[:39] + "…"
+    except (TypeError, ValueError, RecursionError):
+        return type(value).__name__
 
 
 def _table(value: Any, path: str, allowed: tuple[str, ...] | None, required: tuple[str, ...] = ()) -> dict:
@@ -288,7 +301,7 @@ def _table(value: Any, path: str, allowed: tuple[str, ...] | None, required: tup
 
 def _pair(value: Any, path: str) -> tuple[float, float]:
     if not isinstance(value, list) or len(value) != 2:
-        raise StyleError(path, f"expected [min_s, max_s], got {json.dumps(value)[:40]}")
+        raise StyleError(path, f"expected [min_s, max_s], got {_show(value)}")
     return (_number(value[0], f"{path}[0]"), _number(value[1], f"{path}[1]"))
 
 
@@ -327,7 +340,7 @@ def parse_curve(data: Any, path: str, duration_s: float, periodic: bool) -> Herm
         t_s, value = _number(row[0], f"{kp}[0]"), _number(row[1], f"{kp}[1]")
         mode_raw = row[-1] if len(row) in (3, 5) else "auto_clamped"
         if mode_raw not in modes:
-            raise StyleError(f"{kp}[{len(row) - 1}]", f"expected a tangent mode ({', '.join(modes)}), got {json.dumps(mode_raw)}")
+            raise StyleError(f"{kp}[{len(row) - 1}]", f"expected a tangent mode ({', '.join(modes)}), got {_show(mode_raw)}")
         if len(row) == 5:
             knots.append(Knot(t_s, value, _number(row[2], f"{kp}[2]"), _number(row[3], f"{kp}[3]"), TangentMode(mode_raw)))
         else:
@@ -387,9 +400,9 @@ def style_from_dict(data: Any, ctx: StyleContext | None = None, expected_robot: 
     """Parse and validate a style document; raises :class:`StyleError` (source "style")."""
     top = _table(data, "", ("schema", "version", "name", "robot", "description", "velocities", "blend_eta", "samples"),
                  ("schema", "version", "name", "robot", "velocities", "samples"))
-    _expect(top["schema"] == SCHEMA, "schema", f"expected {SCHEMA!r}, got {json.dumps(top['schema'])[:40]}")
+    _expect(top["schema"] == SCHEMA, "schema", f"expected {SCHEMA!r}, got {_show(top['schema'])}")
     version = top["version"]
-    _expect(isinstance(version, int) and not isinstance(version, bool), "version", f"expected an integer, got {version!r}")
+    _expect(isinstance(version, int) and not isinstance(version, bool), "version", f"expected an integer, got {_show(version)}")
     _expect(version <= VERSION, "version", f"expected {VERSION} or older; this file was written by a newer studio "
                                            f"(version {version})")
     _expect(version >= 1, "version", f"expected 1..{VERSION}, got {version}")
@@ -573,15 +586,9 @@ def load_style(path: str | os.PathLike, ctx: StyleContext | None = None, expecte
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise StyleError("", "file not found", source) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StyleError("", f"cannot read: {exc}", source) from None
-    try:
-        data = json.loads(text, parse_constant=lambda c: float("nan"))
-    except json.JSONDecodeError as exc:
-        raise StyleError(f"line {exc.lineno} column {exc.colno}", f"expected valid JSON: {exc.msg}", source) from None
+        data = read_json(path, source=source)
+    except ReadError as exc:
+        raise StyleError(exc.field_path, exc.detail, source) from None
     if ctx is None:
         robot = expected_robot or (data.get("robot") if isinstance(data, dict) else None)
         if isinstance(robot, str):

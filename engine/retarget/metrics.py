@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.retarget.contacts import contact_iou, segments
-from engine.retarget.quadruped.heightmap import HeightMap
+from engine.retarget.heightmap import HeightMap
 
 MIN_SEGMENT_S = 0.5
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from engine.retarget import metrics as M
 from engine.retarget.motion import KeypointMotion
-from engine.retarget.quadruped.heightmap import HeightMap
+from engine.retarget.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import quadruped_kinematics
 
 DTW_MAX_FRAMES = 400

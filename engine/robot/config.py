@@ -30,6 +30,7 @@ def robots_dir() -> Path:
 
 RobotKind = Literal["biped", "quadruped", "source-skeleton"]
 KINDS: tuple[str, ...] = ("biped", "quadruped", "source-skeleton")
+SOURCE_PACKAGES: tuple[str, ...] = ("example-robot-data", "local")
 
 
 class RobotConfigError(ValueError):
@@ -115,6 +116,14 @@ class RobotConfig:
     collision_face_budget: int = 400
     default_style: str | None = None
     gait: GaitLimits | None = None  # bipeds
+    # Per-robot tuning of the controllers: [control.wbc] overrides engine.control.wbc.WbcGains
+    # (field name → number; the names are checked when the controller is built).
+    wbc_gains: dict[str, float] = field(default_factory=dict)
+    # Where source.urdf/srdf live: "example-robot-data" (the package's share folder) or
+    # "local" (relative to this config file's folder: project-made robots such as the dino).
+    source_package: str = "example-robot-data"
+    # [control.gait_feedback]: per-robot gait feedback gains (engine/control/gait_feedback.py names).
+    gait_feedback: dict[str, float | tuple[float, float]] = field(default_factory=dict)
 
     @property
     def simulated(self) -> bool:
@@ -138,7 +147,9 @@ class _Reader:
         self.data = data
 
     def fail(self, field_path: str, message: str) -> RobotConfigError:
-        return RobotConfigError(f"{self.path.name}: {field_path}: {message}")
+        from engine.safe_io import one_line
+
+        return RobotConfigError(one_line(self.path.name, field_path, message))  # clipped: user keys can be long
 
     def get(self, table: dict[str, Any], key: str, prefix: str, kind: type | tuple[type, ...], default: Any = ...) -> Any:
         where = f"{prefix}{key}"
@@ -180,19 +191,24 @@ def _kind_name(kind: type | tuple[type, ...]) -> str:
 
 _TOP_FIELDS = {
     "name", "display_name", "kind", "source", "model", "standing", "gains", "upper_body",
-    "feet", "fixes", "mesh", "default_style", "gait",
+    "feet", "fixes", "mesh", "default_style", "gait", "control",
 }
 
 
 def load_config(path: Path) -> RobotConfig:
     """Parse and validate one robot config file."""
     path = Path(path)
+    from engine.safe_io import ReadError, read_text
+
     try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise RobotConfigError(f"{path.name}: file not found") from None
+        data = tomllib.loads(read_text(path, max_bytes=1024 * 1024, source=path.name))
+    except ReadError as exc:
+        raise RobotConfigError(str(exc)) from None
     except tomllib.TOMLDecodeError as exc:
-        raise RobotConfigError(f"{path.name}: not valid TOML: {exc}") from None
+        raise RobotConfigError(f"{path.name}: expected valid TOML ({exc})") from None
+    except (RecursionError, ValueError) as exc:  # deep nesting; integers beyond Python's digit limit
+        raise RobotConfigError(f"{path.name}: expected valid TOML ({type(exc).__name__}: too deeply nested or too large)"
+                               ) from None
     r = _Reader(path, data)
     r.unknown(data, _TOP_FIELDS, "")
 
@@ -205,7 +221,10 @@ def load_config(path: Path) -> RobotConfig:
         raise r.fail("kind", f"expected one of {', '.join(KINDS)}, got {kind!r}")
 
     source = r.get(data, "source", "", dict)
-    r.unknown(source, {"urdf", "srdf"}, "source.")
+    r.unknown(source, {"urdf", "srdf", "package"}, "source.")
+    source_package = r.get(source, "package", "source.", str, "example-robot-data")
+    if source_package not in SOURCE_PACKAGES:
+        raise r.fail("source.package", f"expected one of {', '.join(SOURCE_PACKAGES)}, got {source_package!r}")
     urdf = r.get(source, "urdf", "source.", str)
     srdf = r.get(source, "srdf", "source.", str, None)
 
@@ -325,8 +344,26 @@ def load_config(path: Path) -> RobotConfig:
         if not lo <= gait.pelvis_height_m <= hi:
             raise r.fail("gait.pelvis_height_m", f"expected within pelvis_height_range_m [{lo}, {hi}]")
 
+    control = r.get(data, "control", "", dict, {})
+    r.unknown(control, {"wbc", "gait_feedback"}, "control.")
+    wbc_table = r.get(control, "wbc", "control.", dict, {})
+    wbc_gains = {k: r.get(wbc_table, k, "control.wbc.", float) for k in wbc_table}
+    feedback_table = r.get(control, "gait_feedback", "control.", dict, {})
+    gait_feedback: dict[str, float | tuple[float, float]] = {}
+    for key, value in feedback_table.items():
+        where = f"control.gait_feedback.{key}"
+        if isinstance(value, list):
+            if len(value) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value) \
+                    or not 0 < value[0] < value[1]:
+                raise r.fail(where, f"expected [low, high] with 0 < low < high, got {value!r}")
+            gait_feedback[key] = (float(value[0]), float(value[1]))
+        else:
+            gait_feedback[key] = r.get(feedback_table, key, "control.gait_feedback.", float)
+            if gait_feedback[key] < 0:
+                raise r.fail(where, f"expected a non-negative number, got {value!r}")
+
     return RobotConfig(
-        gait=gait,
+        gait=gait, wbc_gains=wbc_gains, source_package=source_package, gait_feedback=gait_feedback,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,

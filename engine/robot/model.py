@@ -25,6 +25,7 @@ from engine.robot.config import RobotConfig, RobotConfigError, load_robot_config
 from engine.robot.urdf import (
     SOLE_CORNER_RADIUS_M,
     PreparedUrdf,
+    mesh_sources,
     package_share,
     parse_srdf,
     prepare,
@@ -187,6 +188,10 @@ def _cache_key(cfg: RobotConfig) -> str:
     h.update(Path(__file__).read_bytes())
     h.update((Path(__file__).parent / "urdf.py").read_bytes())
     h.update(source_path(cfg, cfg.urdf).read_bytes())
+    if cfg.source_package == "local":  # project-made meshes may change with the URDF untouched
+        for mesh in mesh_sources(cfg):
+            if mesh.is_file():
+                h.update(mesh.read_bytes())
     if cfg.srdf:
         h.update(source_path(cfg, cfg.srdf).read_bytes())
     return h.hexdigest()[:16]

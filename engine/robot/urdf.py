@@ -43,19 +43,40 @@ def package_share() -> Path:
     return share
 
 
-def resolve_package_path(uri: str, share: Path) -> Path:
+def resolve_package_path(uri: str, share: Path | None, base: Path | None = None) -> Path:
+    """A URDF mesh filename as a path: ``package://`` under ``share``, ``file://`` as is, and a
+    relative path under ``base`` (the URDF's folder)."""
     if uri.startswith("package://"):
+        if share is None:
+            raise RobotConfigError(f"{uri}: package:// paths need example-robot-data")
         return share / uri[len("package://"):]
     if uri.startswith("file://"):
         return Path(uri[len("file://"):])
-    return Path(uri)
+    path = Path(uri)
+    return path if path.is_absolute() or base is None else base / path
 
 
 def source_path(cfg: RobotConfig, rel: str) -> Path:
+    """A source file named by the config: in example-robot-data, or next to the config file
+    (``source.package = "local"``: robots the project makes itself)."""
+    if cfg.source_package == "local":
+        path = cfg.path.parent / rel
+        if not path.is_file():
+            raise RobotConfigError(f"{cfg.path.name}: source.urdf: {rel} not found next to {cfg.path.name}")
+        return path
     path = package_share() / "example-robot-data" / rel
     if not path.is_file():
         raise RobotConfigError(f"{cfg.path.name}: source: {rel} not found in example-robot-data")
     return path
+
+
+def mesh_sources(cfg: RobotConfig) -> list[Path]:
+    """Every mesh file the config's URDF names (sorted, unique): what the model derives from."""
+    urdf_path = source_path(cfg, cfg.urdf)
+    share = package_share() if cfg.source_package != "local" else None
+    root = ET.fromstring(urdf_path.read_text())
+    paths = {resolve_package_path(el.get("filename", ""), share, urdf_path.parent) for el in root.iter("mesh")}
+    return sorted(paths)
 
 
 @dataclass(frozen=True)
@@ -143,8 +164,8 @@ class PreparedUrdf:
 
 def prepare(cfg: RobotConfig, cache_dir: Path) -> PreparedUrdf:
     """Normalise ``cfg``'s URDF (see module docstring). Converted meshes land in ``cache_dir``."""
-    share = package_share()
     urdf_path = source_path(cfg, cfg.urdf)
+    share = package_share() if cfg.source_package != "local" else None
     root = ET.fromstring(urdf_path.read_text())
     for tag in ("gazebo", "transmission"):
         for el in root.findall(tag):
@@ -180,7 +201,7 @@ def prepare(cfg: RobotConfig, cache_dir: Path) -> PreparedUrdf:
     for link in links.values():
         for role, bucket in (("visual", visual_sources), ("collision", collision_sources)):
             for el in link.findall(f"{role}/geometry/mesh"):
-                src = resolve_package_path(el.get("filename", ""), share)
+                src = resolve_package_path(el.get("filename", ""), share, urdf_path.parent)
                 if not src.is_file():
                     raise RobotConfigError(f"{cfg.path.name}: mesh {el.get('filename')} not found")
                 bucket.append((el, src))

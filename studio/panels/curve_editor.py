@@ -55,6 +55,10 @@ from studio.style_session import EditResult, StyleSession
 log = logging.getLogger(__name__)
 
 PREVIEW_PERIOD_S = 0.1  # throttled session.apply while dragging (the engine sees edits at ~10 Hz)
+TYPING_PAUSE_S = 0.4  # a typed knot time/value applies once the keys pause this long
+AXIS_LOCK_RATIO = 4.0  # a knot drag this much more vertical than horizontal (~14°) keeps its time (and vice versa)
+DRAG_EDGE = 0.0  # a dragged knot this close (fraction of the range) to the view's edge, or beyond it, …
+DRAG_GROW = 0.25  # … grows the value range by this fraction beyond it, so the drag goes on past the view
 CURVE_SAMPLES = 200  # polyline samples per channel across the view
 KNOT_RADIUS_M = 0.014
 SELECTED = (255, 215, 0)  # Maya: selected keys are yellow (no channel colour is yellow)
@@ -424,6 +428,8 @@ class _Drag:
     moves: dict[str, list[int]]
     client: Any
     last_curves: dict[str, HermiteCurve] = field(default_factory=dict)
+    view0: tuple[float, float, float, float] | None = None  # the view when the drag began (its scale)
+    last_pt: np.ndarray | None = None  # graph-plane point of the latest pointer event
     last_preview_t: float = 0.0
     last_error: str = ""
 
@@ -525,6 +531,9 @@ class CurveEditor:
         self._props: dict[tuple[int, str], Any] = {}
         self._joint_colors: dict[str, int] = {}
         self._syncing = False
+        #: called when the animator picks a sample in this panel's Sample menu (the app makes it the one
+        #: selected everywhere: the Sample tab, and the sample Edit mode walks)
+        self.on_sample_picked: Callable[[str], None] | None = None
 
         self.root_frame = server.scene.add_frame(self.root, show_axes=False)
         self._build_scene()
@@ -568,6 +577,11 @@ class CurveEditor:
     def view(self) -> tuple[float, float, float, float]:
         """(t_lo, t_hi, v_lo, v_hi) of the graph; values in view units (native unless normalised)."""
         return self._view
+
+    @property
+    def dragging(self) -> bool:
+        """A knot or tangent handle is being dragged."""
+        return self._drag is not None
 
     @property
     def clipboard(self) -> Clipboard | None:
@@ -629,6 +643,8 @@ class CurveEditor:
             raise ValueError(f"unknown channel {channel!r}")
         with self._lock:
             self._set_active_locked(channel)
+            # the knot fields show the edited channel's knot: keep only its knots selected
+            self._selection = [r for r in self._selection if r.channel == channel]
             self._redraw()
 
     def show_channel(self, channel: str, visible: bool = True) -> None:
@@ -1241,11 +1257,43 @@ class CurveEditor:
         return np.array([q[0], q[2]])
 
     def _delta(self, drag: _Drag, event: Any) -> tuple[float, float]:
-        """(dt [s], dv [view units]) of the pointer since the drag started."""
+        """(dt [s], dv [view units]) of the pointer since the drag started.
+
+        The pointer maps to time and value at the scale the view had when the drag began, so the knot
+        follows it anywhere on the canvas — past the graph's range, which grows to keep the knot in
+        sight (:meth:`_follow_drag_out_of_view`). A knot drag moves along one axis when the pointer went
+        mostly one way (:data:`AXIS_LOCK_RATIO`): a vertical drag keeps the knot's time, a horizontal
+        one its value.
+        """
         pt = self._plane_point(event.end_position, getattr(event, "client", None) or drag.client)
-        dx, dz = pt - drag.anchor
+        drag.last_pt = pt
+        dx, dz = (float(c) for c in pt - drag.anchor)
+        t_lo, t_hi, v_lo, v_hi = drag.view0 or self._view
+        dt, dv = dx / self.width_m * (t_hi - t_lo), dz / self.height_m * (v_hi - v_lo)
+        if drag.kind == "knot":
+            if abs(dz) >= AXIS_LOCK_RATIO * abs(dx):
+                dt = 0.0
+            elif abs(dx) >= AXIS_LOCK_RATIO * abs(dz):
+                dv = 0.0
+        return dt, dv
+
+    def _follow_drag_out_of_view(self, drag: _Drag, curves: dict[str, HermiteCurve]) -> bool:
+        """Grow the value range when the dragged knot nears its top or bottom (True: the view changed)."""
+        if drag.kind != "knot" or drag.ref.channel not in curves:
+            return False
+        curve = curves[drag.ref.channel]
+        if drag.ref.index >= curve.n_knots:
+            return False
+        v = self._to_view(drag.ref.channel, curve.knots[drag.ref.index].value)
         t_lo, t_hi, v_lo, v_hi = self._view
-        return float(dx / self.width_m * (t_hi - t_lo)), float(dz / self.height_m * (v_hi - v_lo))
+        span = v_hi - v_lo
+        if v > v_hi - DRAG_EDGE * span:
+            self._view = (t_lo, t_hi, v_lo, v + DRAG_GROW * span)
+        elif v < v_lo + DRAG_EDGE * span:
+            self._view = (t_lo, t_hi, v - DRAG_GROW * span, v_hi)
+        else:
+            return False
+        return True
 
     def _start_knot_drag(self, ref: KnotRef, event: Any) -> None:
         self._end_drag_now()
@@ -1266,7 +1314,7 @@ class CurveEditor:
         client = getattr(event, "client", None)
         label = f"move {sum(map(len, moves.values()))} knot(s) on {', '.join(moves)}"
         self._drag = _Drag("knot", ref, "", self._plane_point(event.start_position, client),
-                           UndoGroup(self.session, label, self._quiet), base, dict(moves), client)
+                           UndoGroup(self.session, label, self._quiet), base, dict(moves), client, view0=self._view)
         self._draw_ghost(base)
         self._redraw()
 
@@ -1282,7 +1330,7 @@ class CurveEditor:
         label = f"tangent on {ref.channel}"
         self._drag = _Drag("handle", ref, side, self._plane_point(event.start_position, client),
                            UndoGroup(self.session, label, self._quiet), {ref.channel: curve},
-                           {ref.channel: [ref.index]}, client)
+                           {ref.channel: [ref.index]}, client, view0=self._view)
         self._draw_ghost({ref.channel: curve})
         return True
 
@@ -1308,11 +1356,15 @@ class CurveEditor:
 
     def _update_drag(self, event: Any) -> None:
         drag = self._drag
-        if drag is None:
+        if drag is None or self.session.style is None:  # no drag, or the style was closed mid-drag
             return
         dt, dv = self._delta(drag, event)
         curves, notes = self._drag_curves(drag, dt, dv)
         drag.last_curves = curves
+        if self._follow_drag_out_of_view(drag, curves):
+            with self.server.atomic():
+                self._draw_frame()
+                self._draw_ghost(drag.base_curves)
         if notes:
             self._status("clamped: " + "; ".join(notes), "warn")
         now = time.monotonic()
@@ -1334,7 +1386,7 @@ class CurveEditor:
             return
         final = self._style_with(drag.last_curves) if drag.last_curves else None
         if final is None:
-            drag.group.cancel()
+            drag.group.commit(None)  # the style was closed mid-drag: back to the base (there is no cancel())
             result = EditResult(True, "no change")
         else:
             result = drag.group.commit(final)
@@ -1716,13 +1768,14 @@ class CurveEditor:
         self._set_lines(self._extent, [np.array(extent, dtype=np.float32).reshape(-1, 2, 3)], None)
         names = {"left": "left swing · t from left liftoff", "right": "right swing · t from right liftoff",
                  "cycle": "cycle · t from left liftoff"}
-        self._label("title", f"{self._sample} · {names[interval]} · {d:.3f} s", (0.0, -0.02, H + 0.045),
-                    "bottom-left", 0.85)
         unit = channel_unit(ch)
         norm = " (normalised view)" if self.normalize_checkbox.value and len(self._visible) > 1 else ""
-        self._label("vaxis", f"{ch} [{unit}]{norm}", (W, -0.02, H + 0.045), "bottom-right", 0.8)
+        # one label for the title and the value axis: two labels at the graph's corners overlap when the
+        # graph is small on screen (labels keep their pixel size)
+        self._label("title", f"{self._sample} · {names[interval]} · {d:.3f} s — {ch} [{unit}]{norm}",
+                    (0.0, -0.02, H + 0.045), "bottom-left", 0.85)
         self._label("taxis", "t [s]", (W + 0.015, -0.02, -0.012), "top-left", 0.8)
-        used |= {"title", "vaxis", "taxis"}
+        used |= {"title", "taxis"}
         for key in self._labels.nodes:
             if key not in used:
                 self._labels.set(key, "visible", False)
@@ -1752,6 +1805,25 @@ class CurveEditor:
                 self._guarded(fn, event)
         return callback
 
+    def _typed(self, fn: Callable[[Any], Any]) -> Callable[[Any], None]:
+        """A GUI callback for a typed field: runs :data:`TYPING_PAUSE_S` after the last keystroke."""
+        callback = self._gui_cb(fn)
+        timer: list[threading.Timer | None] = [None]
+
+        def on_update(event: Any) -> None:
+            if self._syncing:
+                return
+            if timer[0] is not None:
+                timer[0].cancel()
+            if TYPING_PAUSE_S <= 0:
+                callback(event)
+                return
+            timer[0] = threading.Timer(TYPING_PAUSE_S, callback, args=(event,))
+            timer[0].daemon = True
+            timer[0].start()
+
+        return on_update
+
     def _sync(self, handle: Any, value: Any) -> None:
         """Set a widget value from the editor without running its edit callback."""
         prev = self._syncing
@@ -1764,7 +1836,9 @@ class CurveEditor:
     def _build_gui(self) -> None:
         gui = self.server.gui
         self.status_md = gui.add_markdown("")
-        self.sample_dropdown = gui.add_dropdown("Sample", options=tuple(SAMPLE_NAMES), initial_value=self._sample)
+        self.sample_dropdown = gui.add_dropdown("Sample", options=tuple(SAMPLE_NAMES), initial_value=self._sample,
+                                                hint="the sample edited here is the one Edit mode walks "
+                                                     "(the same as in the Sample tab)")
         self.channel_dropdown = gui.add_dropdown("Edit channel", options=tuple(self._channels),
                                                  initial_value=self._active,
                                                  hint="The channel knots are added to and pasted onto")
@@ -1818,13 +1892,16 @@ class CurveEditor:
                                           hint="Ctrl+Shift+Z / Ctrl+Y")
         self.keys_html = gui.add_html(self.keyboard_snippet())
 
-        self.sample_dropdown.on_update(self._gui_cb(lambda e: self.set_sample(e.target.value)))
+        self.sample_dropdown.on_update(self._gui_cb(lambda e: self._pick_sample(e.target.value)))
         self.channel_dropdown.on_update(self._gui_cb(lambda e: self.set_active_channel(e.target.value)))
         self.normalize_checkbox.on_update(self._gui_cb(lambda e: self.frame_all()))
         self.cyclic_checkbox.on_update(self._gui_cb(lambda e: self.frame_all()))
-        self.time_input.on_update(self._gui_cb(lambda e: self.set_knot_values(t_s=e.target.value, client=e.client)))
-        self.value_input.on_update(self._gui_cb(lambda e: self.set_knot_values(value=e.target.value,
-                                                                               client=e.client)))
+        # Typed numbers apply when the typing pauses, not on every keystroke: each applied edit is
+        # validated, autosaved, sent to the engine and redrawn (under software WebGL the browser
+        # then lagged seconds behind the keys).
+        self.time_input.on_update(self._typed(lambda e: self.set_knot_values(t_s=e.target.value, client=e.client)))
+        self.value_input.on_update(self._typed(lambda e: self.set_knot_values(value=e.target.value,
+                                                                             client=e.client)))
         self.tangent_dropdown.on_update(self._gui_cb(self._on_tangent_dropdown))
         self.add_button.on_click(self._gui_cb(lambda e: self.add_knot_at_playhead(e.client)))
         self.delete_button.on_click(self._gui_cb(lambda e: self.delete_selected(e.client)))
@@ -1860,6 +1937,11 @@ class CurveEditor:
         curve = self._curve(channel) if self.session.style is not None else None
         count = f" · {curve.n_knots} keys" if curve is not None else " · —"
         return f"{emoji} {name}{count}"
+
+    def _pick_sample(self, sample: str) -> None:
+        self.set_sample(sample)
+        if self.on_sample_picked is not None:
+            self.on_sample_picked(sample)
 
     def _on_checkbox(self, channel: str, value: bool) -> None:
         self.show_channel(channel, value)
@@ -1914,7 +1996,9 @@ class CurveEditor:
             self.time_input.disabled = pinned
             self.value_input.disabled = pinned and not ref.channel.endswith("_pitch")
             self.tangent_dropdown.disabled = pinned and len(self._selection) == 1
-        else:
+        else:  # nothing selected (e.g. an empty channel): no stale values of another knot
+            self._sync(self.time_input, 0.0)
+            self._sync(self.value_input, 0.0)
             self.time_input.disabled = self.value_input.disabled = self.tangent_dropdown.disabled = True
         clip = self._clipboard
         clip_text = (f"Clipboard: {'curve' if clip.whole else f'{len(clip.knots)} knot(s)'} of `{clip.channel}` "

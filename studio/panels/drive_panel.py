@@ -17,6 +17,7 @@ import numpy as np
 import viser
 
 from engine import protocol as msg
+from studio.camera_follow import CameraFollow
 
 if TYPE_CHECKING:
     from studio.app import Studio
@@ -25,6 +26,9 @@ HOLD_TIMEOUT_S = 2.0  # safety net: a hold with no repeat for this long ends eve
 TAP_MAX_S = 0.35  # a press released sooner than this is a tap: it latches that direction (cruise) until ■ Stop
 PAD_RADIUS_M = 0.12
 SEND_PERIOD_S = 0.05
+#: Where the reference ghost is drawn, in the robot's heading frame (m, forward / left): on the robot by
+#: default (as in the paper), or beside it when the animator picks that in "Ghost offset".
+GHOST_OFFSETS = {"on robot": (0.0, 0.0), "beside (right)": (0.0, -0.9), "beside (left)": (0.0, 0.9)}
 
 
 class JoystickState:
@@ -98,8 +102,14 @@ class DrivePanel:
         self.mode = server.gui.add_button_group("Mode", options=("Stand", "Edit", "Test"))
         self.speed = server.gui.add_slider("Playback speed", min=0.1, max=1.0, step=0.05, initial_value=1.0,
                                            hint="slow motion for edit mode")
-        self.follow = server.gui.add_checkbox("Camera follows robot", initial_value=True)
-        self.show_ghost = server.gui.add_checkbox("Reference ghost", initial_value=True)
+        self.follow = server.gui.add_checkbox("Camera follows robot", initial_value=True,
+                                              hint="the camera moves with the robot; zoom and orbit stay yours")
+        self.camera = CameraFollow(server)
+        self.show_ghost = server.gui.add_checkbox("Reference ghost", initial_value=True,
+                                                  hint="the kinematic reference the controller tracks")
+        self.ghost_offset = server.gui.add_dropdown("Ghost offset", options=tuple(GHOST_OFFSETS),
+                                                    initial_value="on robot",
+                                                    hint="draw the reference ghost on the robot or beside it")
         self.show_overlays = server.gui.add_checkbox("Ground overlays", initial_value=True)
         self.readout = server.gui.add_markdown("Command: stopped")
         with server.gui.add_folder("Joystick (test mode)"):
@@ -119,7 +129,9 @@ class DrivePanel:
         self.stop.on_click(lambda _: self.stop_now())
         self.mode.on_click(lambda e: self.set_mode(e.target.value.lower()))
         self.speed.on_update(lambda _: studio.link.send(msg.SetPlaybackSpeed(float(self.speed.value))))
+        self.follow.on_update(lambda _: self._on_follow_toggled())
         self.show_ghost.on_update(lambda _: studio.set_ghost_visible(self.show_ghost.value))
+        self.ghost_offset.on_update(lambda _: studio.set_ghost_offset(self.ghost_offset.value))
         self.show_overlays.on_update(lambda _: studio.overlays.set_visible(self.show_overlays.value))
         self.pads_root = server.scene.add_frame("/joystick", show_axes=False)
         self.pads = [self._make_pad("move", (0.0, 0.0)), self._make_pad("turn", (0.0, -0.45))]
@@ -167,8 +179,21 @@ class DrivePanel:
             except Exception:  # noqa: BLE001 - keep the joystick alive
                 pass
 
+    @property
+    def following(self) -> bool:
+        """The camera (and the curve graph) move with the robot."""
+        return bool(self.follow.value) and self.studio.mode != "stand"
+
+    def _on_follow_toggled(self) -> None:
+        if self.follow.value:
+            self.camera.recentre()
+            pos = self.studio.robot_position()
+            if pos is not None:
+                self.studio.place_graph(self.camera._ground(pos))
+
     def _follow(self) -> None:
-        """Keep the pads beside the robot (and the camera on it when asked)."""
+        """Keep the pads beside the robot; move the camera and the curve graph with it when following
+        (never during a knot drag: the graph must stay under the pointer)."""
         pos = self.studio.robot_position()
         if pos is None:
             return
@@ -176,19 +201,9 @@ class DrivePanel:
         c, s = np.cos(yaw), np.sin(yaw)
         self.pads_root.position = (pos[0] + 0.5 * c - 0.45 * s, pos[1] + 0.5 * s + 0.45 * c, 0.0)
         self.pads_root.wxyz = (np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2))  # pad axes = robot forward / left
-        follow = getattr(self.studio, "follow_robot", None)
-        if follow is not None:
-            follow(pos)
-        if self.follow.value and self.studio.mode != "stand":
-            for client in self.server.get_clients().values():
-                cam = client.camera
-                offset = np.asarray(cam.position) - np.asarray(cam.look_at)
-                target = np.array([pos[0], pos[1], 0.6])
-                look = np.asarray(cam.look_at)
-                new_look = look + 0.2 * (target - look)
-                with client.atomic():
-                    cam.look_at = tuple(new_look)
-                    cam.position = tuple(new_look + offset)
+        ground = self.camera.step(pos, self.following, frozen=self.studio.dragging)
+        if ground is not None:
+            self.studio.place_graph(ground)
 
     def _make_pad(self, name: str, offset_xy: tuple[float, float]):
         """A disc with a knob: drag the knob; release springs it back; displacement → command."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from collections import deque
 
 import numpy as np
@@ -10,7 +11,18 @@ import viser
 from engine.gait.velocity_sampler import SAMPLE_DISPLAY_NAMES
 
 WINDOW_S = 10.0
+MAX_POINTS = 120  # per series sent to the browser
 SCALES = {"x": {"time": False, "auto": True}, "y": {"auto": True}}
+
+
+def time_window_scales(t_now_s: float) -> dict:
+    """uPlot scales with the time axis pinned to the last :data:`WINDOW_S` of engine time.
+
+    viser's chart keeps the x range it had when first drawn (e.g. 4–12 s while the engine is at 50 s,
+    or a range before any curve: empty plots); an explicit range sent with every update (a new chart
+    for the browser, pinned at creation) follows the engine clock."""
+    return {"x": {"time": False, "auto": False, "range": (round(t_now_s - WINDOW_S, 3), round(t_now_s, 3))},
+            "y": {"auto": True}}
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22")
 
 
@@ -22,6 +34,7 @@ class PlotsPanel:
     def __init__(self, server: viser.ViserServer):
         self.server = server
         self.buffer: deque[tuple[float, dict[str, np.ndarray]]] = deque()
+        self._lock = threading.Lock()
         empty = np.zeros(2)
         self.weights = server.gui.add_uplot((empty, *([empty] * 9)), _series(SAMPLE_DISPLAY_NAMES, PALETTE),
                                             title="Sample activation", aspect=1.6, scales=SCALES)
@@ -35,22 +48,32 @@ class PlotsPanel:
             title="Tracking: reference vs achieved", aspect=1.6, scales=SCALES)
 
     def add(self, t_s: float, signals: dict[str, np.ndarray]) -> None:
+        """Telemetry from the engine (its own thread): kept for the last :data:`WINDOW_S` of engine time."""
         if "sample_weights" not in signals:
             return
-        self.buffer.append((t_s, signals))
-        while self.buffer and (t_s - self.buffer[0][0] > WINDOW_S or self.buffer[0][0] > t_s):
-            self.buffer.popleft()
+        with self._lock:
+            self.buffer.append((float(t_s), signals))
+            while self.buffer and (t_s - self.buffer[0][0] > WINDOW_S or self.buffer[0][0] > t_s):
+                self.buffer.popleft()  # older than the window, or from before a reset
 
     def render(self) -> None:
-        if len(self.buffer) < 2:
+        """Send the window to the browser (status thread). The buffer is copied under the lock: iterating
+        it while telemetry arrives raised "deque mutated during iteration", so the plots never updated."""
+        with self._lock:
+            items = list(self.buffer)
+        if len(items) < 2:
             return
-        t = np.array([b[0] for b in self.buffer])
-        w = np.array([b[1]["sample_weights"] for b in self.buffer])
-        fb = np.array([b[1].get("feedback", np.array([0, 0, 0, 0, 1.0])) for b in self.buffer])
-        pz = np.array([b[1]["pelvis_z"] for b in self.buffer])
-        yaw = np.array([b[1]["pelvis_yaw"] for b in self.buffer])
-        arm = np.array([b[1].get("arm_joint", np.zeros(2)) for b in self.buffer])
+        if len(items) > MAX_POINTS:  # fewer points: less to send and to draw under software WebGL
+            items = [items[i] for i in np.linspace(0, len(items) - 1, MAX_POINTS).round().astype(int)]
+        t = np.array([b[0] for b in items])
+        w = np.array([b[1]["sample_weights"] for b in items], dtype=float)
+        fb = np.array([b[1].get("feedback", np.array([0, 0, 0, 0, 1.0])) for b in items], dtype=float)
+        pz = np.array([b[1]["pelvis_z"] for b in items], dtype=float)
+        yaw = np.array([b[1]["pelvis_yaw"] for b in items], dtype=float)
+        arm = np.array([b[1].get("arm_joint", np.zeros(2)) for b in items], dtype=float)
         yaw = np.unwrap(yaw, axis=0)
-        self.weights.data = (t, *w.T)
-        self.feedback.data = (t, fb[:, 0], fb[:, 2], fb[:, 4] - 1.0)
-        self.tracking.data = (t, pz[:, 0], pz[:, 1], yaw[:, 0], yaw[:, 1], arm[:, 0], arm[:, 1])
+        scales = time_window_scales(float(t[-1]))
+        for plot, data in ((self.weights, (t, *w.T)), (self.feedback, (t, fb[:, 0], fb[:, 2], fb[:, 4] - 1.0)),
+                           (self.tracking, (t, pz[:, 0], pz[:, 1], yaw[:, 0], yaw[:, 1], arm[:, 0], arm[:, 1]))):
+            plot.data = data
+            plot.scales = scales

@@ -5,10 +5,16 @@ t_RTD, T_S; t_LLO is 0) and a bar showing swing and support phases. Every edit g
 the style session: one that breaks a constraint (event order, minimum single/double
 support, attribute ranges) is refused with the validator's message and the controls snap
 back (as in the paper's Fig. 10). Curve knots rescale with their interval.
+
+Below the controls, the engine's edit-time feasibility check (engine/gait/feasibility.py) of
+the selected sample, rerun in the background after every edit (latest wins): the phase and
+what to change when the robot could not walk it, before Test is pressed.
 """
 
 from __future__ import annotations
 
+import math
+import threading
 from dataclasses import replace
 from typing import TYPE_CHECKING, Callable
 
@@ -27,16 +33,30 @@ ATTRIBUTE_LABELS = {
 }
 
 
-def phase_bar_html(iv: Intervals) -> str:
-    """The walk cycle as coloured blocks: left swing, double support, right swing, double support."""
+SLIDER_INSET_LEFT, SLIDER_INSET_RIGHT = "6.8rem", "0.7rem"  # where the Events slider's track begins / ends
+
+
+def timeline_max_s(cycle_s: float, max_cycle_s: float) -> float:
+    """The Events slider's end: room to lengthen the cycle by half, in tenths of a second, so the four
+    handles spread over the slider instead of crowding its left end."""
+    return float(min(max_cycle_s, math.ceil(1.5 * cycle_s * 10.0 - 1e-9) / 10.0))
+
+
+def phase_bar_html(iv: Intervals, span_s: float | None = None) -> str:
+    """The walk cycle as coloured blocks: left swing, double support, right swing, double support — over
+    ``span_s`` (the Events slider's range, so the blocks line up with its handles; default the cycle)."""
     t_ltd, t_rlo, t_rtd, cycle = iv.events_s
     parts = [("LS", 0.0, t_ltd, "#4c8bf5"), ("DS", t_ltd, t_rlo, "#bbbbbb"), ("RS", t_rlo, t_rtd, "#f5a04c"),
              ("DS", t_rtd, cycle, "#bbbbbb")]
+    if span_s is not None and span_s > cycle:
+        parts.append(("", cycle, span_s, "transparent"))
     cells = "".join(
         f'<div title="{name} {a:.2f}–{b:.2f} s" style="flex:{max(b - a, 1e-3):.4f};background:{c};color:#fff;'
-        f'font-size:11px;text-align:center;overflow:hidden">{name} {b - a:.2f}</div>'
+        f'font-size:11px;text-align:center;overflow:hidden">{f"{name} {b - a:.2f}" if name else ""}</div>'
         for name, a, b, c in parts)
-    return (f'<div style="display:flex;height:20px;border-radius:4px;overflow:hidden;margin:2px 0">{cells}</div>'
+    # indented like the slider's track (viser puts a 7.25em − 0.6375em per folder level label on its left)
+    return (f'<div style="display:flex;height:20px;border-radius:4px;overflow:hidden;'
+            f'margin:2px {SLIDER_INSET_RIGHT} 2px {SLIDER_INSET_LEFT}">{cells}</div>'
             f'<div style="font-size:11px;color:#666">cycle {cycle:.2f} s · LLO 0 · LTD {t_ltd:.2f} · '
             f'RLO {t_rlo:.2f} · RTD {t_rtd:.2f}</div>')
 
@@ -50,6 +70,7 @@ class SampleEditor:
         self.on_sample = on_sample
         self.sample_name = "in_place"
         self._syncing = False
+        self._timeline_sample = self.sample_name
         ctx = session.ctx
         labels = dict(zip(SAMPLE_NAMES, SAMPLE_DISPLAY_NAMES))
         self.dropdown = server.gui.add_dropdown("Sample", options=SAMPLE_NAMES, initial_value=self.sample_name,
@@ -58,10 +79,16 @@ class SampleEditor:
         self.phase_bar = server.gui.add_html("")
         iv = self._sample().intervals
         self.timeline = server.gui.add_multi_slider(
-            "Events (s)", min=0.0, max=ctx.max_cycle_s, step=0.01, initial_value=(*iv.events_s,),
+            "Events (s)", min=0.0, max=timeline_max_s(iv.cycle_s, ctx.max_cycle_s), step=0.01,
+            initial_value=(*iv.events_s,),
             min_range=min(ctx.min_double_support_s, ctx.min_single_support_s),
-            hint="t_LTD, t_RLO, t_RTD, cycle T_S (left liftoff is 0)")
+            hint="t_LTD, t_RLO, t_RTD, cycle T_S (left liftoff is 0); the slider ends at 1.5× the cycle "
+                 "(pick the sample again to extend it)")
         self.message = server.gui.add_markdown("")
+        self.feasibility = server.gui.add_markdown("")
+        self._check_wanted: tuple | None = None  # (style, sample) the check should look at next
+        self._check_event = threading.Event()
+        threading.Thread(target=self._check_loop, name="feasibility-check", daemon=True).start()
         ranges = {
             "stance_width_m": ctx.stance_width_range_m, "stance_splay_rad": (-0.6, 0.6), "stance_x_bias_m": (-0.2, 0.2),
             "liftoff_transition_s": (0.0, 0.5), "touchdown_transition_s": (0.0, 0.5),
@@ -145,7 +172,13 @@ class SampleEditor:
             sample = self._sample()
             v = self.session.style.velocities.velocity_of(self.sample_name)
             self.velocity.content = f"velocity vx {v[0]:+.2f} m/s · vy {v[1]:+.2f} m/s · wz {v[2]:+.2f} rad/s"
-            self.phase_bar.content = phase_bar_html(sample.intervals)
+            span = timeline_max_s(sample.intervals.cycle_s, self.session.ctx.max_cycle_s)
+            if self.timeline.max < sample.intervals.cycle_s or self.sample_name != self._timeline_sample:
+                # a new sample (or an undo past the end): rescale. Not while the animator drags a
+                # handle: the slider must not change scale under the pointer.
+                self.timeline.max = span
+            self._timeline_sample = self.sample_name
+            self.phase_bar.content = phase_bar_html(sample.intervals, float(self.timeline.max))
             events = tuple(round(e, 4) for e in sample.intervals.events_s)
             if tuple(self.timeline.value) != events:
                 self.timeline.value = events
@@ -157,3 +190,44 @@ class SampleEditor:
                 self.dropdown.value = self.sample_name
         finally:
             self._syncing = False
+        self._request_check()
+
+    # ------------------------------------------------------------------ feasibility
+    def _request_check(self) -> None:
+        wanted = (self.session.style, self.sample_name)
+        if self._check_wanted is not None and wanted[0] is self._check_wanted[0] and wanted[1] == self._check_wanted[1]:
+            return
+        self._check_wanted = wanted
+        self.feasibility.content = "<small>checking the sample…</small>"
+        self._check_event.set()
+
+    def _check_loop(self) -> None:
+        from engine.gait.feasibility import check_style
+        from engine.robot.model import load_robot
+
+        while True:
+            self._check_event.wait()
+            self._check_event.clear()
+            wanted = self._check_wanted
+            if wanted is None or wanted[0] is None:
+                continue
+            style, name = wanted
+            try:
+                findings = check_style(load_robot(self.session.robot), style, samples=(name,))
+            except Exception as exc:  # noqa: BLE001 - the check must never break the panel
+                text = f"<small>feasibility check failed: {exc}</small>"
+            else:
+                text = feasibility_markdown(name, findings)
+            if self._check_wanted is wanted:  # an edit since then: its own check follows
+                self.feasibility.content = text
+
+
+def feasibility_markdown(sample: str, findings: list, limit: int = 3) -> str:
+    """The check's findings for one sample as the panel shows them."""
+    if not findings:
+        return f"✅ **{sample}**: nothing in the way of walking it"
+    lines = [f"⚠️ **{f.sample}**, around {f.phase_pct:.0f} % of the cycle: {f.message}" for f in findings[:limit]]
+    more = len(findings) - limit
+    if more > 0:
+        lines.append(f"<small>… and {more} more</small>")
+    return "\n\n".join(lines)

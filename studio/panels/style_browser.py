@@ -23,7 +23,8 @@ class StyleBrowser:
         self.recover_button = server.gui.add_button("Recover unsaved edits", icon=viser.Icon.LIFEBUOY, color="yellow",
                                                     visible=False)
         self.save_button = server.gui.add_button("Save", icon=viser.Icon.DEVICE_FLOPPY)
-        self.name = server.gui.add_text("Name", initial_value="", hint="letters, digits, - and _")
+        self.name = server.gui.add_text("New name", initial_value="", hint="name for Save as / New from neutral: "
+                                                                          "letters, digits, - and _")
         self.save_as_button = server.gui.add_button("Save as", icon=viser.Icon.COPY)
         self.new_button = server.gui.add_button("New from neutral", icon=viser.Icon.FILE_PLUS)
         self.open_button.on_click(lambda _: self.open(self.dropdown.value))

@@ -123,3 +123,4 @@ def test_placo_peer_steps_and_walks_slowly(g1):
     summary, rec = run_walk(robot, style, schedule, 6.0, wbc="placo")
     assert not summary["fell"], summary
     assert rec["qpos"][-1][0] > 0.2
+

@@ -38,6 +38,18 @@ def wait_for_text(page, text: str, timeout_ms: int = 60_000) -> None:
     page.wait_for_function("t => document.body.innerText.includes(t)", arg=text, timeout=timeout_ms)
 
 
+def wait_until(predicate, timeout_s: float, what: str, poll_s: float = 0.1) -> None:
+    """Poll ``predicate`` until it holds (a condition, not a fixed sleep); fail naming ``what``."""
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(poll_s)
+    pytest.fail(f"timed out after {timeout_s:g} s waiting for {what}")
+
+
 def canvas_pixels(page) -> np.ndarray:
     """RGB pixels of the 3D canvas as seen on screen."""
     from PIL import Image

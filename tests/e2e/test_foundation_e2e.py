@@ -5,12 +5,11 @@ from __future__ import annotations
 import os
 import re
 import signal
-import time
 
 import numpy as np
 import pytest
 
-from tests.e2e.browser import canvas_pixels, open_page, robot_pixel_count, wait_for_text
+from tests.e2e.browser import canvas_pixels, open_page, robot_pixel_count, wait_for_text, wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -18,7 +17,7 @@ pytestmark = pytest.mark.e2e
 def test_robot_stands_in_the_browser_and_survives_an_engine_kill(served_studio, artifacts):
     with open_page(served_studio.url) as page:
         wait_for_text(page, "Engine running")
-        time.sleep(2.0)  # a few frames in software WebGL
+        wait_until(lambda: robot_pixel_count(canvas_pixels(page)) > 300, 60, "the robot drawn (software WebGL)")
         page.screenshot(path=str(artifacts / "foundation_g1.png"))
         rgb = canvas_pixels(page)
         assert rgb.std() > 10, "canvas is blank"
@@ -34,6 +33,6 @@ def test_robot_stands_in_the_browser_and_survives_an_engine_kill(served_studio, 
             " return m && Number(m[1]) !== old; }", arg=old_pid, timeout=30_000)
         new_pid = int(re.search(r"Engine running · pid (\d+)", page.inner_text("body")).group(1))
         assert new_pid != old_pid and new_pid in served_studio.engine_pids()
-        time.sleep(2.0)
+        wait_until(lambda: robot_pixel_count(canvas_pixels(page)) > 300, 60, "the robot drawn after the restart")
         page.screenshot(path=str(artifacts / "foundation_g1_after_engine_restart.png"))
         assert robot_pixel_count(canvas_pixels(page)) > 300

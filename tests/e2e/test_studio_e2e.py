@@ -90,6 +90,7 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
     from studio.app import Studio
     from studio.panels.curve_editor import KnotRef, project_to_screen
     from tests.conftest import REPO, free_port
+    from tests.e2e.browser import wait_until
 
     styles = tmp_path / "styles"
     (styles / "g1").mkdir(parents=True)
@@ -137,7 +138,10 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
             page.get_by_text("Curves", exact=True).first.click()
             client = next(iter(studio.server.get_clients().values()))
             editor.look_at_graph(client)
-            time.sleep(2.0)
+            asked, t_asked = np.array(client.camera.position), time.time()
+            # the browser echoes its camera once it has applied ours (the server-side state updates at once)
+            wait_until(lambda: client.camera.update_timestamp > t_asked
+                  and np.allclose(client.camera.position, asked, atol=1e-3), 30, "the browser's camera on the graph")
             cam = client.camera
             box = page.locator("canvas").first.bounding_box()
             u, v = project_to_screen(editor.knot_world_position(apex), cam.position, cam.wxyz, cam.fov, cam.aspect)
@@ -150,7 +154,8 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
             page.mouse.down()
             for i in range(1, 5):
                 page.mouse.move(x, y - dy * i / 4)
-                time.sleep(0.4)
+                if i == 1:
+                    wait_until(lambda: editor._drag is not None, 30, "the knot drag to start")
             page.mouse.up()
             deadline = time.monotonic() + 20
             while time.monotonic() < deadline and studio.session.style.sample("in_place").curve("left_foot.z") == before:

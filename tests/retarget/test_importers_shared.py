@@ -9,7 +9,7 @@ import pytest
 from engine.retarget.contacts import contact_iou, estimate_contacts
 from engine.retarget.importers import detect_format, import_source
 from engine.retarget.motion import LEGS
-from engine.retarget.quadruped.heightmap import Box, HeightMap
+from engine.retarget.heightmap import Box, HeightMap
 from engine.retarget.quadruped.pipeline import RetargetOptions, retarget_detailed
 from engine.retarget.report import summary
 from tests.retarget.shared import shared_file, stmr_clip

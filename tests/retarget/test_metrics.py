@@ -7,7 +7,7 @@ import numpy as np
 from engine.retarget.contacts import contact_iou, estimate_contacts
 from engine.retarget.metrics import (detect_contacts, dtw_keypoint_l1_percent, foot_slide_mm, penetration_mm,
                                      recovery_rate_percent, travel_distance_m)
-from engine.retarget.quadruped.heightmap import Box, HeightMap
+from engine.retarget.heightmap import Box, HeightMap
 
 
 def test_foot_slide_counts_only_segments_longer_than_half_a_second():

@@ -114,7 +114,7 @@ def test_amp_full_frame_layout(tmp_path, go1_motion):
 def test_retarget_api_reports_progress_and_cancels():
     import threading
 
-    from engine.retarget.quadruped import RetargetCancelled
+    from engine.retarget.quadruped.pipeline import RetargetCancelled
 
     seen: list[float] = []
     motion = retarget(synthetic_trot("a1", frames=40), "a1", "smr", progress=seen.append)

@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from engine.retarget.contacts import segments
-from engine.retarget.quadruped.heightmap import Box, HeightMap
+from engine.retarget.heightmap import Box, HeightMap
 from engine.retarget.quadruped.kinematics import quadruped_kinematics
 from engine.retarget.quadruped.pipeline import RetargetOptions, retarget_detailed
 from engine.retarget.quadruped.smr import SmrOptions

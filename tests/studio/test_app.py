@@ -26,7 +26,7 @@ def wait(predicate, timeout_s: float = 60.0) -> None:
 @pytest.fixture
 def studio(tmp_path):
     styles = tmp_path / "styles"
-    for robot in ("g1", "talos"):
+    for robot in ("g1", "talos", "dino"):
         (styles / robot).mkdir(parents=True)
         for p in (REPO / "styles" / robot).glob("*.json"):
             shutil.copy(p, styles / robot / p.name)
@@ -36,10 +36,20 @@ def studio(tmp_path):
     app.stop()
 
 
+def test_the_dino_opens_with_its_neck_and_tail_curves(studio):
+    studio.robot_panel.robot.value = "dino"
+    wait(lambda: studio.session is not None and studio.session.robot == "dino" and studio.curve_editor is not None)
+    assert studio.session.style.robot == "dino"
+    assert studio.session.open("strut").ok
+    channels = set(studio.session.style.sample("forward_slow").curves)
+    assert {"joints.neck_pitch_joint", "joints.head_pitch_joint", "joints.tail_yaw_1_joint"} <= channels
+
+
 def test_switching_robots_switches_styles_and_panels(studio):
     assert studio.session.robot == "g1" and studio.curve_editor is not None
     studio.robot_panel.robot.value = "talos"
-    wait(lambda: studio.session is not None and studio.session.robot == "talos")
+    wait(lambda: studio.session is not None and studio.session.robot == "talos" and studio.sample_editor is not None
+         and studio.sample_editor.session is studio.session)  # the panels are built after the session
     assert studio.session.style.robot == "talos"
     lo, hi = studio.session.ctx.pelvis_height_range_m
     slider = studio.sample_editor.attributes["pelvis_height_m"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -49,6 +50,7 @@ def session(g1_ctx, tmp_path) -> StyleSession:
 @pytest.fixture
 def editor(server, session, monkeypatch):
     monkeypatch.setattr(ce, "PREVIEW_PERIOD_S", 0.0)  # every drag update also applies a preview
+    monkeypatch.setattr(ce, "TYPING_PAUSE_S", 0.0)  # typed values apply at once
     ed = CurveEditor(server, session)
     yield ed
     ed.close()
@@ -515,3 +517,47 @@ def test_pure_helpers():
     assert ce.opposite_channel("pelvis.yaw") is None and ce.opposite_channel("joints.waist_yaw_joint") is None
     assert ce.mirror_sign("left_foot.y") == -1.0 and ce.mirror_sign("left_foot.z") == 1.0
     assert ce.project_to_screen((0, 0, 1), (0, 0, 0), (1, 0, 0, 0), 1.0, 1.0) == pytest.approx((0.5, 0.5))
+
+
+def test_a_drag_goes_on_past_the_view_and_keeps_to_one_axis(editor, session):
+    """Issue 16: the knot follows the pointer past the graph's range (the range grows to show it), and a
+    vertical drag keeps the knot's time, a horizontal one its value."""
+    ref = KnotRef(SWING, 1)
+    k0 = curve(session, SWING).knots[1]
+    v_top = editor.view[3]
+    hi = ce.channel_limits(SWING, session.style.sample("forward_fast"), session.ctx)[1]
+    target = min(k0.value + 2.5 * (v_top - k0.value), hi - 1e-3)  # far above the top of the view
+    assert target > v_top + 0.01
+    drag_knot(editor, ref, k0.t_s + 0.002, target, steps=4)  # up, with a slight sideways wobble
+    k1 = curve(session, SWING).knots[1]
+    assert k1.value == pytest.approx(target, abs=1e-6) and k1.t_s == k0.t_s
+    assert editor.view[3] > k1.value, "the view did not grow to show the dragged knot"
+    x, z = editor.graph_point(SWING, k1.t_s, k1.value)
+    assert 0.0 <= z <= editor.height_m
+    drag_knot(editor, ref, k1.t_s + 0.03, k1.value + 0.001)  # sideways: the value stays
+    k2 = curve(session, SWING).knots[1]
+    assert k2.t_s == pytest.approx(k1.t_s + 0.03, abs=1e-6) and k2.value == k1.value
+
+
+def test_switching_to_an_empty_channel_clears_the_knot_fields(editor, session):
+    editor.handle_knot_click(KnotRef(SWING, 1))
+    assert editor.value_input.value == pytest.approx(curve(session, SWING).knots[1].value, abs=1e-6)
+    editor.set_active_channel("left_foot.x")  # no curve
+    assert editor.primary is None and editor.value_input.value == 0.0 and editor.value_input.disabled
+
+
+def test_typed_values_apply_once_when_the_keys_pause(server, session, monkeypatch):
+    monkeypatch.setattr(ce, "TYPING_PAUSE_S", 0.3)
+    ed = CurveEditor(server, session)
+    try:
+        ed.handle_knot_click(KnotRef(SWING, 1))
+        for typed in (0.0, 0.05, 0.055):  # keystrokes "0", ".05", "5"
+            ed.value_input.value = typed
+        assert session.undo_labels() == []  # nothing applied while typing
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not session.undo_labels():
+            time.sleep(0.05)
+        assert session.undo_labels() == [f"set knot on {SWING}"]  # one edit, the last value
+        assert curve(session, SWING).knots[1].value == pytest.approx(0.055)
+    finally:
+        ed.close()

@@ -228,3 +228,68 @@ def test_joystick_tap_latches_and_toggles():
     np.testing.assert_allclose(joy.unit_command(), [0.0, 0.0, 1.0])
     joy.release(2, 1.0)  # tapping the same button again releases it
     np.testing.assert_allclose(joy.unit_command(), 0.0)
+
+
+def test_recovery_is_offered_only_for_edits_this_session_does_not_hold(session):
+    from dataclasses import replace
+
+    assert not session.recovery_available("neutral")  # a normal session: nothing to recover
+    sample = session.style.samples["in_place"]
+    wider = replace(sample, attributes=replace(sample.attributes, stance_width_m=0.3))
+    assert session.apply(session.style.with_sample("in_place", wider), "wider").ok
+    assert not session.recovery_available("neutral")  # its own autosave: the edits are right here
+    assert session.open("casual").ok  # the edits of neutral stay in its recovery file …
+    assert session.recovery_available("neutral")  # … and are offered
+    copy = session.recovery_path("casual")
+    copy.parent.mkdir(exist_ok=True)
+    shutil.copy(session.folder / "casual.json", copy)  # an autosave identical to the file
+    assert not session.recovery_available("casual")
+
+
+def test_saved_styles_keep_ordinary_file_modes(session):
+    import os
+
+    shipped = (session.folder / "neutral.json").stat().st_mode & 0o777
+    assert session.save_as("mine").ok
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert (session.folder / "mine.json").stat().st_mode & 0o777 == 0o666 & ~umask
+    os.chmod(session.folder / "neutral.json", 0o640)
+    assert session.open("neutral").ok and session.save().ok
+    assert (session.folder / "neutral.json").stat().st_mode & 0o777 == 0o640  # the replaced file's mode stays
+    assert shipped & 0o444
+
+
+def test_events_slider_spans_the_cycle_and_the_phase_bar_lines_up(server, session):
+    from studio.panels.sample_editor import phase_bar_html, timeline_max_s
+
+    assert timeline_max_s(0.8, 3.0) == pytest.approx(1.2) and timeline_max_s(2.5, 3.0) == 3.0
+    with server.gui.add_folder("timeline"):
+        editor = SampleEditor(server, session, Notes())
+    cycle = session.style.samples["in_place"].intervals.cycle_s
+    assert editor.timeline.max == pytest.approx(timeline_max_s(cycle, session.ctx.max_cycle_s))
+    assert editor.timeline.max < session.ctx.max_cycle_s  # not 0–3 s with the handles in its left third
+    bar = phase_bar_html(session.style.samples["in_place"].intervals, float(editor.timeline.max))
+    assert "transparent" in bar  # the bar spans the slider: the part after the cycle is left empty
+    editor.dropdown.value = "forward_fast"
+    fast = session.style.samples["forward_fast"].intervals.cycle_s
+    assert editor.timeline.max == pytest.approx(timeline_max_s(fast, session.ctx.max_cycle_s))
+
+
+def test_plots_follow_the_engine_clock():
+    from studio.panels.plots_panel import WINDOW_S, PlotsPanel
+
+    srv = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        plots = PlotsPanel(srv)
+        signals = {"sample_weights": np.eye(9)[2], "pelvis_z": np.array([0.7, 0.69]),
+                   "pelvis_yaw": np.array([0.0, 0.01]), "feedback": np.array([0.0, 0.0, 0.01, 0.0, 1.0])}
+        for k in range(400):  # 20 s of telemetry at 20 Hz, engine clock from 40 s
+            plots.add(40.0 + 0.05 * k, signals)
+        plots.render()
+        t = plots.weights.data[0]
+        assert t[-1] == pytest.approx(59.95) and t[0] >= 59.95 - WINDOW_S - 1e-9 and len(t) <= 120
+        assert plots.weights.scales["x"]["range"] == pytest.approx((59.95 - WINDOW_S, 59.95))
+        assert plots.tracking.scales["x"]["range"] == plots.weights.scales["x"]["range"]
+    finally:
+        srv.stop()

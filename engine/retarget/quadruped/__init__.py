@@ -1,8 +1,8 @@
-"""Quadruped retargeting (STMR): UVM, SMR (spatial), TMR (temporal, another module).
+"""Quadruped retargeting (STMR): UVM, SMR (spatial), TMR (temporal, ``tmr/``).
 
 The engine API the studio and the temporal stage use::
 
-    from engine.retarget.quadruped import retarget, RetargetOptions
+    from engine.retarget.quadruped.pipeline import retarget, RetargetOptions
     motion = retarget(source, "go1", "smr", RetargetOptions(baseless=False), progress=cb, cancel=event)
 
 The returned motion carries its figures in ``motion.metrics`` (foot slide, contact IoU, penetration, keypoint
@@ -10,8 +10,3 @@ error, DTW %, travel, frames/s: ``engine.retarget.report.summary``, what ``studi
 ``retarget_detailed`` also returns the UVM target keypoints and the timing. Sources: ``engine.retarget.importers.
 import_source(path)`` or ``KeypointMotion.load``; exports: ``engine.export.export_motion(motion, fmt, path)``.
 """
-
-from engine.retarget.quadruped.pipeline import (  # noqa: F401
-    METHODS, QUADRUPEDS, NotAQuadruped, RetargetCancelled, RetargetOptions, RetargetOutput, retarget,
-    retarget_detailed,
-)

@@ -17,7 +17,7 @@ from typing import Callable
 import numpy as np
 
 from engine.retarget.motion import KEYPOINT_NAMES, LEGS, KeypointMotion, RobotMotion
-from engine.retarget.quadruped.heightmap import HeightMap
+from engine.retarget.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import NotAQuadruped, QuadrupedKinematics, quadruped_kinematics
 from engine.retarget.quadruped.smr import SmrOptions, smr
 from engine.retarget.quadruped.uvm import RetargetCancelled, ik_trajectory, uvm_keypoints

@@ -34,7 +34,7 @@ import pinocchio as pin
 from scipy import sparse
 
 from engine.retarget.quadruped.flight import GRAVITY_M_S2, exit_velocity, landing_exit_velocity_z
-from engine.retarget.quadruped.heightmap import HeightMap
+from engine.retarget.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import QuadrupedKinematics
 from engine.retarget.quadruped.uvm import RetargetCancelled
 

@@ -1,0 +1,99 @@
+"""`studio bench arms`: LWL2 against per-frame IK (with collision fixing) and the glue-only feed-forward
+network, on held-out clips (CMU 141_16; every Bandai Namco clip — evaluation only), measured side by side.
+
+Errors are hand / elbow distances (mm) to the optimisation-based targets (:func:`ik.arm_errors_m`: bone
+directions scaled to the robot's arm, from its own shoulders); collision-free is the capsule check of every
+output frame; times are per frame on this machine, in the same run (the ratio is what to compare).
+Also: capsules against MuJoCo's collision detection on random poses.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def _clip_groups() -> dict[str, list]:
+    from engine.retarget.humanoid_arm import sources
+
+    groups: dict[str, list] = {}
+    for path in sources.evaluation_clips():
+        key = "cmu-held-out" if "cmu" in str(path) else "bandai-namco"
+        groups.setdefault(key, []).append(path)
+    return groups
+
+
+def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agreement_poses: int = 300) -> list[dict]:
+    from engine.retarget.humanoid_arm.capsules import mujoco_agreement
+    from engine.retarget.humanoid_arm.ik import ArmIK, arm_errors_m
+    from engine.retarget.humanoid_arm.metadata import weights_path
+    from engine.retarget.humanoid_arm.pose15 import bvh_points
+    from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+    from engine.retarget.importers.bvh import load_bvh
+
+    rows: list[dict] = []
+    groups = _clip_groups()
+    if not groups:
+        return [{"section": "arms", "note": "shared mocap clips absent (set MOTION_STUDIO_SHARED)"}]
+    for robot in robots:
+        if not weights_path(robot).with_suffix(".json").is_file():
+            rows.append({"section": "arms", "robot": robot, "note": f"no trained weights (studio train-arms --robot {robot})"})
+            continue
+        arms = ArmRetargeter.load(robot)
+        ub, cm = arms.ub, arms.capsules
+        ik = ArmIK(ub, cm)
+        agree = mujoco_agreement(cm, agreement_poses)
+        rows.append({"section": "arms", "robot": robot, "method": "capsules-vs-mujoco", "clips": f"{agree['poses']} random poses",
+                     "agreement": agree["agreement"], "mujoco_only": agree["mujoco_only"],
+                     "capsules_only": agree["capsules_only"], "conservative": agree["conservative"]})
+        for group, paths in groups.items():
+            stats = {m: {"hand": [], "elbow": [], "free": [], "t": []} for m in ("lwl2", "ik+fix", "feed-forward")}
+            fallbacks = holds = frames = 0
+            for path in paths:
+                pts = bvh_points(load_bvh(path))
+                poses = pts.pose15()[:: max(1, int(round(pts.fps / fps)))]
+                frames += len(poses)
+                arms.reset()
+                arms.graph_fallbacks = arms.holds = 0
+                x_ik = None
+                for p in poses:
+                    step = arms.retarget(p)
+                    s = stats["lwl2"]
+                    h, e = arm_errors_m(ub, step.x, p)
+                    s["hand"].append(h), s["elbow"].append(e), s["free"].append(cm.is_free(step.x)), s["t"].append(step.inference_s)
+                    t0 = time.perf_counter()
+                    x_ik, ok = ik.solve(p, x_ik)
+                    s = stats["ik+fix"]
+                    s["t"].append(time.perf_counter() - t0)
+                    h, e = arm_errors_m(ub, x_ik, p)
+                    s["hand"].append(h), s["elbow"].append(e), s["free"].append(cm.is_free(x_ik))
+                    if arms.feed_forward is not None:
+                        t0 = time.perf_counter()
+                        x_ff = arms.feed_forward_pose(p)
+                        s = stats["feed-forward"]
+                        s["t"].append(time.perf_counter() - t0)
+                        h, e = arm_errors_m(ub, x_ff, p)
+                        s["hand"].append(h), s["elbow"].append(e), s["free"].append(cm.is_free(x_ff))
+                fallbacks += arms.graph_fallbacks
+                holds += arms.holds
+            lwl2_median = float(np.median(stats["lwl2"]["t"]))
+            for method, s in stats.items():
+                if not s["t"]:
+                    continue
+                t = np.array(s["t"])
+                row = {"section": "arms", "robot": robot, "method": method, "clips": f"{group} ({len(paths)} files, {frames} frames)",
+                       "hand_mm": round(float(np.mean(s["hand"]) * 1000), 1), "elbow_mm": round(float(np.mean(s["elbow"]) * 1000), 1),
+                       "collision_free": round(float(np.mean(s["free"])), 4),
+                       "median_us": round(float(np.median(t) * 1e6), 1), "p99_us": round(float(np.percentile(t, 99) * 1e6), 1),
+                       "time_vs_lwl2": round(float(np.median(t)) / lwl2_median, 2)}
+                if method == "lwl2":
+                    row.update({"graph_steps": fallbacks, "holds": holds, "goal_p99_us": 2000})
+                rows.append(row)
+    keys: list[str] = []
+    for row in rows:  # one column set for the whole section (the table prints the first row's keys)
+        keys += [k for k in row if k not in keys]
+    return [{k: row.get(k, "") for k in keys} for row in rows]
+
+
+__all__ = ["bench_arms"]

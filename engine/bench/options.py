@@ -1,0 +1,39 @@
+"""Command-line options of the bench sections that run batches of closed-loop walks on Ray
+(``styles``, ``push``): kept here so ``studio/cli.py`` only registers them."""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+from collections.abc import Callable
+
+
+def add_bench_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="g1", help="robot of the styles/push sections")
+    parser.add_argument("--style", default=None, help="style file of the push section (default: the robot's neutral)")
+    parser.add_argument("--n", type=int, default=40, help="styles: how many random styles")
+    parser.add_argument("--seed", type=int, default=0, help="styles: random seed")
+    parser.add_argument("--duration", type=float, default=60.0, help="styles: seconds of the sweep per style")
+    parser.add_argument("--extent", type=float, default=1.0,
+                        help="styles: share of each validated range drawn around neutral (1: the whole range)")
+    parser.add_argument("--phases", type=int, default=16, help="push: gait phases per direction")
+    parser.add_argument("--n-per-kg", type=float, default=1.5, help="push: force per kg of robot mass")
+    parser.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray)")
+    parser.add_argument("--out-dir", default=None, help="results folder (resumable; default under ~/.cache/motion-studio)")
+
+
+def call_with_known(function: Callable[..., list[dict]], options: dict) -> list[dict]:
+    """Call ``function`` with the options it declares as keyword parameters (all of them if it takes
+    ``**options``)."""
+    params = inspect.signature(function).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return function(**options)
+    return function(**{k: v for k, v in options.items() if k in params})
+
+
+def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) -> list[dict]:
+    """Call a section with the command-line options it declares as keyword parameters."""
+    mapping = {"minutes": args.minutes, "clients": args.clients, "robot": args.robot, "style": args.style, "n": args.n,
+               "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
+               "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir}
+    return call_with_known(section, mapping)

@@ -1,0 +1,89 @@
+"""``studio bench styles``: does the controller hold the validated style space? (issue 13)
+
+Draws ``n`` random styles that pass validation (engine/gait/style_space.py, seeded), runs the
+edit-time feasibility check on each (engine/gait/feasibility.py), walks each through the
+``sweep`` command in closed loop on Ray (local by default, ``--address`` for a cluster), and
+prints per style: fell / fall time, stance slip, CoP inside, the tracking errors of pelvis
+height, pelvis yaw and an elbow (RMS), and whether the check flagged it; then the totals:
+walked, slip < 2 mm and CoP inside ≥ 99.5 % among those that walked, falls that were not
+flagged ("silent falls") and flagged styles that walked ("false alarms").
+Results are keyed by the style's hash in the output folder: a second call resumes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.walk_batch import job_key, print_progress, run_batch
+
+
+def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float = 1.0) -> list[tuple[Any, dict[str, Any]]]:
+    """[(style, job)] for ``n`` random styles of ``robot`` drawn with ``seed``."""
+    from engine.gait.style import StyleContext, load_style, style_to_json_dict, styles_dir
+    from engine.gait.style_space import random_style
+
+    ctx = StyleContext.for_robot(robot)
+    neutral = load_style(styles_dir(robot) / "neutral.json", ctx)
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        style = random_style(rng, ctx, neutral, extent, name=f"random-{seed}-{i}")
+        job = {"robot": robot, "style": style_to_json_dict(style), "command": "sweep", "duration_s": float(duration_s)}
+        out.append((style, job))
+    return out
+
+
+def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: float = 60.0,
+                 out_dir: str | None = None, address: str | None = None, extent: float = 1.0) -> list[dict]:
+    from engine.gait.feasibility import check_style
+    from engine.robot.model import load_robot
+
+    model = load_robot(robot)
+    pairs = style_jobs(robot, n, seed, duration_s, extent)
+    out = Path(out_dir) if out_dir else Path.home() / ".cache" / "motion-studio" / "bench-styles" / robot
+    results = run_batch([j for _, j in pairs], out, address=address, progress=print_progress)
+    rows: list[dict] = []
+    for i, (style, job) in enumerate(pairs):
+        key = job_key(job)
+        r = results.get(key, {"error": "missing"})
+        findings = check_style(model, style)
+        first = findings[0] if findings else None
+        row = {"section": "styles", "robot": robot, "seed": seed, "i": i, "key": key}
+        if "error" in r:
+            rows.append({**row, "fell": "error", "note": r["error"][:60]})
+            continue
+        row.update({
+            "fell": r["fell"], "fall_s": r["fall_time_s"], "slip_mm": r["max_stance_slip_mm"],
+            "cop_in": r["cop_inside_fraction"],
+            "pelvis_z_rms_mm": _mm(r.get("pelvis_height_rms")), "pelvis_yaw_rms_rad": _r3(r.get("pelvis_yaw_rms")),
+            "elbow_rms_rad": _r3(r.get("elbow_rms")),
+            "flagged": bool(findings),
+            "finding": f"{first.sample} {first.phase_pct:.0f}%: {first.message}"[:90] if first else "",
+        })
+        rows.append(row)
+    rows.append(totals(rows, robot, seed))
+    return rows
+
+
+def totals(rows: list[dict], robot: str, seed: int) -> dict:
+    done = [r for r in rows if r.get("fell") in (True, False)]
+    walked = [r for r in done if not r["fell"]]
+    good = [r for r in walked if (r["slip_mm"] or 0) < 2.0 and (r["cop_in"] or 0) >= 0.995]
+    fell = [r for r in done if r["fell"]]
+    silent = [r for r in fell if not r["flagged"]]
+    alarms = [r for r in walked if r["flagged"]]
+    return {"section": "styles", "robot": robot, "seed": seed, "i": "total", "key": f"{len(done)} run",
+            "fell": f"walked {len(walked)}/{len(done)}", "fall_s": "",
+            "slip_mm": f"<2mm&CoP≥99.5%: {len(good)}/{len(walked)}", "cop_in": "",
+            "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}"}
+
+
+def _mm(x: float | None) -> float | None:
+    return None if x is None else round(1000.0 * x, 1)
+
+
+def _r3(x: float | None) -> float | None:
+    return None if x is None else round(x, 3)

@@ -1,0 +1,18 @@
+"""Task-space inverse dynamics whole-body controller (paper Sec. 7.1 and Appendix "ID", Eqs. 15–25),
+one concept a module:
+
+* :mod:`~engine.control.wbc.tasks` — acceleration tasks (Eq. 18) and the per-tick pinocchio snapshot;
+* :mod:`~engine.control.wbc.reference` — gains, the tracked reference, diagnostics, friction pyramid (Eq. 17);
+* :mod:`~engine.control.wbc.qp` — the QP of Eqs. 20–25 and its solvers (DAQP default, hand-written, OSQP);
+* :mod:`~engine.control.wbc.controller` — :class:`TaskSpaceInverseDynamics` (build, solve, Eq. 15 torques);
+* :mod:`~engine.control.wbc.setpoints` — set-point integration and the fallback hold (shared with the peer);
+* :mod:`~engine.control.wbc.tracking` — the controller slot for a reference-tracking controller;
+* :mod:`~engine.control.wbc.placo_peer` — placo's DynamicsSolver behind the same interface.
+"""
+
+from engine.control.wbc.controller import TaskSpaceInverseDynamics
+from engine.control.wbc.reference import WbcDiagnostics, WbcGains, WbcReference, friction_basis
+from engine.control.wbc.tracking import TrackingController
+
+__all__ = ["TaskSpaceInverseDynamics", "TrackingController", "WbcDiagnostics", "WbcGains", "WbcReference",
+           "friction_basis"]

@@ -1,0 +1,355 @@
+"""Task-space inverse dynamics whole-body controller (paper Sec. 7.1 and Appendix "ID").
+
+One quadratic program per 500 Hz control tick (Eqs. 20–25)::
+
+    min_{q̈, ρ}  Σ_t ‖√W_t (J_t q̈ + J̇_t q̇ − a*_t)‖² + λ_q̈ ‖q̈‖² + λ_ρ ‖ρ‖² + λ_τ̄ ‖τ̄‖²
+    s.t.  A_h q̈ + Ȧ_h q̇ = Σ_c [I; (p_c − c)×] B_c ρ_c + [m g; 0] + w_ext        (21)
+          k_l (q_min − q) − b_l q̇ ≤ q̈_j ≤ k_l (q_max − q) − b_l q̇, |q̈_j| ≤ q̈_max (22, 23)
+          0 ≤ ρ ≤ ρ_max on active sole corners, ρ = 0 on inactive ones            (24, 25)
+
+with ``τ̄ = −Σ_c J_c,jᵀ f_c`` (actuated rows) and ``f_c = B_c ρ_c`` (Eq. 17): four unit
+basis vectors per sole corner spanning a pyramid inscribed in the friction cone of
+coefficient ``μ``. Tasks (:mod:`engine.control.tasks`): both feet (6-D pose; damping only
+when flat on the ground), pelvis height and orientation, horizontal CoM (PD on the CoM MPC's
+reference plus its acceleration), upper-body joints, angular-momentum damping.
+
+Solvers for the same QP, selected by ``qp_backend``. The default is DAQP (:class:`DaqpQpSolver`,
+a dense dual active set in C on preallocated arrays: fastest and equal to rounding in
+``studio bench qp``). :class:`DenseQpSolver` is the hand-written exact alternative
+(``"dense"``): q̈ is eliminated in closed form, leaving a ≤32-variable box QP in ρ solved by a
+warm-started primal active set. :class:`OsqpQpSolver` keeps a fixed sparsity pattern and only
+updates values each tick (``Px, Ax, q, l, u``, warm start); it is the fallback of both and the
+``"osqp"`` option. ``"proxsuite"`` and ``"quadprog"`` go through
+:mod:`engine.control.qp_backends` (measured slower). The floating-base
+acceleration is then made exactly consistent with the rigid-body dynamics (6×6 solve of
+the base rows of Eq. 15), torques follow from Eq. 15 (plus the model's viscous joint
+damping), and joint position/velocity set-points come from integrating q̈, clipped to a
+maximum error from the measured state (paper Sec. 7.1). A failed solve (non-finite input,
+no active contact, solver failure, NaN) never raises: the command falls back to a stiff PD
+hold with the last good torques decaying, and the diagnostics say why.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg.lapack import dposv as _dposv
+
+from engine.control.controller import JointCommand, RobotState
+from engine.constants import CONTROL_PERIOD_S, GRAVITY_MPS2, SIDES
+from engine.control import qp_backends
+from engine.control.wbc.tasks import (
+    AngularMomentumTask,
+    ComTask,
+    DynamicsSnapshot,
+    FramePoseTask,
+    JointTask,
+    PelvisTask,
+)
+from engine.robot.model import RobotModel
+from engine.control.wbc.qp import CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
+from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
+from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
+
+FloatArray = NDArray[np.float64]
+
+
+# ----------------------------------------------------------------------------- the controller
+
+
+class TaskSpaceInverseDynamics:
+    """The paper's whole-body QP (Eqs. 15–25) for a biped with two rectangular soles.
+
+    ``qp_backend``: ``"daqp"`` (default: fastest in ``studio bench qp``), ``"dense"`` (the
+    hand-written exact active set), ``"osqp"`` (fixed sparsity pattern, warm started; the others'
+    fallback) or ``"proxsuite"`` / ``"quadprog"`` (:mod:`engine.control.qp_backends`).
+    """
+
+    name = "task-space-id"
+
+    def __init__(self, robot: RobotModel, gains: WbcGains | None = None,
+                 upper_body_joints: Sequence[str] | None = None, dt_s: float = CONTROL_PERIOD_S,
+                 qp_backend: str = "daqp"):
+        if set(robot.config.soles) != set(SIDES):
+            raise ValueError(f"{robot.name}: the inverse dynamics needs left and right soles")
+        choices = ("dense", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
+        if qp_backend not in choices:
+            raise ValueError(f"qp_backend: expected one of {', '.join(choices)}, got {qp_backend!r}")
+        self.robot = robot
+        self.gains = gains or WbcGains.for_robot(robot)
+        self.dt_s = dt_s
+        self.qp_backend = qp_backend
+        self.model = robot.pin_model
+        self.data = self.model.createData()
+        self.nv = self.model.nv
+        self.n_joints = robot.n_joints
+        self.n_rho = len(SIDES) * N_CORNERS * N_BASIS
+        self.mass_kg = robot.mass_kg
+        self.foot_frame_ids = [self.model.getFrameId(f"{s}_foot") for s in SIDES]
+        # Corner offsets in the foot frame (sole centre, sole plane): (2, 4, 3).
+        self.corner_offsets_m = np.array([[np.subtract(c, robot.config.soles[s].center)
+                                           for c in robot.config.soles[s].corners()] for s in SIDES])
+        names = list(robot.config.upper_body_joints if upper_body_joints is None else upper_body_joints)
+        self.upper_body_joints = names
+        self.upper_v_indices = np.array([6 + robot.joint_names.index(j) for j in names], dtype=np.int64)
+
+        g = self.gains
+        self.foot_tasks = [FramePoseTask(i) for i in range(len(SIDES))]
+        self.pelvis_task = PelvisTask(kp=[g.pelvis_height_kp] + [g.pelvis_rot_kp] * 3,
+                                      kd=[g.pelvis_height_kd] + [g.pelvis_rot_kd] * 3,
+                                      weight=[g.pelvis_height_weight] + [g.pelvis_rot_weight] * 3)
+        self.com_task = ComTask(kp=g.com_kp, kd=g.com_kd, weight=[g.com_weight, g.com_weight, g.com_z_weight])
+        self.upper_task = JointTask(self.upper_v_indices, self.nv, g.upper_body_kp, g.upper_body_kd, g.upper_body_weight)
+        self.angular_momentum_task = AngularMomentumTask(kd=g.angular_momentum_kd, weight=g.angular_momentum_weight)
+        self.tasks = [*self.foot_tasks, self.pelvis_task, self.com_task, self.upper_task, self.angular_momentum_task]
+        self.n_rows = sum(t.dim for t in self.tasks)
+        self._jac = np.zeros((self.n_rows, self.nv))
+        self._jac_filled = False
+        self._rhs = np.zeros(self.n_rows)
+        self._w = np.zeros(self.n_rows)
+        self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
+        self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()
+        mu_n = g.friction_mu / math.sqrt(1.0 + g.friction_mu**2)
+        # Pyramid edges (n ± μ t1, n ± μ t2)/√(1+μ²), t1 = heading, t2 = z × heading (see friction_basis):
+        # their x and y rows are linear in the heading (hx, hy).
+        self._basis_xy = mu_n * np.array([[[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]],
+                                          [[0.0, 0.0, 1.0, -1.0], [1.0, -1.0, 0.0, 0.0]]])  # (x|y row, hx|hy, 4)
+        self._basis_template = np.zeros((len(SIDES), 3, N_BASIS))
+        self._basis_template[:, 2, :] = 1.0 / math.sqrt(1.0 + g.friction_mu**2)
+        self._arms_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3))
+        self._edges_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3, N_BASIS))
+        self._rho_up_cache: tuple[bytes, FloatArray] = (b"", np.zeros(self.n_rho))
+        self._wrench_buf = np.zeros((len(SIDES), 6, N_CORNERS * N_BASIS))
+
+        damping = np.asarray(self.model.damping[6:], dtype=float).copy()
+        self._joint_damping = damping if np.any(damping > 0.0) else None
+        self._joint_lower = robot.joint_lower.copy()
+        self._joint_upper = robot.joint_upper.copy()
+        effort = np.asarray(robot.effort_limits, dtype=float)
+        self._torque_limit = np.where(effort > 0.0, g.torque_limit_fraction * effort, 1e6)
+        self._servo_kp = g.servo_kp_scale * robot.kp
+        self._servo_kd = g.servo_kd_scale * robot.kd
+        self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
+        self.osqp_solver = OsqpQpSolver(self.nv, self.n_rho)
+        self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints)
+        self.q_des: FloatArray | None = None
+        self.qd_des: FloatArray | None = None
+        self.last_tau = np.zeros(self.n_joints)
+        self.diagnostics = WbcDiagnostics(status="not_run")
+        self.qp: CentroidalQp | None = None
+
+    # ------------------------------------------------------------------ public API
+    def reset(self, state: RobotState) -> None:
+        """Start the set-point integrators at the measured joint state."""
+        self.q_des = np.array(state.q[7:], dtype=float)
+        self.qd_des = np.array(state.v[6:], dtype=float)
+        self.last_tau = np.zeros(self.n_joints)
+
+    def hold_reference(self, q: FloatArray) -> WbcReference:
+        """A standing reference that holds configuration ``q``: both feet flat and in contact."""
+        snap = DynamicsSnapshot.compute(self.model, self.data, q, np.zeros(self.nv), self.foot_frame_ids)
+        return WbcReference(
+            com_xy_m=snap.com_m[:2].copy(), com_xy_vel_mps=np.zeros(2), com_xy_acc_mps2=np.zeros(2),
+            pelvis_height_m=float(q[2]), pelvis_height_rate_mps=0.0, pelvis_rotation=snap.base_rotation.copy(),
+            pelvis_ang_vel_radps=np.zeros(3), foot_pos_m=snap.frame_position_m.copy(),
+            foot_rotation=snap.frame_rotation.copy(), foot_lin_vel_mps=np.zeros((2, 3)),
+            foot_ang_vel_radps=np.zeros((2, 3)), contact=np.ones((2, N_CORNERS), dtype=bool),
+            upper_body_q_rad=q[1 + self.upper_v_indices].copy(), upper_body_qd_radps=np.zeros(self.upper_v_indices.size),
+            com_z_m=float(snap.com_m[2]),
+        )
+
+    def compute(self, state: RobotState, ref: WbcReference) -> JointCommand:
+        """One control tick. Never raises; ``self.diagnostics`` describes the result."""
+        t0 = time.perf_counter()
+        try:
+            return self._compute(state, ref, t0)
+        except Exception as exc:  # noqa: BLE001 - a controller must not take the simulation down
+            return self._fallback(state, "fallback_exception", f"{type(exc).__name__}: {exc}", t0)
+
+    # ------------------------------------------------------------------ one tick
+    def _compute(self, state: RobotState, ref: WbcReference, t0: float) -> JointCommand:
+        q = np.asarray(state.q, dtype=float)
+        v = np.asarray(state.v, dtype=float)
+        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or not math.isfinite(q.sum() + v.sum()):
+            return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
+        if self.q_des is None:
+            self.reset(state)
+        if not ref.is_finite():
+            return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
+        contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
+        if not contact.any():
+            return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
+
+        snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
+        t1 = time.perf_counter()
+        self._set_targets(ref, contact)
+        qp = self._build_qp(snap, ref, contact)
+        self.qp = qp
+        t2 = time.perf_counter()
+        solution, backend, iterations, message = None, self.qp_backend, 0, ""
+        if self.qp_backend == "dense":  # (the default, "daqp", is the next branch)
+            solution = self.dense_solver.solve(qp)
+            iterations = self.dense_solver.iterations
+        elif self.qp_backend == "daqp":
+            solution = self.daqp_solver.solve(qp)
+            iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
+        elif self.qp_backend != "osqp":
+            result = qp_backends.solve(qp.standard_form(), self.qp_backend)
+            message = result.status
+            if result.ok:
+                solution = (result.x[:self.nv].copy(), np.clip(result.x[self.nv:], 0.0, qp.rho_up))
+        if solution is None:
+            backend = "osqp"
+            solution = self.osqp_solver.solve(qp)
+            iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
+        t3 = time.perf_counter()
+        if solution is None:
+            return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
+        qdd, rho = solution
+        tau = self._torques(snap, qdd, rho)
+        if not math.isfinite(tau.sum()):
+            return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
+        cmd = self._setpoints(state, qdd, tau)
+        self.last_tau = tau
+        status = "solved" if backend in ("dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
+        self.diagnostics = WbcDiagnostics(
+            status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
+            pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
+            basis=self._basis, corners_m=self._corners_m, qp=qp)
+        return cmd
+
+    def _set_targets(self, ref: WbcReference, contact: NDArray[np.bool_]) -> None:
+        g = self.gains
+        for i, task in enumerate(self.foot_tasks):
+            lin_acc = None if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2[i]
+            ang_acc = None if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2[i]
+            task.set_target(ref.foot_pos_m[i], ref.foot_rotation[i], ref.foot_lin_vel_mps[i], ref.foot_ang_vel_radps[i],
+                            lin_acc, ang_acc)
+            if contact[i].all():  # flat on the ground: hold still (damping only, zero acceleration)
+                task.kp[:] = 0.0
+                task.kd[:] = g.contact_foot_kd
+                task.weight[:] = g.contact_foot_weight
+                task.velocity[:] = 0.0
+                task.acceleration[:] = 0.0
+            else:  # heel/toe contact (firm) or swing: follow the planned pose
+                task.kp[:] = g.swing_foot_kp
+                task.kd[:] = g.swing_foot_kd
+                task.weight[:] = g.contact_foot_weight if contact[i].any() else g.swing_foot_weight
+        self.pelvis_task.set_target(ref.pelvis_height_m, ref.pelvis_rotation, ref.pelvis_height_rate_mps,
+                                    ref.pelvis_ang_vel_radps)
+        com = self.com_task  # targets written in place (the task owns its 3-vectors)
+        com.position_m[:2] = ref.com_xy_m
+        com.position_m[2] = 0.0 if ref.com_z_m is None else ref.com_z_m
+        com.velocity_mps[:2] = ref.com_xy_vel_mps
+        com.acceleration_mps2[:2] = ref.com_xy_acc_mps2
+        com.weight[2] = g.com_z_weight if ref.com_z_m is not None else 0.0
+        self.upper_task.set_target(ref.upper_body_q_rad, ref.upper_body_qd_radps)
+
+    def _build_qp(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> CentroidalQp:
+        g = self.gains
+        nv = self.nv
+        # ---- tasks: stacked weighted least squares on q̈ (Eq. 20)
+        r = 0
+        for task in self.tasks:
+            d = task.dim
+            if not task.constant_jacobian or not self._jac_filled:
+                self._jac[r:r + d] = task.compute_jacobian(snap)
+            np.subtract(task.compute_desired_acceleration(snap), task.compute_drift(snap), out=self._rhs[r:r + d])
+            self._w[r:r + d] = task.weight
+            r += d
+        self._jac_filled = True
+        wj = self._jac * self._w[:, None]
+        p_qq = self._jac.T @ wj
+        p_qq.flat[::nv + 1] += g.lambda_qdd
+        c_q = -(wj.T @ self._rhs)
+
+        # ---- contact model (Eq. 17): corners, friction pyramids (world z normal, foot-yaw tangents)
+        rot = snap.frame_rotation  # (2, 3, 3)
+        corner_rel = rot @ self._corner_offsets_t  # (2, 3, 4) world, from the sole centre
+        corners = snap.frame_position_m[:, :, None] + corner_rel  # (2, 3, 4)
+        heading = rot[:, :2, 0]  # foot x axes, horizontal part (2, 2)
+        heading = heading / np.maximum(np.sqrt((heading * heading).sum(axis=1)), 1e-9)[:, None]
+        basis = self._basis_template.copy()  # (2, 3, 4); z row constant
+        basis[:, :2, :] = (heading @ self._basis_xy).transpose(1, 0, 2)  # x and y rows of the pyramid edges
+        self._basis = basis
+        self._corners_m = corners
+        # Arms to every corner, from the CoM (centroidal moments) and from the sole centre (foot wrench).
+        arms = self._arms_buf  # (16, 3): 8 corners from the CoM, then 8 from their sole centre
+        arms[:8] = (corners - snap.com_m[None, :, None]).transpose(0, 2, 1).reshape(8, 3)
+        arms[8:] = corner_rel.transpose(0, 2, 1).reshape(8, 3)
+        edges = self._edges_buf  # (16, 3, 4): each corner's pyramid edges (twice: CoM arms, foot arms)
+        edges.reshape(2, len(SIDES), N_CORNERS, 3, N_BASIS)[:] = basis[None, :, None]
+        moments = (self._skew_stack(arms) @ edges).transpose(1, 0, 2).reshape(3, 2, -1)  # (3, 2 × 32)
+        g_rho = np.empty((6, self.n_rho))
+        g_rho[:3] = edges[:8].transpose(1, 0, 2).reshape(3, -1)
+        g_rho[3:] = moments[:, 0]
+        # τ̄ map: −Σ_feet J_footᵀ [f; m_foot] per unit ρ (all nv rows; rows 6: are τ̄)
+        wrench = self._wrench_buf  # (2, 6, 16)
+        wrench[:, :3] = g_rho[:3].reshape(3, 2, -1).transpose(1, 0, 2)
+        wrench[:, 3:] = moments[:, 1].reshape(3, 2, -1).transpose(1, 0, 2)
+        tau_map = -(snap.frame_jacobian.transpose(0, 2, 1) @ wrench).transpose(1, 0, 2).reshape(nv, -1)
+        self._tau_map = tau_map
+        tj = tau_map[6:]
+        r_rr = g.lambda_tau * (tj.T @ tj)  # λ_τ̄ ‖τ̄‖²
+        r_rr.flat[::self.n_rho + 1] += g.lambda_rho
+
+        # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
+        b = -snap.centroidal_drift
+        b[2] -= self.mass_kg * GRAVITY_MPS2
+        if ref.external_wrench is not None:
+            b = b + np.asarray(ref.external_wrench, dtype=float)
+
+        # ---- soft joint limits (22, 23) within the acceleration limits; ρ bounds (24, 25)
+        qj, vj = snap.q[7:], snap.v[6:]
+        amax = g.max_joint_acc_radps2
+        lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
+        up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
+        key = contact.tobytes()
+        if key != self._rho_up_cache[0]:
+            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
+            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
+        rho_up = self._rho_up_cache[1]
+        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
+        bias = snap.nonlinear_effects[6:].copy()
+        if self._joint_damping is not None:
+            bias += self._joint_damping * snap.v[6:]
+        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
+                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
+                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
+
+    def _skew_stack(self, arms: FloatArray) -> FloatArray:
+        s = self._skew
+        s[:, 0, 1] = -arms[:, 2]
+        s[:, 0, 2] = arms[:, 1]
+        s[:, 1, 0] = arms[:, 2]
+        s[:, 1, 2] = -arms[:, 0]
+        s[:, 2, 0] = -arms[:, 1]
+        s[:, 2, 1] = arms[:, 0]
+        return s
+
+    def _torques(self, snap: DynamicsSnapshot, qdd: FloatArray, rho: FloatArray) -> FloatArray:
+        """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows."""
+        m = snap.mass_matrix
+        contact_gen = self._tau_map @ rho  # −Σ J_cᵀ f_c
+        rhs = -(m[:6, 6:] @ qdd[6:]) - snap.nonlinear_effects[:6] - contact_gen[:6]
+        _, base, info = _dposv(m[:6, :6], rhs)  # the base block of M is symmetric positive definite
+        qdd[:6] = base if info == 0 else np.linalg.solve(m[:6, :6], rhs)
+        tau = m[6:] @ qdd + snap.nonlinear_effects[6:] + contact_gen[6:]
+        if self._joint_damping is not None:  # the model's viscous joint damping (MuJoCo applies it too)
+            tau += self._joint_damping * snap.v[6:]
+        return tau
+
+    def _setpoints(self, state: RobotState, qdd: FloatArray, tau: FloatArray) -> JointCommand:
+        self.q_des, self.qd_des = integrate_setpoints(self.q_des, self.qd_des, qdd[6:], state, self.gains, self.dt_s)
+        return JointCommand(self.q_des.copy(), self.qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
+
+    def _fallback(self, state: RobotState, status: str, message: str, t0: float, iterations: int = 0) -> JointCommand:
+        cmd = fallback_hold(self.robot, state, self.q_des, self.last_tau, self.dt_s, self.gains.fallback_decay_s)
+        self.q_des, self.qd_des, self.last_tau = cmd.q_des.copy(), cmd.qd_des.copy(), cmd.tau_ff.copy()
+        self.diagnostics = WbcDiagnostics(status=status, message=message, tau_nm=self.last_tau.copy(),
+                                          qp_iterations=iterations, total_s=time.perf_counter() - t0)
+        return cmd

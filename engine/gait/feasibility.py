@@ -1,0 +1,292 @@
+"""Edit-time feasibility check: will the robot be able to walk this sample? (issue 13)
+
+For a gait sample, the planner walks the sample's own velocity open loop (kinematic, no
+physics): from standing the command ramps up at the controller's joystick rate limits, two
+cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
+
+* reach — least-squares IK of both soles, pelvis height and rotation (the pelvis free to move
+  horizontally, pulled gently toward the support-centre CoM plan of the kinematic preview):
+  a residual above ``REACH_TOLERANCE_M`` means no leg posture reaches the foot; the leg
+  joints then at a limit name the reason ("right knee straight: lower the pelvis or shorten
+  the stride", "left knee fully bent: raise the pelvis height");
+* joint speed — finite differences of that IK against the model's velocity limits;
+* torque — in single support, the links' gravity plus the robot's weight carried through the
+  stance sole's middle, against the torque limit the controller uses (90 % of the effort);
+* swing clearance — a swing foot's sole corners below the floor, or an apex below
+  ``MIN_CLEARANCE_M``.
+
+Each finding names the sample, the phase (% of its cycle, from left liftoff) and what to do in
+an animator's words; findings are deduplicated per (sample, kind, joint or side): the first
+phase where a problem shows. Cost: ~0.1 s of CPU per sample. What it does not check (the
+recorded falls of ``studio bench styles`` show what is missed): the CoM dynamics (CoP/ZMP of
+the MPC's plan, an MPC-in-the-loop check diverged open loop without the controller's
+re-anchoring) and friction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from engine.gait.style import SIDES, Style, StyleContext
+from engine.gait.velocity_sampler import SAMPLE_NAMES
+from engine.robot.model import RobotModel
+
+TICKS_PER_CYCLE = 24
+SETTLE_CYCLES = 2.0  # cycles at the sample's velocity before the checked one
+REACH_TOLERANCE_M = 0.01
+COM_WEIGHT = 0.3
+LIMIT_MARGIN_RAD = 0.01
+VELOCITY_SHARE = 1.0  # joint speed beyond this share of the velocity limit is flagged
+TORQUE_SHARE = 0.9  # the controller's torque limit (share of the URDF effort)
+TORQUE_TOLERANCE = 1.25  # the estimate is rough (weight through the sole's middle): flag beyond this × the limit
+MIN_CLEARANCE_M = 0.01
+FLOOR_TOLERANCE_M = 0.005
+GRAVITY = 9.81
+
+JOINT_WORDS = {"hip_pitch": "hip", "hip_roll": "hip (sideways)", "hip_yaw": "hip (twist)", "knee": "knee",
+               "ankle_pitch": "ankle", "ankle_roll": "ankle (sideways)", "leg_1": "hip (twist)", "leg_2": "hip (sideways)",
+               "leg_3": "hip", "leg_4": "knee", "leg_5": "ankle", "leg_6": "ankle (sideways)"}
+
+
+@dataclass(frozen=True)
+class Finding:
+    sample: str
+    phase_pct: float
+    kind: str  # reach | joint_limit | joint_speed | torque | balance | clearance
+    side: str | None
+    message: str
+
+    def text(self) -> str:
+        return f"{self.sample}, around {self.phase_pct:.0f} % of the cycle: {self.message}"
+
+
+def _joint_words(name: str) -> tuple[str | None, str]:
+    """("left", "knee") from left_knee_joint (G1) or leg_left_4_joint (TALOS)."""
+    side = "left" if "left" in name else ("right" if "right" in name else None)
+    base = name.removesuffix("_joint").replace("left_", "").replace("right_", "").replace("_left", "").replace("_right", "")
+    return side, JOINT_WORDS.get(base, base.replace("_", " "))
+
+
+def _hint(kind: str, words: str, bent: bool | None = None) -> str:
+    if kind == "joint_limit" and words == "knee":
+        return "raise the pelvis height" if bent else "lower the pelvis or shorten the stride"
+    if kind in ("reach", "joint_limit"):
+        return "raise or lower the pelvis height, shorten the stride or narrow the stance"
+    if kind == "torque":
+        return "raise the pelvis (less knee bend), soften the curves or lengthen the cycle"
+    if kind == "joint_speed":
+        return "lengthen the swing or soften the curve"
+    return ""
+
+
+class FeasibilityChecker:
+    """Checks samples of styles of one robot (reuses the models between calls)."""
+
+    def __init__(self, robot: RobotModel, ctx: StyleContext | None = None):
+        from engine.control.walking_controller import COP_MARGIN_M, toe_trim_m
+        from engine.gait.kinematic_preview import FOOT_FRAMES, KinematicPreview
+
+        self.robot = robot
+        self.ctx = ctx or StyleContext.for_robot(robot.name)
+        self.model = robot.pin_model
+        self.data = self.model.createData()
+        self.ik = KinematicPreview(robot, self.ctx.upper_joints)
+        self.foot_ids = [self.model.getFrameId(f) for f in FOOT_FRAMES]
+        self.margin_m = COP_MARGIN_M
+        self.toe_trim_m = toe_trim_m(robot, COP_MARGIN_M)
+        names = robot.joint_names
+        legs = set()
+        for fid in self.foot_ids:
+            legs.update(j for j in self.model.supports[self.model.frames[fid].parentJoint] if j > 1)
+        self.leg_joints = sorted(legs)
+        self.leg_names = [self.model.names[j] for j in self.leg_joints]
+        self.leg_q = np.array([self.model.joints[j].idx_q for j in self.leg_joints])
+        self.leg_v = np.array([self.model.joints[j].idx_v for j in self.leg_joints])
+        self.lower = self.model.lowerPositionLimit[self.leg_q]
+        self.upper = self.model.upperPositionLimit[self.leg_q]
+        self.vel_limit = self.model.velocityLimit[self.leg_v]
+        effort = np.array([robot.effort_limits[names.index(n)] for n in self.leg_names])
+        self.torque_limit = TORQUE_SHARE * np.where(effort > 0, effort, np.inf)
+        half = 0.5 * robot.config.soles["left"].length_m
+        self.sole_half = (half, 0.5 * robot.config.soles["left"].width_m)
+        data = self.model.createData()
+        self.com_offset_m = float(pin.centerOfMass(self.model, data, robot.q_standing)[2] - robot.q_standing[2])
+
+    # ------------------------------------------------------------------ public
+    def check_style(self, style: Style, samples: tuple[str, ...] = SAMPLE_NAMES) -> list[Finding]:
+        out: list[Finding] = []
+        for name in samples:
+            out.extend(self.check_sample(style, name))
+        return out
+
+    def check_sample(self, style: Style, name: str) -> list[Finding]:
+        from engine.control.walking_controller import COMMAND_ACCEL_LIMITS
+        from engine.gait.kinematic_preview import SupportCenterComPlan
+        from engine.gait.offline_plan import planner_for
+
+        robot = self.robot
+        planner = planner_for(robot, style, self.ctx)
+        planner.preview_margin_m = self.margin_m
+        planner.preview_toe_trim_m = self.toe_trim_m
+        command = np.array(style.velocities.velocity_of(name))
+        cycle = style.samples[name].intervals.cycle_s
+        dt = cycle / TICKS_PER_CYCLE
+        com_plan = SupportCenterComPlan()
+        q = robot.q_standing.copy()
+        findings: dict[tuple[str, str | None], Finding] = {}
+        q_prev = None
+        # Like the controller: from standing, the command ramps up at the joystick's rate limits;
+        # then two cycles settle at the sample's velocity and one is checked.
+        ramp_s = float(np.max(np.abs(command) / COMMAND_ACCEL_LIMITS))
+        n_settle = int(math.ceil((ramp_s + planner.hold_s) / dt + SETTLE_CYCLES * TICKS_PER_CYCLE))
+        n_total = n_settle + TICKS_PER_CYCLE
+        apex = {s: 0.0 for s in SIDES}
+        swung = {s: False for s in SIDES}
+        commanded = np.zeros(3)
+        for k in range(n_total):
+            commanded = commanded + np.clip(command - commanded, -COMMAND_ACCEL_LIMITS * dt, COMMAND_ACCEL_LIMITS * dt)
+            ref = planner.step(dt, commanded, with_preview=False)
+            com = com_plan.step(dt, ref)
+            if k < n_settle:
+                continue
+            pct = 100.0 * (planner.blend.time_at(ref.phase) % cycle) / cycle
+            if q_prev is None:  # start the IK at the pelvis's pose on the path
+                yaw = float(ref.path_pose[2])
+                q[0:3] = [ref.path_pose[0], ref.path_pose[1], ref.pelvis_z]
+                q[3:7] = [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]  # pinocchio: x, y, z, w
+            q, residual, foot_err = self._reach_ik(ref, q, com)
+            if residual > REACH_TOLERANCE_M:
+                side = SIDES[int(np.argmax(foot_err))]
+                self._add(findings, Finding(name, pct, "reach", side,
+                                            f"the {side} foot is out of the leg's reach ({1000 * residual:.0f} mm short): "
+                                            + _hint("reach", "")))
+                self._limits(findings, name, pct, q)  # which joint stops it
+            if q_prev is not None:
+                self._speed(findings, name, pct, pin.difference(self.model, q_prev, q) / dt)
+            q_prev = q
+            self._torque(findings, name, pct, ref, q)
+            for i, side in enumerate(SIDES):
+                if not ref.contact[i]:
+                    swung[side] = True
+                    apex[side] = max(apex[side], float(ref.foot_pos[i, 2]))
+                    low = float(ref.sole_corners[i, :, 2].min())
+                    if low < -FLOOR_TOLERANCE_M:
+                        self._add(findings, Finding(name, pct, "clearance", side,
+                                                    f"the {side} foot digs {1000 * -low:.0f} mm into the floor during its swing: "
+                                                    "raise its swing height or reduce its heel/toe pitch"))
+        for side in SIDES:
+            if swung[side] and apex[side] < MIN_CLEARANCE_M:
+                self._add(findings, Finding(name, 50.0, "clearance", side,
+                                            f"the {side} foot barely lifts ({1000 * apex[side]:.0f} mm): raise its swing height"))
+        return list(findings.values())
+
+    # ------------------------------------------------------------------ checks
+    @staticmethod
+    def _add(findings: dict, finding: Finding) -> None:
+        findings.setdefault((finding.kind, finding.side), finding)
+
+    def _reach_ik(self, ref, q0: np.ndarray, com_xy: np.ndarray) -> tuple[np.ndarray, float, list[float]]:
+        """Least-squares IK of both soles (6-D each), pelvis height and rotation; the pelvis may
+        move horizontally (the controller places the CoM): the residual is what no posture of
+        the legs reaches. Joints stay within their limits. The CoM is pulled toward the plan's
+        (weight ``COM_WEIGHT``) so the posture is the one the controller would take."""
+        model, data = self.model, self.data
+        q = q0.copy()
+        if len(self.ik.upper_q_index):
+            q[self.ik.upper_q_index] = ref.upper_q
+        rows = np.zeros(18)
+        jac = np.zeros((18, model.nv))
+        active = self.ik.active_v
+        lo, hi = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
+        for _ in range(15):
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            for i, fid in enumerate(self.foot_ids):
+                cur = data.oMf[fid]
+                rows[6 * i:6 * i + 3] = ref.foot_pos[i] - cur.translation
+                rows[6 * i + 3:6 * i + 6] = pin.log3(ref.foot_rot[i] @ cur.rotation.T)
+                jac[6 * i:6 * i + 6] = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            root = data.oMf[self.ik.root_id]
+            jroot = pin.getFrameJacobian(model, data, self.ik.root_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            rows[12] = ref.pelvis_z - root.translation[2]
+            jac[12] = jroot[2]
+            rows[13:16] = pin.log3(ref.pelvis_rot @ root.rotation.T)
+            jac[13:16] = jroot[3:6]
+            com = pin.centerOfMass(model, data, q, False)
+            rows[16:18] = COM_WEIGHT * (com_xy - com[:2])
+            jac[16:18] = COM_WEIGHT * pin.jacobianCenterOfMass(model, data, q, False)[:2]
+            ja = jac[:, active]
+            step = np.linalg.solve(ja.T @ ja + 1e-3 * np.eye(len(active)), ja.T @ rows)
+            norm = float(np.linalg.norm(step))
+            if norm < 1e-6:
+                break
+            if norm > 0.2:  # Gauss–Newton far from the solution: small steps
+                step *= 0.2 / norm
+            dv = np.zeros(model.nv)
+            dv[active] = step
+            q = pin.integrate(model, q, dv)
+            q[7:] = np.clip(q[7:], lo, hi)
+        pin.framesForwardKinematics(model, data, q)
+        foot_err = [float(np.linalg.norm(data.oMf[f].translation - ref.foot_pos[i])) for i, f in enumerate(self.foot_ids)]
+        root = data.oMf[self.ik.root_id]
+        residual = max(max(foot_err), abs(ref.pelvis_z - float(root.translation[2])))
+        return q, residual, foot_err
+
+    def _limits(self, findings: dict, name: str, pct: float, q: np.ndarray) -> None:
+        leg = q[self.leg_q]
+        near_lo = leg <= self.lower + LIMIT_MARGIN_RAD
+        near_hi = leg >= self.upper - LIMIT_MARGIN_RAD
+        for j in np.flatnonzero(near_lo | near_hi):
+            side, words = _joint_words(self.leg_names[j])
+            limit = self.upper[j] if near_hi[j] else self.lower[j]
+            other = self.lower[j] if near_hi[j] else self.upper[j]
+            straight = abs(limit) < abs(other)  # the knee's limit nearer zero is the straight leg
+            what = ("straight" if straight else "fully bent") if words == "knee" else "at its limit"
+            self._add(findings, Finding(name, pct, "joint_limit", f"{side}:{words}",
+                                        f"{side + ' ' if side else ''}{words} {what}: "
+                                        + _hint("joint_limit", words, bent=not straight)))
+
+    def _speed(self, findings: dict, name: str, pct: float, v: np.ndarray) -> None:
+        speed = np.abs(v[self.leg_v])
+        over = speed > VELOCITY_SHARE * self.vel_limit
+        for j in np.flatnonzero(over):
+            side, words = _joint_words(self.leg_names[j])
+            self._add(findings, Finding(name, pct, "joint_speed", f"{side}:{words}",
+                                        f"{side + ' ' if side else ''}{words} would have to turn at {speed[j]:.0f} rad/s "
+                                        f"(limit {self.vel_limit[j]:.0f}): " + _hint("joint_speed", words)))
+
+    def _torque(self, findings: dict, name: str, pct: float, ref, q: np.ndarray) -> None:
+        """Leg torques in single support: the links' gravity plus the robot's weight carried
+        through the middle of the stance sole (where the controller keeps the CoP on average)."""
+        down = [i for i in range(2) if ref.contact[i]]
+        if len(down) != 1:
+            return
+        model, data = self.model, self.data
+        i = down[0]
+        tau = pin.computeGeneralizedGravity(model, data, q)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        jac = pin.getFrameJacobian(model, data, self.foot_ids[i], pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        wrench = np.array([0.0, 0.0, self.robot.mass_kg * GRAVITY, 0.0, 0.0, 0.0])
+        leg = np.abs((tau - jac.T @ wrench)[self.leg_v])
+        over = leg > TORQUE_TOLERANCE * self.torque_limit
+        for j in np.flatnonzero(over):
+            side, words = _joint_words(self.leg_names[j])
+            self._add(findings, Finding(name, pct, "torque", f"{side}:{words}",
+                                        f"{side + ' ' if side else ''}{words} needs {leg[j] / self.torque_limit[j]:.1f}× the "
+                                        "torque it has to carry the robot: " + _hint("torque", words)))
+
+
+_CHECKERS: dict[str, FeasibilityChecker] = {}
+
+
+def check_style(robot: RobotModel, style: Style, samples: tuple[str, ...] = SAMPLE_NAMES) -> list[Finding]:
+    """Findings for ``samples`` of ``style`` (empty: nothing stands in the way of walking it)."""
+    checker = _CHECKERS.get(robot.name)
+    if checker is None:
+        checker = _CHECKERS[robot.name] = FeasibilityChecker(robot)
+    return checker.check_style(style, samples)

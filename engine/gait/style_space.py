@@ -1,0 +1,164 @@
+"""Random styles over the validated style space (the style-space benchmark's generator).
+
+Every field the validator bounds is drawn between the robot's neutral value and the
+validator's bounds: ``extent = 1`` spans the whole validated range of every field, a smaller
+extent shrinks each range toward neutral by that factor (``extent = 0`` is neutral with fresh
+random curves of zero amplitude). What is drawn, per sample (each of the nine independently):
+
+* timings — cycle T_S in [2 (min single + min double support), max_cycle_s], then the
+  swings and double supports as random shares of it that respect the minimum durations;
+* attributes — stance width, splay, x-bias, liftoff/touchdown heel-toe transitions, pelvis height;
+* swing curves — height (apex time and value up to max_swing_height_m), x/y offsets, yaw,
+  roll, and heel/toe pitch with the contact rule (heel or toe at zero at each switch);
+* cycle curves — pelvis height offset and yaw/pitch/roll, every upper-body joint within its
+  limits, periodic, 1–3 knots;
+* the style's sample velocities (the validator only asks them positive and x_slow < x_max:
+  drawn within [0.5, 1.5] × neutral scaled by ``extent``) and the blend gain η.
+
+Drawn with a numpy Generator: the same seed gives the same styles.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from engine.gait.curves import HermiteCurve, Knot, TangentMode
+from engine.gait.style import (
+    MAX_FOOT_ANGLE_RAD,
+    MAX_FOOT_OFFSET_M,
+    MAX_PELVIS_ANGLE_RAD,
+    MAX_PELVIS_Z_OFFSET_M,
+    SIDES,
+    Attributes,
+    GaitSample,
+    Intervals,
+    Style,
+    StyleContext,
+)
+from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
+
+MAX_SPLAY_RAD = 0.6  # the validator's bounds (engine/gait/style.py validate_sample)
+MAX_X_BIAS_M = 0.2
+MAX_TRANSITION_S = 1.0
+EDGE = 1e-6  # stay this far inside closed bounds (rounding in the JSON round trip)
+
+
+def _around(rng: np.random.Generator, centre: float, lo: float, hi: float, extent: float) -> float:
+    """Uniform in [centre − extent (centre − lo), centre + extent (hi − centre)]."""
+    centre = min(max(centre, lo), hi)
+    a, b = centre - extent * (centre - lo), centre + extent * (hi - centre)
+    return float(rng.uniform(a + EDGE, b - EDGE)) if b - a > 2 * EDGE else centre
+
+
+def random_intervals(rng: np.random.Generator, ctx: StyleContext, neutral: Intervals, extent: float) -> Intervals:
+    ss, ds = ctx.min_single_support_s, ctx.min_double_support_s
+    shortest = 2.0 * (ss + ds)
+    cycle = _around(rng, neutral.cycle_s, shortest + 4 * EDGE, ctx.max_cycle_s, extent)
+    slack = cycle - shortest  # shared out among the four phases
+    n_ltd, n_rlo, n_rtd, _ = neutral.events_s
+    n_shares = np.array([n_ltd - ss, n_rlo - n_ltd - ds, n_rtd - n_rlo - ss, neutral.cycle_s - n_rtd - ds])
+    n_shares = np.clip(n_shares, 1e-3, None)
+    n_shares /= n_shares.sum()
+    random_shares = rng.dirichlet(np.ones(4))
+    shares = (1.0 - extent) * n_shares + extent * random_shares
+    lengths = np.array([ss, ds, ss, ds]) + slack * shares
+    t_ltd = lengths[0]
+    t_rlo = t_ltd + lengths[1]
+    t_rtd = t_rlo + lengths[2]
+    return Intervals(round(cycle, 6), (0.0, round(t_ltd, 6)), (round(t_rlo, 6), round(t_rtd, 6)))
+
+
+def random_attributes(rng: np.random.Generator, ctx: StyleContext, neutral: Attributes, extent: float) -> Attributes:
+    return Attributes(
+        stance_width_m=_around(rng, neutral.stance_width_m, *ctx.stance_width_range_m, extent),
+        stance_splay_rad=_around(rng, neutral.stance_splay_rad, -MAX_SPLAY_RAD, MAX_SPLAY_RAD, extent),
+        stance_x_bias_m=_around(rng, neutral.stance_x_bias_m, -MAX_X_BIAS_M, MAX_X_BIAS_M, extent),
+        liftoff_transition_s=_around(rng, neutral.liftoff_transition_s, 0.0, MAX_TRANSITION_S, extent),
+        touchdown_transition_s=_around(rng, neutral.touchdown_transition_s, 0.0, MAX_TRANSITION_S, extent),
+        pelvis_height_m=_around(rng, neutral.pelvis_height_m, *ctx.pelvis_height_range_m, extent),
+    )
+
+
+def _swing_curve(rng: np.random.Generator, duration_s: float, lo: float, hi: float, extent: float,
+                 start: float = 0.0, end: float = 0.0, centre: float = 0.0) -> HermiteCurve:
+    """Flat at both ends (values ``start``/``end``), 1–2 interior knots within [lo, hi]."""
+    n = int(rng.integers(1, 3))
+    times = np.sort(rng.uniform(0.15, 0.85, n)) * duration_s
+    knots = [Knot(0.0, start, mode=TangentMode.FLAT)]
+    knots += [Knot(float(t), _around(rng, centre, lo, hi, extent)) for t in times]
+    knots.append(Knot(duration_s, end, mode=TangentMode.FLAT))
+    return HermiteCurve(knots, duration_s)
+
+
+def _cycle_curve(rng: np.random.Generator, cycle_s: float, lo: float, hi: float, centre: float, extent: float) -> HermiteCurve:
+    n = int(rng.integers(1, 4))
+    times = np.sort(rng.uniform(0.0, 1.0, n)) * cycle_s
+    times = times[np.concatenate([[True], np.diff(times) > 1e-3])]
+    return HermiteCurve([Knot(float(t), _around(rng, centre, lo, hi, extent)) for t in times], cycle_s, periodic=True)
+
+
+def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Intervals, attributes: Attributes,
+                  extent: float, neutral: GaitSample) -> dict[str, HermiteCurve]:
+    curves: dict[str, HermiteCurve] = {}
+    for side in SIDES:
+        d = intervals.swing_duration_s(side)
+        # Height: the neutral apex as the centre of the range [0, max_swing_height_m].
+        apex = neutral.curves.get(f"{side}_foot.z")
+        centre = apex.value_range()[1] if apex is not None else 0.5 * ctx.max_swing_height_m
+        curves[f"{side}_foot.z"] = _swing_curve(rng, d, 0.0, ctx.max_swing_height_m, extent, centre=centre)
+        for tail, bound in (("x", MAX_FOOT_OFFSET_M), ("y", MAX_FOOT_OFFSET_M), ("yaw", MAX_FOOT_ANGLE_RAD),
+                            ("roll", MAX_FOOT_ANGLE_RAD)):
+            if rng.random() < 0.5:
+                curves[f"{side}_foot.{tail}"] = _swing_curve(rng, d, -bound, bound, extent)
+        # Heel/toe pitch: at each contact switch the foot is on its heel or on its toe (or flat).
+        lo_kind, td_kind = rng.choice(["flat", "heel", "toe"]), rng.choice(["flat", "heel", "toe"])
+        half_pi = 0.5 * math.pi
+        heel_lo = _around(rng, 0.0, -half_pi, 0.0, extent) if lo_kind == "heel" else 0.0
+        toe_lo = _around(rng, 0.0, 0.0, half_pi, extent) if lo_kind == "toe" else 0.0
+        heel_td = _around(rng, 0.0, -half_pi, 0.0, extent) if td_kind == "heel" else 0.0
+        toe_td = _around(rng, 0.0, 0.0, half_pi, extent) if td_kind == "toe" else 0.0
+        if heel_lo or heel_td or rng.random() < 0.3:
+            curves[f"{side}_foot.heel_pitch"] = _swing_curve(rng, d, -half_pi, 0.0, extent, heel_lo, heel_td)
+        if toe_lo or toe_td or rng.random() < 0.3:
+            curves[f"{side}_foot.toe_pitch"] = _swing_curve(rng, d, 0.0, half_pi, extent, toe_lo, toe_td)
+    cycle = intervals.cycle_s
+    z_lo = max(-MAX_PELVIS_Z_OFFSET_M, ctx.pelvis_height_range_m[0] - attributes.pelvis_height_m)
+    z_hi = min(MAX_PELVIS_Z_OFFSET_M, ctx.pelvis_height_range_m[1] - attributes.pelvis_height_m)
+    if rng.random() < 0.5 and z_hi - z_lo > 4 * EDGE:
+        curves["pelvis.z"] = _cycle_curve(rng, cycle, z_lo, z_hi, 0.0, extent)
+    for tail in ("yaw", "pitch", "roll"):
+        if rng.random() < 0.5:
+            curves[f"pelvis.{tail}"] = _cycle_curve(rng, cycle, -MAX_PELVIS_ANGLE_RAD, MAX_PELVIS_ANGLE_RAD, 0.0, extent)
+    for joint in ctx.upper_joints:
+        if rng.random() < 0.4:
+            lo, hi = ctx.joint_limits[joint]
+            curves[f"joints.{joint}"] = _cycle_curve(rng, cycle, lo, hi, ctx.standing_angles[joint], extent)
+    return curves
+
+
+def random_velocities(rng: np.random.Generator, neutral: SampleVelocities, extent: float) -> SampleVelocities:
+    def scale() -> float:
+        return float(rng.uniform(1.0 - 0.5 * extent, 1.0 + 0.5 * extent))
+
+    x_max = neutral.x_max_mps * scale()
+    x_slow = min(neutral.x_slow_mps * scale(), 0.9 * x_max)
+    return SampleVelocities(x_max, x_slow, neutral.y_max_mps * scale(), neutral.yaw_max_radps * scale())
+
+
+def random_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, extent: float = 1.0,
+                 name: str = "random") -> Style:
+    """A random style that passes validation (see the module docstring for what is drawn)."""
+    extent = float(min(max(extent, 0.0), 1.0))
+    samples = {}
+    for sample_name in SAMPLE_NAMES:
+        base = neutral.samples[sample_name]
+        intervals = random_intervals(rng, ctx, base.intervals, extent)
+        attributes = random_attributes(rng, ctx, base.attributes, extent)
+        curves = random_curves(rng, ctx, intervals, attributes, extent, base)
+        samples[sample_name] = GaitSample(intervals, attributes, curves)
+    eta = _around(rng, neutral.blend_eta, 0.0, 1.0, extent)
+    return replace(neutral, name=name, description=f"random style (extent {extent:g})",
+                   velocities=random_velocities(rng, neutral.velocities, extent), samples=samples, blend_eta=eta)

@@ -1,0 +1,182 @@
+"""Planar convex polygons (support polygons, sole rectangles): hulls, area, centroid, half-planes,
+clipping, point-in-polygon and projection into a polygon. The one polygon module of the engine."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+def convex_hull_2d(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull (monotone chain) of (N, 2) points; collinear points dropped."""
+    pts = sorted(map(tuple, np.asarray(points, dtype=float).tolist()))
+    if len(pts) <= 2:
+        return np.array(pts, dtype=float)
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and ((lower[-1][0] - lower[-2][0]) * (p[1] - lower[-2][1])
+                                   - (lower[-1][1] - lower[-2][1]) * (p[0] - lower[-2][0])) <= 1e-15:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and ((upper[-1][0] - upper[-2][0]) * (p[1] - upper[-2][1])
+                                   - (upper[-1][1] - upper[-2][1]) * (p[0] - upper[-2][0])) <= 1e-15:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1], dtype=float)
+
+
+def polygon_area(polygon: ArrayLike) -> float:
+    """Signed area [m^2] of a polygon (positive when counter-clockwise)."""
+    v = np.asarray(polygon, dtype=float).reshape(-1, 2)
+    if len(v) < 3:
+        return 0.0
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def polygon_centroid(polygon: ArrayLike) -> FloatArray:
+    """Area centroid [m] of a simple polygon; vertex mean for degenerate (zero-area) input, NaN if empty."""
+    v = np.asarray(polygon, dtype=float).reshape(-1, 2)
+    if len(v) == 0:
+        return np.full(2, np.nan)
+    if len(v) < 3:
+        return v.mean(axis=0)
+    origin = v.mean(axis=0)
+    w = v - origin
+    x, y = w[:, 0], w[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    area2 = float(cross.sum())
+    if abs(area2) < 1e-14:
+        return origin
+    cx = float(np.dot(x + xn, cross)) / (3.0 * area2)
+    cy = float(np.dot(y + yn, cross)) / (3.0 * area2)
+    return origin + np.array([cx, cy])
+
+
+def convex_hull(points: ArrayLike) -> FloatArray:
+    """Counter-clockwise convex hull (Andrew's monotone chain) without collinear points."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    pts = np.unique(pts, axis=0)  # lexicographically sorted
+    if len(pts) < 3:
+        return pts
+
+    def cross(o: FloatArray, a: FloatArray, b: FloatArray) -> float:
+        return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+    lower: list[FloatArray] = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-15:
+            lower.pop()
+        lower.append(p)
+    upper: list[FloatArray] = []
+    for p in pts[::-1]:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-15:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def polygon_halfplanes(polygon: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Half-planes ``A x <= b`` (unit outward normals ``A`` (H, 2), offsets ``b`` (H,) [m]).
+
+    ``polygon`` must be convex; it may be given in either orientation.  Edges shorter
+    than 1e-9 m are skipped.
+    """
+    v = np.asarray(polygon, dtype=float).reshape(-1, 2)
+    if len(v) < 3:
+        return np.zeros((0, 2)), np.zeros(0)
+    if polygon_area(v) < 0.0:
+        v = v[::-1]
+    edges = np.roll(v, -1, axis=0) - v
+    length = np.hypot(edges[:, 0], edges[:, 1])
+    keep = length > 1e-9
+    normals = np.stack([edges[keep, 1], -edges[keep, 0]], axis=1) / length[keep, None]
+    offsets = np.einsum("ij,ij->i", normals, v[keep])
+    return normals, offsets
+
+
+def clip_convex_polygons(subject: ArrayLike, clip: ArrayLike, tol_m: float = 1e-9) -> FloatArray:
+    """Intersection of two convex polygons (Sutherland-Hodgman); (0, 2) if empty.
+
+    Touching polygons yield a degenerate (zero-area) intersection, which is returned.
+    """
+    out = np.asarray(subject, dtype=float).reshape(-1, 2)
+    if polygon_area(out) < 0.0:
+        out = out[::-1]
+    normals, offsets = polygon_halfplanes(clip)
+    if len(normals) == 0:
+        return np.zeros((0, 2))
+    for normal, offset in zip(normals, offsets):
+        if len(out) == 0:
+            break
+        d = out @ normal - offset
+        inside = d <= tol_m
+        if inside.all():
+            continue
+        nxt_pts = np.roll(out, -1, axis=0)
+        nxt_d = np.roll(d, -1)
+        nxt_in = np.roll(inside, -1)
+        new_pts: list[FloatArray] = []
+        for i in range(len(out)):
+            if inside[i]:
+                new_pts.append(out[i])
+            if inside[i] != nxt_in[i]:
+                lam = d[i] / (d[i] - nxt_d[i])
+                new_pts.append(out[i] + lam * (nxt_pts[i] - out[i]))
+        out = np.array(new_pts).reshape(-1, 2)
+    return out
+
+
+#: Tolerance of the containment test between consecutive supports [m].
+
+
+def point_in_polygon(p: np.ndarray, poly: np.ndarray, margin: float) -> bool:
+    """``p`` inside the counter-clockwise convex ``poly`` or within ``margin`` of it (a segment or a
+    point for degenerate supports)."""
+    if len(poly) < 3:
+        if len(poly) == 2:  # a line contact: distance to the segment
+            a, b = poly
+            d = b - a
+            s = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-12), 0, 1)
+            return float(np.linalg.norm(p - (a + s * d))) <= margin
+        return len(poly) == 1 and float(np.linalg.norm(p - poly[0])) <= margin
+    for i in range(len(poly)):
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        edge = b - a
+        cross = edge[0] * (p[1] - a[1]) - edge[1] * (p[0] - a[0])
+        if cross < -margin * float(np.linalg.norm(edge)):
+            return False
+    return True
+
+
+def clip_into_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """``p`` if inside the convex polygon, else its centroid-ward projection onto it: the point
+    c + s (p − c) with s the largest multiple of 2⁻³⁰ inside (what a 30-step bisection on the
+    segment finds), computed from the half-planes directly."""
+    normals, offsets = polygon_halfplanes(polygon)
+    bound = offsets + 1e-9
+    if len(offsets) == 0 or np.all(normals @ p <= bound):
+        return p
+    c = polygon_centroid(polygon)
+    d = p - c
+    den, num = normals @ d, bound - normals @ c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_max = float(np.min(np.where(den > 0.0, num / den, np.inf), initial=1.0))
+    unit = 2.0 ** -30
+    k = min(max(math.floor(s_max / unit), 0), 2 ** 30 - 1)
+
+    def inside(j: int) -> bool:
+        return bool(np.all(normals @ (c + (j * unit) * d) <= bound))
+
+    while k > 0 and not inside(k):  # rounding at the boundary: step to the dyadic the bisection ends on
+        k -= 1
+    while k + 1 < 2 ** 30 and inside(k + 1):
+        k += 1
+    return c + (k * unit) * d

@@ -1,0 +1,133 @@
+"""The run-time API of LWL2: load a trained robot, feed 15-d poses (or BVH frames / datagrams), get
+collision-free upper-body joint targets with collision-free transitions.
+
+    arms = ArmRetargeter.load("g1")
+    step = arms.retarget(pose15)           # one control period
+    step.targets                            # {joint name: angle (rad)} for the whole-body controller
+    arms.reset()                            # forget the current pose (a new clip)
+
+Per call: encode (mocap WAE encoder) → LWR with k = 3 → 1 (:mod:`lwr`) → if the straight interpolation
+from the previous output to the new pose collides, one step along the BFS path of the transition graph
+(:mod:`graph`), or hold the previous pose when the graph offers nothing collision-free.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from engine.retarget.humanoid_arm.capsules import CapsuleModel
+from engine.retarget.humanoid_arm.graph import TransitionGraph
+from engine.retarget.humanoid_arm.lwr import LatentLWR
+from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
+from engine.retarget.humanoid_arm.pose15 import check_pose15
+from engine.retarget.humanoid_arm.upper_body import UpperBody
+
+@dataclass
+class RetargetStep:
+    x: np.ndarray  # driven joint angles (rad), collision-free
+    k: int  # LWR's feasible k (3..1)
+    lwr_x: np.ndarray  # the LWR pose (the target before the transition logic)
+    transition: str  # "direct", "graph" (one BFS step) or "hold"
+    inference_s: float
+    joint_names: list[str] = field(default_factory=list)
+
+    @property
+    def targets(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.joint_names, self.x)}
+
+
+class ArmRetargeter:
+    def __init__(self, ub: UpperBody, capsules: CapsuleModel, model, robot_poses: np.ndarray,
+                 graph: TransitionGraph | None, meta: dict, k_max: int = 3, feed_forward=None):
+        self.ub, self.capsules, self.model, self.meta = ub, capsules, model, meta
+        self.robot_poses = robot_poses
+        self.lwr = LatentLWR(model.encode("robot", robot_poses), robot_poses, capsules.is_free, k_max)
+        self.graph = graph
+        self.feed_forward = feed_forward
+        self.current: np.ndarray | None = None
+        self.graph_fallbacks = 0
+        self.holds = 0
+        # warm up torch and the k-d tree so the first live frame is not the slowest
+        from engine.retarget.humanoid_arm.pose15 import pose15_from_robot
+
+        self.lwr.query(self.model.encode("mocap", pose15_from_robot(ub, ub.neutral()))[0])
+
+    @property
+    def robot(self) -> str:
+        return self.ub.model.name
+
+    @property
+    def joint_names(self) -> list[str]:
+        return self.ub.joint_names
+
+    @classmethod
+    def load(cls, robot: str, path: Path | None = None, capsules: CapsuleModel | None = None) -> "ArmRetargeter":
+        """Load trained weights for ``robot``; ValueError (one line) when missing or for another robot."""
+        path = Path(path) if path is not None else weights_path(robot)
+        if path.suffix in (".json", ".safetensors"):
+            path = path.with_suffix("")
+        check_metadata(path, robot)  # before importing torch: a wrong file fails fast
+        from engine.retarget.humanoid_arm.wae import load_weights
+
+        model, extra, meta = load_weights(path)
+        ub = capsules.ub if capsules is not None else UpperBody(robot)
+        if list(meta.get("joint_names", [])) != ub.joint_names:
+            raise ValueError(f"{path.with_suffix('.json')}: joint_names: expected {ub.joint_names}, got {meta.get('joint_names')}")
+        capsules = capsules or CapsuleModel(ub)
+        poses = extra["robot_poses"].astype(np.float64)
+        graph = None
+        if "graph_nodes" in extra:
+            graph = TransitionGraph(poses[extra["graph_nodes"].astype(np.int64)], extra["graph_indptr"].astype(np.int64),
+                                    extra["graph_indices"].astype(np.int64))
+        ff = None
+        if meta.get("feed_forward"):
+            from engine.retarget.humanoid_arm.feed_forward import load_feed_forward
+
+            ff = load_feed_forward(path)
+        return cls(ub, capsules, model, poses, graph, meta, feed_forward=ff)
+
+    def reset(self, x: np.ndarray | None = None) -> None:
+        self.current = None if x is None else np.asarray(x, dtype=float).copy()
+
+    def retarget(self, pose15: np.ndarray) -> RetargetStep:
+        """One control period: collision-free joint targets for a 15-d pose (ValueError on a bad pose)."""
+        t0 = time.perf_counter()
+        p = check_pose15(np.asarray(pose15, dtype=float).ravel(), "pose15")
+        res = self.lwr.query(self.model.encode("mocap", p)[0])
+        target = res.x
+        transition = "direct"
+        if self.current is None or self.capsules.interpolation_free(self.current, target):
+            out = target
+        else:
+            out, transition = self._graph_step(target)
+        self.current = out
+        return RetargetStep(out.copy(), res.k, target, transition, time.perf_counter() - t0, self.joint_names)
+
+    def _graph_step(self, target: np.ndarray) -> tuple[np.ndarray, str]:
+        assert self.current is not None
+        if self.graph is not None:
+            path = self.graph.path(self.current, target)
+            if path is not None:
+                # the first node not yet reached, if the move there is collision-free
+                for node in path:
+                    if np.max(np.abs(node - self.current)) < 1e-9:
+                        continue
+                    if self.capsules.interpolation_free(self.current, node):
+                        self.graph_fallbacks += 1
+                        return node.copy(), "graph"
+                    break
+        self.holds += 1
+        return self.current.copy(), "hold"
+
+    def feed_forward_pose(self, pose15: np.ndarray) -> np.ndarray:
+        """The glue-only feed-forward baseline's joint angles (no feasibility guarantee)."""
+        if self.feed_forward is None:
+            raise ValueError("these weights carry no feed-forward baseline")
+        return self.ub.clip(self.feed_forward(np.atleast_2d(pose15))[0])
+
+
+__all__ = ["ArmRetargeter", "RetargetStep", "check_metadata", "weights_path"]

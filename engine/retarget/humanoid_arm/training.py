@@ -1,0 +1,119 @@
+"""`studio train-arms`: datasets → shared-latent WAEs (LA-DPP batches) → LWR table → transition graph →
+weights (safetensors) + metadata (JSON), plus the glue-only feed-forward baseline.
+
+LA-DPP measures robot poses by their hand and elbow positions in the pelvis frame (the paper uses hand
+positions and orientations; our wrists are fixed) and mocap poses by their 15-d vectors.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from engine.retarget.humanoid_arm.capsules import CapsuleModel
+from engine.retarget.humanoid_arm.datasets import ArmDatasets, DatasetSizes, build_datasets
+from engine.retarget.humanoid_arm.feed_forward import save_feed_forward, train_feed_forward
+from engine.retarget.humanoid_arm.graph import TransitionGraph
+from engine.retarget.humanoid_arm.la_dpp import la_dpp_indices
+from engine.retarget.humanoid_arm.metadata import weights_path
+from engine.retarget.humanoid_arm.upper_body import UpperBody
+from engine.retarget.humanoid_arm.wae import DomainData, SharedLatentWAE, TrainConfig, save_weights, train_wae
+
+Progress = Callable[[str, int, int, str], None]
+
+
+@dataclass(frozen=True)
+class ArmTrainingPlan:
+    sizes: DatasetSizes
+    train: TrainConfig
+    latent_dim: int = 8
+    hidden: int = 128
+    graph_nodes: int = 3000
+    graph_neighbours: int = 10
+    # A graph edge must be coverable within this period at the joints' URDF velocity limits. One mocap frame
+    # (1/30 s) gives G1 (30–37 rad/s) ~1 rad edges but TALOS (2.7–5.4 rad/s) 0.1–0.2 rad: no edges among a
+    # few thousand nodes in 10-D; 0.2 s keeps both graphs connected enough (the paper: 10 k nodes).
+    control_period_s: float = 0.2
+    ff_iterations: int = 2000
+
+    @classmethod
+    def full(cls) -> "ArmTrainingPlan":
+        return cls(DatasetSizes(), TrainConfig(iterations=3000, la_dpp_chunk=2048))
+
+    @classmethod
+    def quick(cls) -> "ArmTrainingPlan":
+        return cls(DatasetSizes.quick(), TrainConfig(iterations=200, batch_size=64, la_dpp_chunk=1024),
+                   latent_dim=6, hidden=48, graph_nodes=200, graph_neighbours=6, ff_iterations=300)
+
+
+def robot_features(ub: UpperBody, poses: np.ndarray) -> np.ndarray:
+    """(N, 12): both hands and elbows in the pelvis frame (LA-DPP's distance for robot poses)."""
+    out = np.empty((len(poses), 12))
+    for i, x in enumerate(poses):
+        p = ub.points(x)
+        out[i] = np.concatenate([p["hand"].ravel(), p["elbow"].ravel()])
+    return out
+
+
+def build_transition_graph(cm: CapsuleModel, poses: np.ndarray, feats: np.ndarray, plan: ArmTrainingPlan,
+                           rng: np.random.Generator, progress: Callable[[int, int], None] | None = None):
+    """LA-DPP-sampled nodes of the robot table and their collision-free, one-period edges."""
+    ub = cm.ub
+    node_idx = np.sort(la_dpp_indices(feats, min(plan.graph_nodes, len(poses)), rng))
+    velocity = np.array(ub.pin_model.velocityLimit)[ub.v_index]
+    max_step = np.maximum(velocity * plan.control_period_s, 0.05)
+    graph = TransitionGraph.build(poses[node_idx], max_step, cm.interpolation_free, plan.graph_neighbours, progress)
+    return node_idx, graph
+
+
+def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progress: Progress | None = None,
+               should_stop: Callable[[], bool] | None = None, datasets: ArmDatasets | None = None) -> dict:
+    """Train and save; returns a summary. KeyboardInterrupt (cancel) leaves no partial file behind."""
+    t0 = time.perf_counter()
+    say = (lambda stage, i, n, extra="": progress(stage, i, n, extra)) if progress else (lambda *a, **k: None)
+    ub = UpperBody(robot)
+    cm = CapsuleModel(ub)
+    say("capsules", 1, 1, f"{len(cm.capsules)} capsules, {len(cm.pairs)} pairs")
+    ds = datasets or build_datasets(robot, plan.sizes, plan.train.seed, lambda s, i, n: say(s, i, n), cm)
+    t_data = time.perf_counter() - t0
+    rng = np.random.default_rng(plan.train.seed)
+    feats = robot_features(ub, ds.robot)
+    model = SharedLatentWAE({"mocap": 15, "robot": ub.n}, plan.latent_dim, plan.hidden)
+    train_wae(model, {"mocap": DomainData(ds.mocap), "robot": DomainData(ds.robot, feats)},
+              {"mocap": ds.glue_mocap, "robot": ds.glue_robot}, plan.train,
+              progress=lambda i, n, losses: say("WAE", i, n, f"rec {losses['rec']:.3f} lat {losses['latent']:.3f} "
+                                                               f"cro {losses['cross']:.3f}"),
+              should_stop=should_stop)
+    t_train = time.perf_counter() - t0 - t_data
+    ff = train_feed_forward(ds.glue_mocap, ds.glue_robot, plan.ff_iterations, plan.hidden, plan.train.seed)
+    node_idx, graph = build_transition_graph(cm, ds.robot, feats, plan, rng, lambda i, n: say("graph", i, n))
+    if should_stop is not None and should_stop():
+        raise KeyboardInterrupt
+    out = out or weights_path(robot)
+    meta = {
+        "format": "lwl2-arms/1", "robot": robot, "joint_names": ub.joint_names,
+        "normalisation": {"mocap": {"mean": model.mean_mocap.tolist(), "std": model.std_mocap.tolist()},
+                          "robot": {"mean": model.mean_robot.tolist(), "std": model.std_robot.tolist()}},
+        "dataset_sizes": ds.sizes(), "datasets": ds.info, "licence_of_training_data": ds.info["licence"],
+        "plan": {"sizes": asdict(plan.sizes), "train": asdict(plan.train), "latent_dim": plan.latent_dim,
+                 "hidden": plan.hidden, "graph_nodes": int(len(node_idx)), "graph_neighbours": plan.graph_neighbours,
+                 "control_period_s": plan.control_period_s},
+        "graph": {"nodes": int(len(node_idx)), "edges": int(len(graph.indices) // 2), "components": graph.components()},
+        "capsules": [{"name": c.name, "radius_m": round(c.radius, 4), "length_m": round(float(np.linalg.norm(c.b - c.a)), 4)}
+                     for c in cm.capsules],
+        "feed_forward": True,
+        "timing_s": {"datasets": round(t_data, 1), "wae": round(t_train, 1), "total": round(time.perf_counter() - t0, 1)},
+    }
+    save_weights(model, out, {"robot_poses": ds.robot.astype(np.float64),  # float64: k = 1 must stay exactly collision-free
+                              "graph_nodes": node_idx.astype(np.int32),
+                              "graph_indptr": graph.indptr.astype(np.int64), "graph_indices": graph.indices.astype(np.int32)},
+                 meta)
+    save_feed_forward(ff, out)
+    return {"weights": str(out.with_suffix(".safetensors")), **{k: meta[k] for k in ("dataset_sizes", "graph", "timing_s")}}
+
+
+__all__ = ["ArmTrainingPlan", "train_arms", "robot_features", "build_transition_graph"]

@@ -1,0 +1,201 @@
+"""Shared latent space (§IV-B, Eqs. 1–5): one Wasserstein auto-encoder per domain, glued by paired data.
+
+Per domain j: encoder Q^j and decoder P^j (3-layer ResNet MLPs, tanh), an adversarial latent prior
+(discriminator d^j, Jensen–Shannon: Eq. 3 with the l1 reconstruction cost), and on the glue set the latent
+consensus loss ‖Q^j(x^j) − Q^l(x^l)‖² (Eq. 4) and the cross-domain reconstruction ‖P^l(Q^j(x^j)) − x^l‖²
+(Eq. 5). Inputs are normalised (zero mean, unit variance, stored with the weights); mini-batches are drawn
+with LA-DPP. Weights are plain tensors (safetensors) beside a JSON metadata file. torch is imported only
+in this package.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+from torch import nn
+
+from engine.retarget.humanoid_arm.la_dpp import BatchSampler
+
+torch.set_num_threads(1)  # two shared cores: one training thread behaves best
+
+
+class ResNetMLP(nn.Module):
+    """in → tanh(W0 x) → (layers − 1) residual blocks h + tanh(W h) → linear out."""
+
+    def __init__(self, d_in: int, d_out: int, hidden: int = 128, layers: int = 3):
+        super().__init__()
+        self.inp = nn.Linear(d_in, hidden)
+        self.blocks = nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(layers - 1))
+        self.out = nn.Linear(hidden, d_out)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = torch.tanh(self.inp(x))
+        for block in self.blocks:
+            h = h + torch.tanh(block(h))
+        return self.out(h)
+
+
+class SharedLatentWAE(nn.Module):
+    def __init__(self, dims: dict[str, int], latent_dim: int = 8, hidden: int = 128):
+        super().__init__()
+        self.dims, self.latent_dim, self.hidden = dict(dims), latent_dim, hidden
+        self.encoders = nn.ModuleDict({k: ResNetMLP(d, latent_dim, hidden) for k, d in dims.items()})
+        self.decoders = nn.ModuleDict({k: ResNetMLP(latent_dim, d, hidden) for k, d in dims.items()})
+        self.discriminators = nn.ModuleDict({k: ResNetMLP(latent_dim, 1, hidden) for k in dims})
+        for k, d in dims.items():
+            self.register_buffer(f"mean_{k}", torch.zeros(d, dtype=torch.float64))
+            self.register_buffer(f"std_{k}", torch.ones(d, dtype=torch.float64))
+
+    # normalisation (numpy in, numpy out at the edges)
+    def set_normalisation(self, domain: str, data: np.ndarray) -> None:
+        getattr(self, f"mean_{domain}").copy_(torch.as_tensor(data.mean(axis=0)))
+        getattr(self, f"std_{domain}").copy_(torch.as_tensor(np.maximum(data.std(axis=0), 1e-3)))
+
+    def normalise(self, domain: str, x: np.ndarray) -> np.ndarray:
+        return (x - getattr(self, f"mean_{domain}").numpy()) / getattr(self, f"std_{domain}").numpy()
+
+    def denormalise(self, domain: str, x: np.ndarray) -> np.ndarray:
+        return x * getattr(self, f"std_{domain}").numpy() + getattr(self, f"mean_{domain}").numpy()
+
+    @torch.no_grad()
+    def encode(self, domain: str, x: np.ndarray) -> np.ndarray:
+        t = torch.as_tensor(self.normalise(domain, np.atleast_2d(x)), dtype=torch.float32)
+        return self.encoders[domain](t).numpy().astype(np.float64)
+
+    @torch.no_grad()
+    def decode(self, domain: str, z: np.ndarray) -> np.ndarray:
+        t = torch.as_tensor(np.atleast_2d(z), dtype=torch.float32)
+        return self.denormalise(domain, self.decoders[domain](t).numpy().astype(np.float64))
+
+    def transfer(self, src: str, dst: str, x: np.ndarray) -> np.ndarray:
+        """The feed-forward map P^dst(Q^src(x)) (no LWR)."""
+        return self.decode(dst, self.encode(src, x))
+
+
+@dataclass
+class TrainConfig:
+    iterations: int = 3000
+    batch_size: int = 128
+    lr: float = 1e-3
+    beta_adv: float = 1.0  # β of Eq. 3
+    w_latent: float = 1.0  # Eq. 4
+    w_cross: float = 1.0  # Eq. 5
+    la_dpp: bool = True
+    la_dpp_chunk: int = 4096
+    seed: int = 0
+
+
+@dataclass
+class DomainData:
+    data: np.ndarray  # (N, D) raw (un-normalised)
+    dpp_features: np.ndarray | None = None  # the space LA-DPP measures distances in (default: the normalised data)
+
+
+def train_wae(model: SharedLatentWAE, domains: dict[str, DomainData], glue: dict[str, np.ndarray] | None,
+              cfg: TrainConfig, progress: Callable[[int, int, dict], None] | None = None,
+              should_stop: Callable[[], bool] | None = None) -> dict:
+    """Train in place. ``glue`` maps each domain to (G, D) raw arrays of corresponding rows (or None).
+
+    Returns the final losses. Raises KeyboardInterrupt through when cancelled (nothing is saved here)."""
+    rng = np.random.default_rng(cfg.seed)
+    torch.manual_seed(cfg.seed)
+    names = list(domains)
+    normed = {}
+    samplers = {}
+    for k in names:
+        model.set_normalisation(k, domains[k].data)
+        normed[k] = torch.as_tensor(model.normalise(k, domains[k].data), dtype=torch.float32)
+        feats = domains[k].dpp_features if domains[k].dpp_features is not None else normed[k].numpy()
+        samplers[k] = BatchSampler(feats, cfg.batch_size, rng, cfg.la_dpp, chunk=cfg.la_dpp_chunk)
+    glue_t = None
+    if glue:
+        glue_t = {k: torch.as_tensor(model.normalise(k, glue[k]), dtype=torch.float32) for k in names}
+        n_glue = len(next(iter(glue.values())))
+    ae_params = [p for k in names for p in (*model.encoders[k].parameters(), *model.decoders[k].parameters())]
+    disc_params = [p for k in names for p in model.discriminators[k].parameters()]
+    opt = torch.optim.Adam(ae_params, lr=cfg.lr)
+    opt_d = torch.optim.Adam(disc_params, lr=cfg.lr)
+    bce = nn.BCEWithLogitsLoss()
+    losses: dict = {}
+    t0 = time.perf_counter()
+    for it in range(cfg.iterations):
+        if should_stop is not None and should_stop():
+            raise KeyboardInterrupt
+        batches = {k: normed[k][samplers[k]()] for k in names}
+        z = {k: model.encoders[k](batches[k]) for k in names}
+        rec = sum((model.decoders[k](z[k]) - batches[k]).abs().sum(dim=1).mean() for k in names)
+        adv = sum(bce(model.discriminators[k](z[k]), torch.ones(len(z[k]), 1)) for k in names)
+        loss = rec + cfg.beta_adv * adv
+        lat = cro = torch.zeros(())
+        if glue_t is not None:
+            gi = torch.as_tensor(rng.integers(n_glue, size=min(cfg.batch_size, n_glue)))
+            gz = {k: model.encoders[k](glue_t[k][gi]) for k in names}
+            for a_i, a in enumerate(names):
+                for b in names[a_i + 1:]:
+                    lat = lat + ((gz[a] - gz[b]) ** 2).sum(dim=1).mean()
+                for b in names:
+                    if b != a:
+                        cro = cro + ((model.decoders[b](gz[a]) - glue_t[b][gi]) ** 2).sum(dim=1).mean()
+                rec = rec + (model.decoders[a](gz[a]) - glue_t[a][gi]).abs().sum(dim=1).mean()
+            loss = rec + cfg.beta_adv * adv + cfg.w_latent * lat + cfg.w_cross * cro
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        # discriminators: prior samples are "real", encodings "fake"
+        d_loss = torch.zeros(())
+        for k in names:
+            zp = torch.randn(cfg.batch_size, model.latent_dim)
+            d_loss = d_loss + bce(model.discriminators[k](zp), torch.ones(len(zp), 1)) \
+                + bce(model.discriminators[k](z[k].detach()), torch.zeros(len(z[k]), 1))
+        opt_d.zero_grad()
+        d_loss.backward()
+        opt_d.step()
+        losses = {k: float(v.detach()) for k, v in (("rec", rec), ("adv", adv), ("latent", lat), ("cross", cro), ("disc", d_loss))}
+        if progress is not None and (it % 25 == 0 or it + 1 == cfg.iterations):
+            progress(it + 1, cfg.iterations, {**losses, "elapsed_s": time.perf_counter() - t0})
+    return losses
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def save_weights(model: SharedLatentWAE, path: Path, extra_tensors: dict[str, np.ndarray], metadata: dict) -> None:
+    """``path``.safetensors (network + extra arrays) and ``path``.json (metadata), written atomically."""
+    from safetensors.torch import save
+
+    from engine.atomic_io import atomic_write_bytes, atomic_write_text
+
+    tensors = {f"net.{k}": v.detach().contiguous() for k, v in model.state_dict().items()}
+    for k, v in extra_tensors.items():
+        tensors[f"data.{k}"] = torch.as_tensor(np.ascontiguousarray(v))
+    meta = {**metadata, "dims": model.dims, "latent_dim": model.latent_dim, "hidden": model.hidden}
+    atomic_write_bytes(path.with_suffix(".safetensors"), save(tensors))
+    atomic_write_text(path.with_suffix(".json"), json.dumps(meta, indent=1))
+
+
+def load_weights(path: Path) -> tuple[SharedLatentWAE, dict[str, np.ndarray], dict]:
+    """Inverse of :func:`save_weights`; ValueError (one line) on a missing or inconsistent file."""
+    from safetensors.torch import load_file
+
+    meta_path, tensor_path = path.with_suffix(".json"), path.with_suffix(".safetensors")
+    if not meta_path.is_file() or not tensor_path.is_file():
+        raise ValueError(f"{path}: expected {meta_path.name} and {tensor_path.name} (train with `studio train-arms`)")
+    try:
+        meta = json.loads(meta_path.read_text())
+        tensors = load_file(str(tensor_path))
+        model = SharedLatentWAE(meta["dims"], meta["latent_dim"], meta["hidden"])
+        model.load_state_dict({k[4:]: v for k, v in tensors.items() if k.startswith("net.")})
+    except (OSError, ValueError, KeyError, RuntimeError) as exc:
+        raise ValueError(f"{tensor_path}: cannot load weights: {str(exc).splitlines()[0]}") from None
+    model.eval()
+    extra = {k[5:]: v.numpy() for k, v in tensors.items() if k.startswith("data.")}
+    return model, extra, meta
+
+
+__all__ = ["ResNetMLP", "SharedLatentWAE", "TrainConfig", "DomainData", "train_wae", "save_weights", "load_weights"]

@@ -1,0 +1,124 @@
+"""The follow camera: it moves with the walking robot and keeps what the animator chose.
+
+Every browser's camera keeps, relative to the robot, the point it looks at (``look_rel``: horizontal
+offset, absolute height) and its own offset from that point (``offset``: orbit and zoom distance).
+Following only translates the camera by the robot's motion, so the mouse wheel, an orbit or a pan
+made while following stays: a camera report from the browser that is not the echo of a position the
+studio sent is the user's, and is adopted. The curve graph travels with the camera (same translation,
+so it stays put on screen); nothing moves while a knot is being dragged.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+LOOK_HEIGHT_M = 0.6
+ECHO_TOL_M = 5e-3  # a reported camera this close to one the studio sent is that send's echo
+USER_HOLD_S = 0.6  # after the user moves the camera, following waits this long (the gesture may go on)
+MIN_STEP_M = 2e-3  # smaller robot motions are not sent
+
+
+@dataclass
+class _ClientFollow:
+    look_rel: np.ndarray  # look-at point minus the robot's ground position (z: absolute height)
+    offset: np.ndarray | None = None  # camera position minus look-at (None: take the browser's)
+    sent_looks: collections.deque = field(default_factory=lambda: collections.deque(maxlen=60))
+    sent_offsets: collections.deque = field(default_factory=lambda: collections.deque(maxlen=60))
+    user_until: float = 0.0
+    robot: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+def _near(v: np.ndarray, seen) -> bool:
+    return any(float(np.linalg.norm(v - s)) < ECHO_TOL_M for s in seen)
+
+
+class CameraFollow:
+    def __init__(self, server: Any):
+        self.server = server
+        self._lock = threading.Lock()
+        self._state: dict[int, _ClientFollow] = {}
+        self._registered: set[int] = set()
+        self.robot_ground = np.zeros(3)
+
+    @staticmethod
+    def _ground(position) -> np.ndarray:
+        return np.array([float(position[0]), float(position[1]), 0.0])
+
+    def recentre(self) -> None:
+        """Next step looks at the robot again (follow switched on, mode changed); zoom and orbit stay."""
+        with self._lock:
+            for st in self._state.values():
+                st.look_rel = np.array([0.0, 0.0, LOOK_HEIGHT_M])
+                st.user_until = 0.0
+
+    def adopt(self, client: Any) -> None:
+        """The studio itself placed ``client``'s camera (e.g. "Camera to graph"): follow from there."""
+        cam = client.camera
+        with self._lock:
+            st = self._state.setdefault(client.client_id, _ClientFollow(np.array([0.0, 0.0, LOOK_HEIGHT_M])))
+            look, pos = np.asarray(cam.look_at, float), np.asarray(cam.position, float)
+            st.look_rel = look - self.robot_ground
+            st.offset = pos - look
+            st.sent_looks.append(look)
+            st.sent_offsets.append(pos - look)
+            st.user_until = 0.0
+
+    def _on_camera(self, client: Any) -> None:
+        """A camera report from the browser: an echo of ours, or the user's own move (adopted)."""
+        cam = client.camera
+        with self._lock:
+            st = self._state.get(client.client_id)
+            if st is None:
+                return
+            look, pos = np.asarray(cam.look_at, float), np.asarray(cam.position, float)
+            offset = pos - look
+            user = False
+            if st.offset is not None and not _near(offset, [st.offset, *st.sent_offsets]):
+                st.offset = offset
+                user = True
+            if st.sent_looks and not _near(look, st.sent_looks):
+                st.look_rel = look - self.robot_ground
+                user = True
+            if user:
+                st.user_until = time.monotonic() + USER_HOLD_S
+
+    def step(self, robot_position, enabled: bool, frozen: bool) -> np.ndarray | None:
+        """Move every browser's camera with the robot; returns the robot's ground position followed
+        (None when nothing follows: disabled, or ``frozen`` during a drag)."""
+        ground = self._ground(robot_position)
+        self.robot_ground = ground
+        if not enabled or frozen:
+            return None
+        now = time.monotonic()
+        for client in list(self.server.get_clients().values()):
+            cid = client.client_id
+            if cid not in self._registered:
+                self._registered.add(cid)
+                client.camera.on_update(lambda cam, c=client: self._on_camera(c))
+            try:
+                cam = client.camera
+                look_now, pos_now = np.asarray(cam.look_at, float), np.asarray(cam.position, float)
+            except AssertionError:  # no camera report from this browser yet
+                continue
+            with self._lock:
+                st = self._state.setdefault(cid, _ClientFollow(np.array([0.0, 0.0, LOOK_HEIGHT_M])))
+                if now < st.user_until:
+                    continue
+                if st.offset is None:
+                    st.offset = pos_now - look_now
+                look = ground + st.look_rel
+                if float(np.linalg.norm(look - look_now)) < MIN_STEP_M and _near(pos_now - look_now, [st.offset]):
+                    continue
+                position = look + st.offset
+                st.sent_looks.append(look)
+                st.sent_offsets.append(st.offset.copy())
+            with client.atomic():
+                cam.position = tuple(position)  # translates look_at too …
+                cam.look_at = tuple(look)  # … then pin it exactly
+        return ground

@@ -1,0 +1,44 @@
+"""The dino walks under the same stack as G1 (paper §8.1): its styles' sweeps and a 25 N push."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.gait.command_schedule import parse_command
+from engine.gait.style import load_style
+from engine.robot.model import load_robot
+from engine.walk_runner import PushSpec, run_walk
+from tests.conftest import REPO
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize("style_name", ["neutral", "strut"])
+def test_dino_sweep_full_minute(style_name):
+    """Forward fast, reverse, strafes, turns, stop: 60 s without a fall and CoP in the support
+    ≥ 99.5 %; stance slip < 2 mm is the goal (an expected failure until it is met)."""
+    robot = load_robot("dino")
+    style = load_style(REPO / f"styles/dino/{style_name}.json")
+    schedule = parse_command("sweep", style.velocities)
+    summary, _ = run_walk(robot, style, schedule, 60.0, record=False)
+    assert not summary["fell"], summary
+    assert summary["cop_inside_fraction"] >= 0.995, summary
+    if summary["max_stance_slip_mm"] >= 2.0:
+        # Measured 10.2 mm (neutral) and 10.6 mm (strut): not yet the stack's 2 mm goal (issue 15).
+        pytest.xfail(f"stance slip {summary['max_stance_slip_mm']} mm ≥ 2 mm")
+
+
+def test_dino_survives_the_papers_push_while_walking_slowly():
+    """§8.1, Fig. 13: a 25 N, 1 s forward push at the pelvis while the 17 kg dino walks slowly;
+    time scaling, step adjustment and velocity adjustment all respond."""
+    robot = load_robot("dino")
+    style = load_style(REPO / "styles/dino/neutral.json")
+    schedule = parse_command("0.15,0,0", style.velocities)
+    summary, rec = run_walk(robot, style, schedule, 8.0, pushes=[PushSpec(4.0, (25.0, 0.0, 0.0), 1.0)])
+    assert not summary["fell"], summary
+    t = rec["t"]
+    during = (t > 4.0) & (t < 5.5)
+    assert rec["kappa"][during].max() > 1.2
+    assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.05
+    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.02

@@ -1,0 +1,47 @@
+"""The style-space benchmark's generator: every style it draws passes validation, and it
+really spreads over the validated ranges (not only around neutral)."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from engine.gait.style import StyleContext, load_style, styles_dir, validate_style
+from engine.gait.style_space import random_style
+
+
+@lru_cache(maxsize=None)
+def robot_context(robot: str):
+    ctx = StyleContext.for_robot(robot)
+    return ctx, load_style(styles_dir(robot) / "neutral.json", ctx)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(robot=st.sampled_from(["g1", "talos"]), seed=st.integers(0, 2**32 - 1), extent=st.floats(0.0, 1.0))
+def test_the_generator_only_produces_valid_styles(robot, seed, extent):
+    ctx, neutral = robot_context(robot)
+    style = random_style(np.random.default_rng(seed), ctx, neutral, extent)
+    validate_style(style, ctx)  # raises StyleError on any violation
+
+
+def test_the_generator_spans_the_validated_ranges():
+    ctx, neutral = robot_context("g1")
+    rng = np.random.default_rng(0)
+    heights, widths, cycles = [], [], []
+    for _ in range(20):
+        style = random_style(rng, ctx, neutral, 1.0)
+        for sample in style.samples.values():
+            heights.append(sample.attributes.pelvis_height_m)
+            widths.append(sample.attributes.stance_width_m)
+            cycles.append(sample.intervals.cycle_s)
+    lo, hi = ctx.pelvis_height_range_m
+    assert min(heights) < lo + 0.1 * (hi - lo) and max(heights) > hi - 0.1 * (hi - lo)
+    lo, hi = ctx.stance_width_range_m
+    assert min(widths) < lo + 0.1 * (hi - lo) and max(widths) > hi - 0.1 * (hi - lo)
+    assert max(cycles) > 0.8 * ctx.max_cycle_s
+    # The same seed draws the same styles.
+    a = random_style(np.random.default_rng(7), ctx, neutral).to_dict()
+    assert a == random_style(np.random.default_rng(7), ctx, neutral).to_dict()

@@ -1,0 +1,155 @@
+"""`studio train-arms --quick`, `studio puppet`, `studio stream-bvh` and their one-line errors."""
+
+from __future__ import annotations
+
+import json
+import socket
+
+import numpy as np
+import pytest
+
+from engine.retarget.humanoid_arm import sources
+from engine.retarget.humanoid_arm.ik import arm_errors_m
+from engine.retarget.humanoid_arm.live import DatagramError, parse_datagram
+from engine.retarget.humanoid_arm.pose15 import bvh_points
+from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+from engine.retarget.humanoid_arm.wae import SharedLatentWAE
+from engine.retarget.importers.bvh import load_bvh
+from tests.conftest import free_port, run_studio
+
+
+def _clip(name: str):
+    root = sources.shared_dir()
+    path = root / "mocap-src/cmu" / name if root else None
+    if path is None or not path.is_file():
+        pytest.skip("shared mocap clips absent (set MOTION_STUDIO_SHARED)")
+    return path
+
+
+@pytest.fixture(scope="module")
+def quick_weights(tmp_path_factory):
+    _clip("131_01.bvh")
+    out = tmp_path_factory.mktemp("arms") / "g1_lwl2"
+    res = run_studio("train-arms", "--robot", "g1", "--quick", "--out", str(out), timeout=900)
+    assert res.returncode == 0, res.stderr[-2000:]
+    summary = json.loads(res.stdout)
+    assert summary["dataset_sizes"]["robot"] > 1000
+    return out
+
+
+@pytest.fixture(scope="module")
+def shipped_g1():
+    from engine.retarget.humanoid_arm.metadata import weights_path
+
+    path = weights_path("g1")
+    if not path.with_suffix(".json").is_file():
+        pytest.skip("no shipped g1 weights")
+    return path
+
+
+@pytest.mark.slow
+def test_quick_training_beats_an_untrained_model(quick_weights):
+    held_out = _clip("141_16.bvh")
+    poses = bvh_points(load_bvh(held_out)).pose15()[::8]
+    trained = ArmRetargeter.load("g1", quick_weights)
+    untrained = ArmRetargeter(trained.ub, trained.capsules, SharedLatentWAE(trained.model.dims, trained.model.latent_dim,
+                                                                            trained.model.hidden),
+                              trained.robot_poses, trained.graph, trained.meta)
+    untrained.model.load_state_dict({k: v for k, v in trained.model.state_dict().items()
+                                     if k.startswith(("mean_", "std_"))}, strict=False)
+    errors = {}
+    for name, arms in (("trained", trained), ("untrained", untrained)):
+        hand = []
+        for p in poses:
+            step = arms.retarget(p)
+            assert arms.capsules.is_free(step.x)
+            hand.append(arm_errors_m(arms.ub, step.x, p)[0])
+        errors[name] = float(np.mean(hand))
+    assert errors["trained"] < 0.8 * errors["untrained"], errors
+
+
+def test_puppet_writes_a_collision_free_motion(shipped_g1, tmp_path):
+    out = tmp_path / "wave.npz"
+    res = run_studio("puppet", "--robot", "g1", "--bvh", str(_clip("141_16.bvh")), "--out", str(out),
+                     "--weights", str(shipped_g1), "--json")
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout)
+    assert summary["collision_free_fraction"] == 1.0
+    for key in ("frames", "hand_error_mm", "elbow_error_mm", "inference_us", "graph_fallbacks"):
+        assert key in summary
+    with np.load(out, allow_pickle=False) as z:
+        assert z["q"].shape == (summary["frames"], len(z["joint_names"]))
+        assert bool(np.all(z["collision_free"]))
+
+
+def test_puppet_bad_input_is_one_line_and_writes_nothing(shipped_g1, tmp_path):
+    src = _clip("141_16.bvh").read_text()
+    truncated = tmp_path / "truncated.bvh"
+    truncated.write_text(src[: int(len(src) * 0.6)])
+    no_arms = tmp_path / "legs.bvh"
+    no_arms.write_text(src.replace("LeftForeArm", "LeftShin").replace("RightForeArm", "RightShin"))
+    out = tmp_path / "x.npz"
+    cases = [
+        (["--robot", "g1", "--bvh", str(truncated), "--weights", str(shipped_g1)], "truncated"),
+        (["--robot", "g1", "--bvh", str(no_arms), "--weights", str(shipped_g1)], "no arm joints"),
+        (["--robot", "talos", "--bvh", str(_clip("141_16.bvh")), "--weights", str(shipped_g1)], "expected weights for talos"),
+        (["--robot", "g1", "--bvh", str(tmp_path / "missing.bvh")], "no such"),
+    ]
+    for args, expected in cases:
+        res = run_studio("puppet", *args, "--out", str(out))
+        assert res.returncode == 2, (args, res.stderr)
+        lines = res.stderr.strip().splitlines()
+        assert len(lines) == 1 and expected in lines[0], lines
+        assert not out.exists()
+
+
+def test_stream_bvh_sends_one_parseable_datagram_per_frame():
+    clip = _clip("141_16.bvh")
+    port = free_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", port))
+        sock.settimeout(60)
+        res = run_studio("stream-bvh", str(clip), "--to", f"udp://127.0.0.1:{port}", "--fps", "60", "--max-frames", "6")
+        assert res.returncode == 0, res.stderr
+        got = [parse_datagram(sock.recv(65536)) for _ in range(6)]
+    expected = bvh_points(load_bvh(clip)).pose15()[::2]
+    for i, (frame, pose) in enumerate(got):
+        assert frame == 2 * i
+        np.testing.assert_allclose(pose, expected[i], atol=1e-5)
+
+
+@pytest.mark.parametrize("payload, field", [
+    (b"not json", "UTF-8 JSON"),
+    (b'{"format": "mocap-joints/1", "joints": {"hips": [0, NaN, 0]}}', "joints.hips"),
+    (b'{"format": "mocap-joints/1", "joints": {}}', "joints.hips"),
+    (b'{"format": "other"}', "format"),
+    (b"[1, 2]", "object"),
+])
+def test_bad_datagrams_are_named(payload, field):
+    with pytest.raises(DatagramError) as err:
+        parse_datagram(payload)
+    assert field in str(err.value) and "\n" not in str(err.value)
+
+
+def test_stream_bvh_rejects_a_bad_target():
+    res = run_studio("stream-bvh", str(_clip("141_16.bvh")), "--to", "tcp://127.0.0.1:9")
+    assert res.returncode == 2 and "udp://HOST:PORT" in res.stderr
+
+
+def test_shipped_g1_weights_retarget_a_held_out_clip_collision_free():
+    from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
+
+    path = weights_path("g1")
+    if not path.with_suffix(".json").is_file():
+        pytest.skip("no shipped g1 weights")
+    meta = check_metadata(path, "g1")
+    assert "131_01.bvh" in meta["datasets"]["training_clips"] and "Bandai" not in meta["licence_of_training_data"]
+    arms = ArmRetargeter.load("g1")
+    poses = bvh_points(load_bvh(_clip("141_16.bvh"))).pose15()[::4]
+    previous = None
+    for p in poses:
+        step = arms.retarget(p)
+        assert arms.capsules.is_free(step.x)
+        if previous is not None and step.transition != "hold":
+            assert arms.capsules.interpolation_free(previous, step.x)
+        previous = step.x

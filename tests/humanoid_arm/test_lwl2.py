@@ -1,0 +1,121 @@
+"""LWL2's learning parts: LA-DPP (the §V-A imbalance experiment), LWR's k = 1 look-up, BFS transitions."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.retarget.humanoid_arm.graph import TransitionGraph, bfs_path
+from engine.retarget.humanoid_arm.la_dpp import la_dpp_indices
+from engine.retarget.humanoid_arm.lwr import LatentLWR
+from engine.retarget.humanoid_arm.wae import DomainData, SharedLatentWAE, TrainConfig, train_wae
+
+
+def test_la_dpp_spreads_a_crammed_set():
+    rng = np.random.default_rng(0)
+    uniform = rng.uniform(0, 5, (1000, 2))
+    crammed = rng.uniform(1.0, 1.5, (1000, 2))
+    data = np.concatenate([uniform, crammed])
+    idx = la_dpp_indices(data, 100, rng)
+    assert len(set(idx.tolist())) == 100
+    inside = np.mean(np.all((data[idx] >= 1.0) & (data[idx] <= 1.5), axis=1))
+    assert inside < 0.1  # random sampling puts ~50 % there
+    # divide and conquer: a chunk smaller than the set still returns distinct valid indices
+    idx2 = la_dpp_indices(data, 50, rng, chunk=500)
+    assert len(set(idx2.tolist())) == 50 and idx2.max() < len(data)
+
+
+def test_la_dpp_imbalance_experiment_reconstructs_the_domain_better():
+    """§V-A / Fig. 2: a 2-D uniform domain with half its points crammed into a small square. A WAE trained
+    on random mini-batches spends its capacity on the square; with LA-DPP batches it reconstructs the
+    whole domain (uniform test points) with a clearly lower error."""
+    rng = np.random.default_rng(0)
+    n = 2000
+    data = np.concatenate([rng.uniform(0, 5, (n // 2, 2)), rng.uniform(1.0, 1.5, (n // 2, 2))])
+    test = rng.uniform(0, 5, (1000, 2))
+    errors = {}
+    for la_dpp in (False, True):
+        model = SharedLatentWAE({"x": 2}, latent_dim=2, hidden=32)
+        train_wae(model, {"x": DomainData(data, dpp_features=data)}, None,
+                  TrainConfig(iterations=400, batch_size=64, la_dpp=la_dpp, seed=1))
+        recon = model.decode("x", model.encode("x", test))
+        errors[la_dpp] = float(np.mean(np.linalg.norm(recon - test, axis=1)))
+    assert errors[True] < 0.6 * errors[False], errors
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000))
+def test_lwr_k1_returns_exactly_a_stored_pose(seed):
+    rng = np.random.default_rng(seed)
+    latents = rng.standard_normal((50, 3))
+    poses = rng.uniform(-1, 1, (50, 4))
+    lwr = LatentLWR(latents, poses, is_free=lambda x: False, k_max=3)  # nothing blended is feasible
+    z = rng.standard_normal(3)
+    res = lwr.query(z)
+    nearest = int(np.argmin(np.linalg.norm(latents - z, axis=1)))
+    assert res.k == 1
+    assert np.array_equal(res.x, poses[nearest])
+
+
+def test_lwr_uses_the_largest_feasible_k():
+    latents = np.array([[0.0], [1.0], [2.0], [10.0]])
+    poses = np.array([[0.0], [1.0], [2.0], [10.0]])
+    assert LatentLWR(latents, poses, lambda x: True).query([0.9]).k == 3
+    # k = 3 blends 1, 0 and 2 to ≈ 0.95 (refused), k = 2 blends 1 and 0 to ≈ 0.62 (accepted)
+    res = LatentLWR(latents, poses, lambda x: x[0] < 0.8).query([0.9])
+    assert res.k == 2 and 0.4 < res.x[0] < 0.8
+
+
+def _csr(n, edges):
+    adj = [[] for _ in range(n)]
+    for a, b in edges:
+        adj[a].append(b)
+        adj[b].append(a)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    indptr[1:] = np.cumsum([len(a) for a in adj])
+    return indptr, np.array([j for a in adj for j in sorted(a)], dtype=np.int64)
+
+
+def test_bfs_finds_the_shortest_path_on_a_small_graph():
+    # 0-1-2-3-4 chain plus a shortcut 0-5-4 and a disconnected 6
+    indptr, indices = _csr(7, [(0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 4)])
+    assert bfs_path(indptr, indices, 0, 4) == [0, 5, 4]
+    assert bfs_path(indptr, indices, 1, 3) == [1, 2, 3]
+    assert bfs_path(indptr, indices, 2, 2) == [2]
+    assert bfs_path(indptr, indices, 0, 6) is None
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000))
+def test_bfs_path_length_equals_breadth_first_distance(seed):
+    rng = np.random.default_rng(seed)
+    n = 12
+    edges = {tuple(sorted(e)) for e in rng.integers(0, n, (18, 2)).tolist() if e[0] != e[1]}
+    indptr, indices = _csr(n, edges)
+    dist = np.full((n, n), np.inf)
+    np.fill_diagonal(dist, 0)
+    for a, b in edges:
+        dist[a, b] = dist[b, a] = 1
+    for k in range(n):  # Floyd–Warshall as the reference
+        dist = np.minimum(dist, dist[:, [k]] + dist[[k], :])
+    for s in range(n):
+        for g in range(n):
+            path = bfs_path(indptr, indices, s, g)
+            if np.isinf(dist[s, g]):
+                assert path is None
+            else:
+                assert len(path) - 1 == dist[s, g]
+                assert all(b in indices[indptr[a]:indptr[a + 1]] for a, b in zip(path, path[1:]))
+
+
+def test_transition_graph_edges_respect_step_and_collisions():
+    nodes = np.linspace(0, 1, 11)[:, None]
+    blocked = lambda a, b: not (min(a[0], b[0]) < 0.55 < max(a[0], b[0]))  # noqa: E731 - a wall at 0.55
+    g = TransitionGraph.build(nodes, np.array([0.15]), blocked, neighbours=4)
+    for i in range(len(nodes)):
+        for j in g.indices[g.indptr[i]:g.indptr[i + 1]]:
+            assert abs(nodes[i, 0] - nodes[j, 0]) <= 0.15 + 1e-12
+    assert g.path(np.array([0.0]), np.array([0.5])) is not None
+    assert g.path(np.array([0.0]), np.array([1.0])) is None
+    assert g.components() == 2

@@ -1,0 +1,289 @@
+"""Faults (issue 14): a killed engine, a killed save, a terminated server, a full disk.
+
+The studio says what happened, keeps or offers the edits, and no saved file is ever half-written.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from engine.gait.style import StyleContext, load_style
+from studio.style_session import StyleSession
+from tests.conftest import REPO
+
+NEUTRAL = REPO / "styles" / "g1" / "neutral.json"
+
+
+@pytest.fixture(scope="module")
+def g1_ctx() -> StyleContext:
+    return StyleContext.for_robot("g1")
+
+
+def _session(ctx, folder: Path) -> StyleSession:
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copy(NEUTRAL, folder / "neutral.json")
+    session = StyleSession("g1", ctx, folder=folder)
+    assert session.open("neutral").ok
+    return session
+
+
+def _edit(session: StyleSession, width: float) -> bool:
+    from dataclasses import replace
+
+    sample = session.style.samples["in_place"]
+    edited = replace(sample, attributes=replace(sample.attributes, stance_width_m=width))
+    return session.apply(session.style.with_sample("in_place", edited), f"width {width}").ok
+
+
+def _whole_styles(folder: Path, ctx) -> list[str]:
+    """Every visible style file loads completely (temporaries are hidden dot-files)."""
+    names = []
+    for p in sorted(folder.glob("*.json")):
+        load_style(p, ctx, expected_robot="g1")
+        names.append(p.name)
+    return names
+
+
+# ----------------------------------------------------------------------------- kill -9 during a save
+
+_SAVER = textwrap.dedent("""
+    import sys, json
+    from engine.atomic_io import atomic_write_text
+    target, text = sys.argv[1], open(sys.argv[2]).read()
+    doc = json.loads(text)
+    i = 0
+    print("ready", flush=True)
+    while True:  # rewrite the style as fast as possible, each time a little different (and padded: slow writes)
+        i += 1
+        doc["description"] = f"save {i} " + "x" * 200_000
+        atomic_write_text(target, json.dumps(doc))
+""")
+
+
+def test_kill_9_during_saves_never_leaves_a_half_written_style(tmp_path, g1_ctx):
+    target = tmp_path / "neutral.json"
+    shutil.copy(NEUTRAL, target)
+    script = tmp_path / "saver.py"
+    script.write_text(_SAVER)
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    for delay_s in (0.05, 0.13, 0.31, 0.5, 0.77):
+        proc = subprocess.Popen([sys.executable, str(script), str(target), str(NEUTRAL)], stdout=subprocess.PIPE,
+                                text=True, env=env)
+        assert proc.stdout.readline().strip() == "ready"
+        time.sleep(delay_s)  # a random moment inside the write loop (the kill time, not a wait for a result)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+        style = load_style(target, g1_ctx, expected_robot="g1")  # complete: the old or a new version
+        assert style.description.startswith(("save ", "The nominal"))
+    assert _whole_styles(tmp_path, g1_ctx) == ["neutral.json"]
+
+
+# ----------------------------------------------------------------------------- SIGTERM during autosaves
+
+_EDITOR = textwrap.dedent("""
+    import sys
+    from dataclasses import replace
+    from pathlib import Path
+    from studio.style_session import StyleSession
+    session = StyleSession("g1", folder=Path(sys.argv[1]))
+    assert session.open("neutral").ok
+    print("ready", flush=True)
+    i = 0
+    while True:  # every accepted edit is autosaved
+        i += 1
+        s = session.style.samples["in_place"]
+        e = replace(s, attributes=replace(s.attributes, stance_width_m=0.22 + 0.04 * ((i % 10) / 10)))
+        session.apply(session.style.with_sample("in_place", e), "edit")
+""")
+
+
+def test_sigterm_during_autosaves_leaves_a_recoverable_file(tmp_path, g1_ctx):
+    folder = tmp_path / "g1"
+    folder.mkdir()
+    shutil.copy(NEUTRAL, folder / "neutral.json")
+    script = tmp_path / "editor.py"
+    script.write_text(_EDITOR)
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, str(script), str(folder)], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        rec = folder / ".autosave" / "neutral.json"
+        deadline = time.monotonic() + 120
+        while not rec.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert rec.exists()
+        time.sleep(0.3)  # let a few more autosaves run, then terminate mid-stream
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(10)
+    assert (folder / "neutral.json").read_bytes() == NEUTRAL.read_bytes()  # the saved style is untouched
+    session = StyleSession("g1", g1_ctx, folder=folder)
+    assert session.recovery_available("neutral")  # the studio offers the autosaved edits
+    result = session.recover("neutral")
+    assert result.ok and session.dirty, result.message
+    assert 0.22 <= session.style.samples["in_place"].attributes.stance_width_m <= 0.26
+
+
+@pytest.mark.slow
+def test_serve_stops_cleanly_on_sigterm(tmp_path):
+    """SIGTERM to `studio serve`: it shuts its engine down and exits 0 (no orphan, no traceback)."""
+    from tests.conftest import ServedStudio
+
+    studio = ServedStudio()
+    try:
+        deadline = time.monotonic() + 120
+        while not studio.engine_pids() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        engines = studio.engine_pids()
+        assert engines
+        studio.proc.send_signal(signal.SIGTERM)
+        code = studio.proc.wait(30)
+        output = studio.proc.stdout.read()
+    finally:
+        if studio.proc.poll() is None:
+            studio.stop()
+    tail = output[output.rfind("Motion Studio:"):]
+    assert code == 0 and "KeyboardInterrupt" not in tail and "Exception ignored" not in tail, tail[-2000:]
+    deadline = time.monotonic() + 10
+    while any(Path(f"/proc/{p}").exists() for p in engines) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(Path(f"/proc/{p}").exists() and b"engine" in Path(f"/proc/{p}/cmdline").read_bytes()
+                   for p in engines)
+
+
+# ----------------------------------------------------------------------------- a full disk
+
+
+def _check_full_disk_behaviour(session: StyleSession, folder: Path, ctx, warnings: list[str]) -> None:
+    saved = (folder / "neutral.json").read_bytes()
+    assert _edit(session, 0.27)  # the edit is accepted and stays in memory
+    assert session.dirty and session.style.samples["in_place"].attributes.stance_width_m == 0.27
+    assert warnings and "autosave failed" in warnings[0] and "No space left on device" in warnings[0]
+    result = session.save()
+    assert not result.ok and "could not save neutral.json: No space left on device" in result.message
+    assert "\n" not in result.message and session.dirty
+    assert (folder / "neutral.json").read_bytes() == saved  # the old file is whole
+    assert not [p for p in folder.rglob("*") if p.name.endswith(".tmp")], "a temporary file was left behind"
+    assert _whole_styles(folder, ctx) == ["neutral.json"]
+
+
+def test_full_disk_simulated(tmp_path, g1_ctx, monkeypatch):
+    folder = tmp_path / "g1"
+    session = _session(g1_ctx, folder)
+    warnings: list[str] = []
+    session.warn = warnings.append
+    import engine.atomic_io as atomic_io
+
+    real_fdopen = os.fdopen
+
+    class FullFile:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, data):
+            self.f.write(data[: len(data) // 2])  # part of it lands, then the disk is full
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    monkeypatch.setattr(atomic_io.os, "fdopen", lambda fd, mode="r", *a, **k: FullFile(real_fdopen(fd, mode, *a, **k)))
+    _check_full_disk_behaviour(session, folder, g1_ctx, warnings)
+    monkeypatch.undo()
+    assert session.save().ok and not session.dirty  # space again: the edits were never lost
+    assert load_style(folder / "neutral.json", g1_ctx).samples["in_place"].attributes.stance_width_m == 0.27
+
+
+@pytest.fixture
+def tiny_tmpfs(tmp_path):
+    mount = tmp_path / "tmpfs"
+    mount.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({r.stderr.strip() or 'not root'}); the simulated test covers it")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], capture_output=True)
+
+
+def test_full_disk_on_a_real_tmpfs(tiny_tmpfs, g1_ctx):
+    folder = tiny_tmpfs / "g1"
+    session = _session(g1_ctx, folder)  # ~15 kB of 64 kB
+    filler = tiny_tmpfs / "filler"
+    with open(filler, "wb", buffering=0) as f:  # fill the disk
+        try:
+            while True:
+                f.write(b"\0" * 4096)
+        except OSError as exc:
+            assert exc.errno == errno.ENOSPC
+    warnings: list[str] = []
+    session.warn = warnings.append
+    _check_full_disk_behaviour(session, folder, g1_ctx, warnings)
+    filler.unlink()
+    assert session.save().ok and not session.dirty
+    assert json.loads((folder / "neutral.json").read_text())["samples"]["in_place"]["attributes"][
+        "stance_width_m"] == 0.27
+
+
+# ----------------------------------------------------------------------------- kill -9 of the engine mid-walk
+
+
+@pytest.mark.slow
+def test_kill_9_of_the_engine_during_a_test_mode_walk(tmp_path):
+    """The studio says the engine stopped, starts a new one and replays robot, edited style, mode and command."""
+    from studio.app import Studio
+    from tests.conftest import free_port
+
+    def wait(predicate, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return
+            time.sleep(0.05)
+        pytest.fail(f"timed out waiting for {what}")
+
+    styles = tmp_path / "styles"
+    (styles / "g1").mkdir(parents=True)
+    shutil.copy(NEUTRAL, styles / "g1" / "neutral.json")
+    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
+    try:
+        assert studio.loaded.wait(120)
+        assert _edit(studio.session, 0.26)
+        studio.set_mode("test")
+        wait(lambda: studio.view.last_frame is not None and studio.view.last_frame.mode == "test"
+             and studio.view.last_frame.sim_time_s > 1.0, 120, "the robot walking in test mode")
+        old_pid = studio.link.pid
+        os.kill(old_pid, signal.SIGKILL)
+        wait(lambda: studio.link.pid not in (None, old_pid), 60, "a new engine")
+        wait(lambda: any("stopped" in text and str(old_pid) in text for _, text in studio.notices), 30,
+             "the studio to say the engine stopped")
+        wait(lambda: any("Engine restarted" in text for _, text in studio.notices), 30, "the restart notice")
+        # the new engine's clock starts again from 0; it runs the replayed mode with the edited style
+        wait(lambda: studio.view.last_frame.mode == "test" and studio.view.last_frame.sim_time_s < 5.0, 120,
+             "frames of the new engine in test mode")
+        assert studio.session.style.samples["in_place"].attributes.stance_width_m == 0.26 and studio.session.dirty
+        sticky = studio.link._sticky  # noqa: SLF001 - what the link replays
+        assert "set_velocity_command" in sticky and sticky["set_mode"].mode == "test"  # (the drive panel's latest)
+        assert sticky["set_style"].style["samples"]["in_place"]["attributes"]["stance_width_m"] == 0.26
+        wait(lambda: studio.style_revision > 0 and studio.view.last_frame.style_revision == studio.style_revision,
+             60, "the new engine to run the edited style")
+    finally:
+        studio.stop()
