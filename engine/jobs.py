@@ -148,7 +148,7 @@ class JobRunner:
         return KeypointMotion.load(confined(self.root, spec))
 
     def _job_retarget(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
-        from engine.retarget.quadruped.heightmap import parse_terrain
+        from engine.retarget.heightmap import parse_terrain
         from engine.retarget.quadruped.pipeline import METHODS, QUADRUPEDS, RetargetOptions, retarget_detailed
 
         robot = str(params.get("robot", ""))
