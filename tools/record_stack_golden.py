@@ -1,7 +1,8 @@
 """Record the control stack's numbers on a short G1 sweep, for tests/test_stack_golden.py.
 
-Run once with the implementation the speed-ups must reproduce (it was run at commit 924822b,
-before any of them)::
+Run once with the implementation the speed-ups must reproduce (first at commit 924822b, before
+any of them; again after the push-recovery changes of the walking controller, which change the
+closed loop on purpose)::
 
     PYTHONPATH=. python tools/record_stack_golden.py tests/data/stack_golden_g1.npz
 

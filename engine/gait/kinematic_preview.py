@@ -19,6 +19,7 @@ from engine.gait.planner import GaitReference
 from engine.robot.model import RobotModel
 
 FOOT_FRAMES = ("left_foot", "right_foot")
+RESEED_ERROR_M = 0.01  # a warm-started solve missing by more than this is solved again from standing
 
 
 class KinematicPreview:
@@ -48,15 +49,37 @@ class KinematicPreview:
         self.q = (self.robot.q_standing if q is None else q).copy()
 
     def solve(self, ref: GaitReference, com_xy: np.ndarray, q_init: np.ndarray | None = None) -> np.ndarray:
-        """Configuration realising ``ref`` with the horizontal CoM at ``com_xy`` (warm-started)."""
+        """Configuration realising ``ref`` with the horizontal CoM at ``com_xy`` (warm-started).
+
+        A warm start can leave the legs in a fold the damped steps cannot undo (a knee pinned at its
+        limit): when the warm-started solve misses by more than ``RESEED_ERROR_M`` it is solved again
+        from the standing pose placed at the reference pelvis, and the better of the two is kept."""
+        q, norm, iterations = self._iterate(self.q if q_init is None else q_init, ref, com_xy)
+        if norm > RESEED_ERROR_M:
+            seed = self.robot.q_standing.copy()
+            seed[:2] = com_xy
+            seed[2] = ref.pelvis_z
+            seed[3:7] = pin.Quaternion(ref.pelvis_rot).coeffs()  # pinocchio's free flyer: x, y, z, w
+            q2, norm2, it2 = self._iterate(seed, ref, com_xy)
+            iterations += it2
+            if norm2 < norm:
+                q, norm = q2, norm2
+        self.last_error = norm
+        self.last_iterations = iterations
+        self.q = q
+        return q.copy()
+
+    def _iterate(self, q_start: np.ndarray, ref: GaitReference, com_xy: np.ndarray) -> tuple[np.ndarray, float, int]:
+        """Damped Gauss-Newton from ``q_start``: (configuration, residual norm, iterations)."""
         model, data = self.model, self.data
-        q = (self.q if q_init is None else q_init).copy()
+        q = q_start.copy()
         if len(self.upper_q_index):
             q[self.upper_q_index] = ref.upper_q
         targets = [pin.SE3(ref.foot_rot[i], ref.foot_pos[i]) for i in range(2)]
         rows = 6 + 6 + 1 + 3 + 2
         err = np.zeros(rows)
         jac = np.zeros((rows, model.nv))
+        norm = np.inf
         for it in range(self.max_iterations):
             pin.computeJointJacobians(model, data, q)
             pin.updateFramePlacements(model, data)
@@ -84,10 +107,7 @@ class KinematicPreview:
             dv[self.active_v] = step
             q = pin.integrate(model, q, dv)
             q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
-        self.last_error = norm
-        self.last_iterations = it + 1
-        self.q = q
-        return q.copy()
+        return q, norm, it + 1
 
 
 class SupportCenterComPlan:
