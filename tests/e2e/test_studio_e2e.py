@@ -62,7 +62,7 @@ def test_joystick_drives_the_robot(served_studio, artifacts):
         wait_for_text(page, "Engine running")
         page.get_by_role("button", name="Test").click()
         wait_for_text(page, "test mode", timeout_ms=30_000)
-        start, end = hold_for_simulated_time(page, "▲ forward", 5.0,
+        start, end = hold_for_simulated_time(page, "▲ forward", 10.0,
                                              done=lambda s, n: n["x"] - s["x"] > 0.3)
         page.screenshot(path=str(artifacts / "studio_test_mode_joystick.png"))
         moved = end["x"] - start["x"]
@@ -70,10 +70,13 @@ def test_joystick_drives_the_robot(served_studio, artifacts):
                              f"time while ▲ forward was held: {history()}")
         assert "Engine running" in page.inner_text("body")  # it did not fall
 
+        page.get_by_role("button", name="■ Stop").click()  # from rest: a turn in place, not a walking arc
+        wait_for_text(page, "Command: stopped", timeout_ms=60_000)
+
         def turned_deg(s: dict, n: dict) -> float:  # signed, wrapped to (-180, 180]: left is positive
             return -((s["yaw"] - n["yaw"] + 180.0) % 360.0 - 180.0)
 
-        start, end = hold_for_simulated_time(page, "⟲ turn left", 5.0, done=lambda s, n: turned_deg(s, n) > 20)
+        start, end = hold_for_simulated_time(page, "⟲ turn left", 8.0, done=lambda s, n: turned_deg(s, n) > 20)
         turned = turned_deg(start, end)
         assert turned > 20, f"holding ⟲ turn left turned the robot by {turned:+.0f}° in simulated time: {history()}"
         page.get_by_role("button", name="■ Stop").click()
