@@ -9,6 +9,7 @@ import argparse
 import json
 import os
 import sys
+from typing import Callable
 from pathlib import Path
 
 EXIT_USAGE = 2
@@ -328,7 +329,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from studio.bench_engine import bench_engine
     from studio.bench_soak import bench_soak
 
-    SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
+    SECTIONS: dict[str, Callable[..., list[dict]]] = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
     sections = args.sections or [s for s in SECTIONS if s != "soak" and s not in BATCH_SECTIONS]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:

@@ -85,6 +85,9 @@ class CurveEditor(GraphView, DragInteraction, EditorWidgets):
         #: called when the animator picks a sample in this panel's Sample menu (the app makes it the one
         #: selected everywhere: the Sample tab, and the sample Edit mode walks)
         self.on_sample_picked: Callable[[str], None] | None = None
+        #: run before / after the camera is pointed at the graph (the app brings the graph beside the robot)
+        self.before_look_at_graph: Callable[[Any], None] | None = None
+        self.after_look_at_graph: Callable[[Any], None] | None = None
 
         self.root_frame = server.scene.add_frame(self.root, show_axes=False)
         self._build_scene()

@@ -128,7 +128,10 @@ class GraphView(EditorBase):
 
     def look_at_graph(self, client: Any, right_inset_px: float | None = None) -> None:
         """Point ``client``'s camera at the graph (``right_inset_px``: canvas pixels under the panel;
-        default: viser's medium control panel, 330 px, on canvases wider than 800 px)."""
+        default: viser's medium control panel, 330 px, on canvases wider than 800 px). The app's
+        :attr:`before_look_at_graph` / :attr:`after_look_at_graph` hooks run around it."""
+        if self.before_look_at_graph is not None:
+            self.before_look_at_graph(client)
         cam = client.camera
         try:
             fov, aspect, width = float(cam.fov), float(cam.aspect), float(cam.image_width)
@@ -144,6 +147,8 @@ class GraphView(EditorBase):
             cam.up_direction = up
             cam.position = position
             cam.look_at = look_at
+        if self.after_look_at_graph is not None:
+            self.after_look_at_graph(client)
 
     def color_of(self, channel: str) -> tuple[tuple[int, int, int], str]:
         """(rgb, emoji) a channel is drawn with: fixed for swing/pelvis channels; a shown joint keeps

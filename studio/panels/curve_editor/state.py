@@ -34,6 +34,8 @@ class EditorBase:
     notices: list[str]
     root_frame: Any
     on_sample_picked: Callable[[str], None] | None
+    before_look_at_graph: Callable[[Any], None] | None
+    after_look_at_graph: Callable[[Any], None] | None
     _lock: threading.RLock
     _local: threading.local
     _worker: SerialWorker
