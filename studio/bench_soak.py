@@ -96,6 +96,8 @@ class _Tab(threading.Thread):
         self.loaded = threading.Event()
         self.window: tuple[int, float] | None = None
         self.last: tuple[int, float] | None = None
+        self.finish = threading.Event()  # take a last sample and stop
+        self.finished = threading.Event()
 
     def fps(self) -> float:
         if self.window is None or self.last is None or self.last[1] <= self.window[1]:
@@ -115,16 +117,22 @@ class _Tab(threading.Thread):
                 page.evaluate(self.COUNTER_JS)
                 self.loaded.set()
                 while not self.stop.is_set():
+                    final = self.finish.is_set()
                     count = int(page.evaluate(self.COUNTER_JS))
                     now = time.monotonic()
                     if self.mark_event.is_set() and self.window is None:
                         self.window = (count, now)
-                    self.last = (count, now)
-                    self.stop.wait(1.0)
+                    elif self.window is not None:
+                        self.last = (count, now)
+                    if final:
+                        break
+                    self.finish.wait(1.0)
+                self.finished.set()
                 browser.close()
         except Exception as exc:  # noqa: BLE001 - reported
             self.error = f"tab: {type(exc).__name__}: {exc}"[:200]
             self.loaded.set()
+            self.finished.set()
 
 
 class _Errors(logging.Handler):
@@ -221,6 +229,10 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 marked_event.set()
                 frame_mark = len(frames)
             time.sleep(0.1)
+        for b in browsers:  # each tab's last frame count
+            b.finish.set()
+        for b in browsers:
+            b.finished.wait(60)
         rss1 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
         window = frames[frame_mark:] if marked else frames
         (w0, s0), (w1, s1) = window[0], window[-1]
