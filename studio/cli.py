@@ -9,7 +9,7 @@ import argparse
 import json
 import os
 import sys
-from typing import Callable
+from typing import Callable, NoReturn
 from pathlib import Path
 
 EXIT_USAGE = 2
@@ -22,7 +22,7 @@ class CliError(Exception):
 class _Parser(argparse.ArgumentParser):
     """Usage errors as ONE line (``studio walk: error: ...``), exit 2, like every other user error."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
