@@ -12,7 +12,7 @@ velocity, paper §6.1). Quadrupeds and source skeletons only stand / are shown.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import mujoco
 import numpy as np
@@ -22,6 +22,11 @@ from engine.control.controller import Controller
 from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel, load_robot
 from engine.sim import CONTROL_PERIOD_S, Simulation, standing_controller
+
+if TYPE_CHECKING:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.kinematic_preview import KinematicPreview
+    from engine.gait.style import Style, StyleContext
 
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
 MODES = ("stand", "test", "edit")
@@ -43,10 +48,10 @@ class EngineCore:
         self.mode = "stand"
         self.edit_sample = "in_place"
         self.velocity_command = np.zeros(3)
-        self.style = None
-        self.ctx = None
-        self.walker = None
-        self.ghost = None
+        self.style: Style | None = None
+        self.ctx: StyleContext | None = None
+        self.walker: WalkingController | None = None
+        self.ghost: KinematicPreview | None = None
         self.ghost_q: np.ndarray | None = None
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
@@ -186,7 +191,7 @@ class EngineCore:
         from engine.control.walking_controller import WalkingController
         from engine.gait.kinematic_preview import KinematicPreview
 
-        assert self.sim is not None and self.style is not None
+        assert self.sim is not None and self.style is not None and self.ctx is not None
         self.walker = WalkingController(self.robot, self.style, ctx=self.ctx)
         self.sim.set_controller(self.walker)
         self.ghost = KinematicPreview(self.robot, self.ctx.upper_joints)
@@ -278,7 +283,7 @@ class EngineCore:
                 fb = tel.feedback
                 signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
                                                 fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
-            if len(ref.upper_q):
+            if len(ref.upper_q) and self.ctx is not None:
                 j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
                 idx = self.robot.joint_names.index(self.ctx.upper_joints[j])
                 signals["arm_joint"] = np.array([ref.upper_q[j], q[idx]])
@@ -288,6 +293,7 @@ class EngineCore:
         return msg.Telemetry(self.sim.time_s, {k: np.asarray(v, dtype=np.float32) for k, v in signals.items()})
 
     def _base_yaw(self) -> float:
+        assert self.sim is not None
         q = self.sim.data.qpos
         return math.atan2(2 * (q[3] * q[6] + q[4] * q[5]), 1 - 2 * (q[5] ** 2 + q[6] ** 2))
 

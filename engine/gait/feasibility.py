@@ -99,7 +99,7 @@ class FeasibilityChecker:
         self.margin_m = COP_MARGIN_M
         self.toe_trim_m = toe_trim_m(robot, COP_MARGIN_M)
         names = robot.joint_names
-        legs = set()
+        legs: set[int] = set()
         for fid in self.foot_ids:
             legs.update(j for j in self.model.supports[self.model.frames[fid].parentJoint] if j > 1)
         self.leg_joints = sorted(legs)
@@ -153,7 +153,9 @@ class FeasibilityChecker:
             com = com_plan.step(dt, ref)
             if k < n_settle:
                 continue
-            pct = 100.0 * (planner.blend.time_at(ref.phase) % cycle) / cycle
+            blend = planner.blend
+            assert blend is not None  # the planner blends on its first step
+            pct = 100.0 * (blend.time_at(ref.phase) % cycle) / cycle
             if q_prev is None:  # start the IK at the pelvis's pose on the path
                 yaw = float(ref.path_pose[2])
                 q[0:3] = [ref.path_pose[0], ref.path_pose[1], ref.pelvis_z]
