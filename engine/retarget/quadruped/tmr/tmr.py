@@ -29,7 +29,7 @@ from engine.retarget.quadruped.tmr.deformation import (
     sample_contact,
 )
 from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
-from engine.retarget.quadruped.tmr.motion_io import RobotMotion
+from engine.retarget.motion import RobotMotion
 from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor
 from engine.retarget.quadruped.tmr.scoring import dtw_keypoint_l1_pct, tmr_score, tracking_error_mm
 
