@@ -53,7 +53,7 @@ def _finite(where: str, name: str, arr: np.ndarray) -> None:
 
 def _float_array(where: str, name: str, value: Any, shape: tuple) -> np.ndarray:
     try:
-        arr = np.asarray(value, dtype=float)
+        arr = np.array(value, dtype=float)  # a copy: arrays from Ray or np.load may be read-only
     except (TypeError, ValueError):
         raise _fail(where, name, f"expected numbers of shape {_shape_text(shape)}") from None
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):

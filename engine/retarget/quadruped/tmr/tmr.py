@@ -22,6 +22,7 @@ from engine.retarget.quadruped.tmr.ddp import Cancelled, ILQRSettings, MotionTra
 from engine.retarget.quadruped.tmr.deformation import (
     DEFAULT_LOG2_BOUND,
     TemporalDeformation,
+    ballistic_flights,
     check_log2_bound,
     check_segments,
     finite_difference_qvel,
@@ -85,8 +86,9 @@ def deformed_target(robot, qpos: np.ndarray, contact: np.ndarray, fps: float, de
     t_control = t_control[: int(np.floor(deformation.duration_s / tracker.dt_s + 1e-9)) + 1]
     src = deformation(t_control)
     q = interpolate_qpos(qpos, fps, src)
-    v = finite_difference_qvel(tracker.model, q, tracker.dt_s)
     c = sample_contact(contact, fps, src)
+    q = ballistic_flights(q, c, tracker.dt_s, float(-tracker.model.opt.gravity[2]))
+    v = finite_difference_qvel(tracker.model, q, tracker.dt_s)
     return TrackingTarget(tracker.dt_s, q, v, c, keypoint_trajectory(robot, q, tracker.keypoints))
 
 
