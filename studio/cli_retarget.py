@@ -50,6 +50,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     exp.add_argument("--format", required=True, choices=EXPORT_FORMATS)
     exp.add_argument("--out", required=True, help="output file")
     exp.add_argument("--amp-full", action="store_true", help="amp-json: AMP_for_hardware's 61-value frames")
+    exp.add_argument("--amp-leg-order", choices=("pybullet", "isaac"), default="pybullet",
+                     help="--amp-full legs: pybullet FR, FL, RR, RL (AMP_for_hardware's loader reorders them; default) "
+                          "or isaac FL, FR, RL, RR (STMR_RL's loader, whose reorder is commented out)")
 
 
 def _load_source(path: str, fmt: str | None):
@@ -192,6 +195,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     if args.amp_full and args.format != "amp-json":
         raise CliError("--amp-full: only with --format amp-json")
+    if args.amp_leg_order != "pybullet" and not args.amp_full:
+        raise CliError("--amp-leg-order: only with --amp-full")
     if args.amp_full:
         from engine.robot.config import RobotConfigError, load_robot_config
 
@@ -201,7 +206,9 @@ def cmd_export(args: argparse.Namespace) -> int:
             raise CliError(f"{Path(args.motion).name}: robot: {exc}") from None
         if kind != "quadruped" or len(motion.joint_names) != 12:
             raise CliError(f"{Path(args.motion).name}: robot: --amp-full expects a 12-joint quadruped, got {motion.robot}")
-    _write(out, lambda path: export_motion(motion, args.format, path, amp_full=args.amp_full))
-    print(f"{Path(args.motion).name} → {out} ({args.format}{', 61-value AMP frames' if args.amp_full else ''}, "
+    _write(out, lambda path: export_motion(motion, args.format, path, amp_full=args.amp_full,
+                                           amp_leg_order=args.amp_leg_order))
+    print(f"{Path(args.motion).name} → {out} ({args.format}"
+          f"{f', 61-value AMP frames, legs {args.amp_leg_order}' if args.amp_full else ''}, "
           f"{motion.frames} frames at {motion.fps:g} fps)")
     return 0
