@@ -3,7 +3,7 @@
 Each section is a function returning rows (dicts), its body in this package's module of the
 same concept: ``sim`` (MuJoCo alone), ``reference`` (sampler + planner), ``mpc`` (CoM MPC
 solves), ``wbc`` (our inverse dynamics against placo's), ``qp`` (the QP backends on recorded
-problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables), ``tmr`` (the temporal stage's costs) and ``arms``
+problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables), ``tmr`` (the temporal stage's costs; ``tmr-clips``, only when asked for: SMR against STMR on the paper's clips) and ``arms``
 (LWL2 against per-frame IK and a feed-forward baseline). The studio
 adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`), ``engine`` (the engine process's pacing
 and restart through the studio's link, :mod:`studio.bench_engine`) and ``soak`` (:mod:`studio.bench_soak`, not
@@ -76,6 +76,13 @@ def _tmr() -> list[dict]:
     return bench_tmr()
 
 
+def _tmr_clips(**options) -> list[dict]:
+    from engine.bench.options import call_with_known
+    from engine.bench.tmr import bench_tmr_clips
+
+    return call_with_known(bench_tmr_clips, options)
+
+
 def _arms() -> list[dict]:
     from engine.bench.arms import bench_arms
 
@@ -99,6 +106,6 @@ def _styles(**options) -> list[dict]:
 SECTIONS: dict[str, Callable[..., list[dict]]] = {
     "sim": _sim, "reference": _reference, "mpc": _mpc, "wbc": _wbc, "qp": _qp, "estimator": _estimator,
     "stack": _stack, "retarget": _retarget, "tmr": _tmr, "arms": _arms,
-    "push": _push, "styles": _styles,
+    "push": _push, "styles": _styles, "tmr-clips": _tmr_clips,
 }
-BATCH_SECTIONS = ("push", "styles")  # minutes to hours of closed-loop walks on Ray: only when asked for
+BATCH_SECTIONS = ("push", "styles", "tmr-clips")  # minutes to hours of closed-loop walks on Ray: only when asked for

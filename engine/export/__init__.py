@@ -14,11 +14,12 @@ from engine.retarget.motion import RobotMotion
 FORMATS = ("amp-json", "unitree-csv", "npz")
 
 
-def export_motion(motion: RobotMotion, fmt: str, path: str | Path, amp_full: bool = False) -> None:
+def export_motion(motion: RobotMotion, fmt: str, path: str | Path, amp_full: bool = False,
+                  amp_leg_order: str = "pybullet") -> None:
     if fmt == "amp-json":
         from engine.export.amp_json import export_amp_json
 
-        export_amp_json(motion, path, full=amp_full)
+        export_amp_json(motion, path, full=amp_full, leg_order=amp_leg_order)
     elif fmt == "unitree-csv":
         from engine.export.unitree_csv import export_unitree_csv
 
