@@ -166,6 +166,11 @@ class UpperBody:
         jv = j6[:3] + np.cross(j6[3:].T, r).T  # v_p = v_o + ω × r
         return jv[:, self.v_index]
 
+    def frame_origin_jacobian(self, frame_id: int) -> np.ndarray:
+        """(3, n) Jacobian of a frame's origin w.r.t. the driven joints (after :meth:`jacobians`)."""
+        j6 = pin.getFrameJacobian(self.pin_model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        return j6[:3, self.v_index]
+
     def jacobians(self, x: np.ndarray) -> None:
         pin.computeJointJacobians(self.pin_model, self.data, self.full_q(x))
         pin.updateFramePlacements(self.pin_model, self.data)
