@@ -212,6 +212,8 @@ class CapsuleModel:
         missing distance, through the stacked point Jacobians (damped least squares), clipped to the joint
         limits; a step is halved until the total penetration does not increase (it never does)."""
         x = self.ub.clip(np.asarray(x, dtype=float).copy())
+        if self.is_free(x):  # the common case at run time: one C++ check
+            return x, True
         pen = self.penetration(x)
         for _ in range(max_iters):
             d_all = self.signed_distances(x)

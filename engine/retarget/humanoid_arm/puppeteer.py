@@ -35,7 +35,7 @@ from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
 from engine.retarget.humanoid_arm.pose15 import check_pose15
 from engine.retarget.humanoid_arm.upper_body import UpperBody
 
-REFINE_ITERS = 3
+REFINE_ITERS = 5
 
 
 @dataclass
