@@ -174,9 +174,9 @@ class CapsuleModel:
     def is_free(self, x: np.ndarray, margin_m: float = 0.0) -> bool:
         return self.min_signed_distance(x) >= margin_m
 
-    def penetration(self, x: np.ndarray) -> float:
-        """Sum of negative signed distances (m, ≥ 0)."""
-        return float(np.sum(np.maximum(-self.signed_distances(x), 0.0)))
+    def penetration(self, x: np.ndarray, clearance_m: float = 0.0) -> float:
+        """Sum over pairs of how far each signed distance is below ``clearance_m`` (m, ≥ 0; 0: penetration)."""
+        return float(np.sum(np.maximum(clearance_m - self.signed_distances(x), 0.0)))
 
     def colliding_pairs(self, x: np.ndarray) -> list[tuple[str, str, float]]:
         d = self.signed_distances(x)
@@ -205,24 +205,28 @@ class CapsuleModel:
         return True
 
     # --- the fixer (§III)
-    def fix(self, x: np.ndarray, margin_m: float = 0.002, max_iters: int = 60, damping: float = 1e-3) -> tuple[np.ndarray, bool]:
-        """Push colliding capsules apart until every signed distance ≥ 0. Returns (x, success).
+    def fix(self, x: np.ndarray, margin_m: float = 0.002, max_iters: int = 60, damping: float = 1e-3,
+            clearance_m: float = 0.0) -> tuple[np.ndarray, bool]:
+        """Push colliding capsules apart until every signed distance ≥ ``clearance_m`` (default 0: collision-
+        free). Returns (x, success).
 
-        Each iteration moves the closest points of every pair closer than ``margin_m`` apart by the
-        missing distance, through the stacked point Jacobians (damped least squares), clipped to the joint
-        limits; a step is halved until the total penetration does not increase (it never does)."""
+        Each iteration moves the closest points of every pair closer than ``clearance_m + margin_m`` apart by
+        the missing distance, through the stacked point Jacobians (damped least squares), clipped to the joint
+        limits; a step is halved until the total penetration (below the clearance) does not increase (it never
+        does)."""
         x = self.ub.clip(np.asarray(x, dtype=float).copy())
-        if self.is_free(x):  # the common case at run time: one C++ check
+        if self.is_free(x, clearance_m):  # the common case at run time: one C++ check
             return x, True
-        pen = self.penetration(x)
+        target = clearance_m + margin_m
+        pen = self.penetration(x, clearance_m)
         for _ in range(max_iters):
             d_all = self.signed_distances(x)
-            if np.all(d_all >= 0.0) and pen == 0.0:
+            if np.all(d_all >= clearance_m) and pen == 0.0:
                 return x, True
             a, b = self.segments(x, forward=False)
             self.ub.jacobians(x)
             rows, rhs = [], []
-            for k in np.nonzero(d_all < margin_m)[0]:
+            for k in np.nonzero(d_all < target)[0]:
                 i, j = self.pairs[k]
                 _, c1, c2 = segment_distance(a[i], b[i], a[j], b[j])
                 n = c1 - c2
@@ -234,20 +238,20 @@ class CapsuleModel:
                 j1 = self.ub.point_jacobian(self.capsules[i].frame_id, c1)
                 j2 = self.ub.point_jacobian(self.capsules[j].frame_id, c2)
                 rows.append(n @ (j1 - j2))
-                rhs.append(margin_m - d_all[k])
+                rhs.append(target - d_all[k])
             jac = np.array(rows)
             dx = jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(rows)), np.array(rhs))
             step, accepted = 1.0, False
             while step > 1e-3:
                 x_new = self.ub.clip(x + step * dx)
-                pen_new = self.penetration(x_new)
+                pen_new = self.penetration(x_new, clearance_m)
                 if pen_new <= pen:
                     x, pen, accepted = x_new, pen_new, True
                     break
                 step *= 0.5
             if not accepted:
                 break
-        return x, bool(self.is_free(x))
+        return x, bool(self.is_free(x, clearance_m))
 
     # --- pair selection
     def _select_pairs(self, rng: np.random.Generator, n_samples: int) -> list[tuple[int, int]]:

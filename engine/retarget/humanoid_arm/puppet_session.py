@@ -23,6 +23,7 @@ from engine.retarget.humanoid_arm.live import DatagramError, parse_datagram
 from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
 
 RATE_HZ = 60.0
+LIVE_CLEARANCE_M = 0.01  # targets keep 1 cm between capsules: the simulated arm lags its target by a few mm
 MAX_DRAIN = 512  # datagrams read per period at most (a flood is dropped by the kernel beyond the buffer)
 
 
@@ -86,7 +87,7 @@ class UdpSource:
 @dataclass
 class PuppetStats:
     frames: int = 0
-    inference_s: deque = field(default_factory=lambda: deque(maxlen=4096))
+    inference_s: deque = field(default_factory=lambda: deque(maxlen=8192))
     transitions: dict = field(default_factory=lambda: {"direct": 0, "graph": 0, "hold": 0})
 
     def summary(self) -> dict:
@@ -179,11 +180,15 @@ def puppet_walking_controller(robot, style, ctx=None):
     return PuppetWalkingController(robot, style, ctx=ctx)
 
 
+SETTLE_S = 0.5  # the robot starts in its standing pose, whose arms the (conservative) capsules already overlap
+
+
 def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s: float,
-                          feed=None, progress=None) -> dict:
+                          feed=None, progress=None, settle_s: float = SETTLE_S) -> dict:
     """Stand ``robot`` under the whole-body controller in MuJoCo while LWL2 drives its arms from ``source``
     for ``duration_s`` simulated seconds. ``feed(t_s)`` is called before each puppet period (e.g. to send the
-    datagram of that instant). Returns fell, the measured arms' worst capsule distance and the timing stats."""
+    datagram of that instant). Returns fell, the measured (simulated) arms' capsule check at every period
+    after ``settle_s`` and the timing stats."""
     from engine.gait.style import StyleContext, load_style, styles_dir
     from engine.robot.model import load_robot
     from engine.sim import CONTROL_PERIOD_S, Simulation
@@ -191,7 +196,7 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
     model = load_robot(robot)
     ctx = StyleContext.for_robot(robot)
     style = load_style(styles_dir(robot) / f"{model.config.default_style}.json", ctx)
-    arms = ArmRetargeter.load(robot)
+    arms = ArmRetargeter.load(robot, clearance_m=LIVE_CLEARANCE_M)
     walker = puppet_walking_controller(model, style, ctx)
     walker.set_command(np.zeros(3))
     sim = Simulation(model, walker)
@@ -212,11 +217,11 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
             x = session.step(t)
             if x is not None:
                 walker.set_arm_target(session.index, x, t, 1.0 / session.rate_hz)
-            measured = sim.data.qpos[7 + mj_index]
-            d = cm.min_signed_distance(measured)
-            worst = min(worst, d)
-            collided += d < 0.0
-            checks += 1
+            if t >= settle_s:
+                d = cm.min_signed_distance(sim.data.qpos[7 + mj_index])
+                worst = min(worst, d)
+                collided += d < 0.0
+                checks += 1
         sim.step()
         if sim.fallen:
             break
@@ -224,11 +229,13 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
             progress(k / steps)
     wall = time.perf_counter() - t_wall
     session.close()
+    standing = cm.min_signed_distance(ub.neutral())
     return {"robot": robot, "source": source.name, "sim_s": round(sim.time_s, 2), "fell": bool(sim.fallen),
+            "standing_pose_distance_mm": round(standing * 1000, 1),
             "measured_collision_checks": checks, "measured_colliding": int(collided),
             "min_measured_distance_mm": round(float(worst) * 1000, 1), "wall_s": round(wall, 1),
-            **session.stats.summary()}
+            "inference_s_all": list(session.stats.inference_s), **session.stats.summary()}
 
 
 __all__ = ["ClipSource", "UdpSource", "PuppetSession", "PuppetStats", "puppet_walking_controller",
-           "run_puppet_in_physics", "RATE_HZ"]
+           "run_puppet_in_physics", "RATE_HZ", "LIVE_CLEARANCE_M"]

@@ -56,10 +56,14 @@ class RetargetStep:
 class ArmRetargeter:
     def __init__(self, ub: UpperBody, capsules: CapsuleModel, model, robot_poses: np.ndarray,
                  graph: TransitionGraph | None, meta: dict, k_max: int = 3, feed_forward=None,
-                 refine_iters: int = REFINE_ITERS):
+                 refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0):
         self.ub, self.capsules, self.model, self.meta = ub, capsules, model, meta
         self.robot_poses = robot_poses
-        self.lwr = LatentLWR(model.encode("robot", robot_poses), robot_poses, capsules.is_free, k_max)
+        # clearance_m > 0 (live puppeteering): blended and refined poses keep this distance between capsules, so
+        # the physical arm's tracking lag does not turn a grazing target into a contact (k = 1 stays a look-up)
+        self.clearance_m = float(clearance_m)
+        self.lwr = LatentLWR(model.encode("robot", robot_poses), robot_poses,
+                             lambda x: capsules.is_free(x, self.clearance_m), k_max)
         self.encode_mocap = model.numpy_encoder("mocap")  # run-time path: numpy, no torch call per frame
         self.refine_iters = int(refine_iters)
         self.ik = ArmIK(ub, capsules)
@@ -83,7 +87,7 @@ class ArmRetargeter:
 
     @classmethod
     def load(cls, robot: str, path: Path | None = None, capsules: CapsuleModel | None = None,
-             refine_iters: int = REFINE_ITERS) -> "ArmRetargeter":
+             refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0) -> "ArmRetargeter":
         """Load trained weights for ``robot``; ValueError (one line) when missing or for another robot."""
         path = Path(path) if path is not None else weights_path(robot)
         if path.suffix in (".json", ".safetensors"):
@@ -106,7 +110,8 @@ class ArmRetargeter:
             from engine.retarget.humanoid_arm.feed_forward import load_feed_forward
 
             ff = load_feed_forward(path)
-        return cls(ub, capsules, model, poses, graph, meta, feed_forward=ff, refine_iters=refine_iters)
+        return cls(ub, capsules, model, poses, graph, meta, feed_forward=ff, refine_iters=refine_iters,
+                   clearance_m=clearance_m)
 
     def reset(self, x: np.ndarray | None = None) -> None:
         self.current = None if x is None else np.asarray(x, dtype=float).copy()
@@ -119,7 +124,8 @@ class ArmRetargeter:
         target = res.x
         refined = False
         if self.refine_iters > 0:
-            y, free = self.ik.solve(p, target, fix=True, iters=self.refine_iters)
+            y, free = self.ik.solve(p, target, fix=False, iters=self.refine_iters)
+            y, free = self.capsules.fix(y, clearance_m=self.clearance_m)
             if free:
                 target, refined = y, True
         transition = "direct"
