@@ -239,3 +239,49 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
 
 __all__ = ["ClipSource", "UdpSource", "PuppetSession", "PuppetStats", "puppet_walking_controller",
            "run_puppet_in_physics", "RATE_HZ", "LIVE_CLEARANCE_M"]
+
+
+def open_source(options: dict):
+    """The puppet's source from the studio's options: ``{"source": "udp", "port": P}`` (bound to 127.0.0.1)
+    or ``{"source": "clip", "clip": "mocap-src/…/X.bvh"}`` (a BVH inside the shared data folder).
+    ValueError naming the option otherwise."""
+    from engine.retarget.humanoid_arm import sources
+    from engine.retarget.humanoid_arm.pose15 import bvh_points
+    from engine.retarget.importers.bvh import BvhError, load_bvh
+
+    kind = options.get("source", "clip")
+    if kind == "udp":
+        port = options.get("port", 0)
+        if not isinstance(port, int) or not 0 <= port < 65536:
+            raise ValueError(f"port: expected 0..65535, got {port!r}")
+        try:
+            return UdpSource(port)
+        except OSError as exc:
+            raise ValueError(f"port {port}: {exc.strerror or exc}") from None
+    if kind != "clip":
+        raise ValueError(f"source: expected 'clip' or 'udp', got {kind!r}")
+    root = sources.shared_dir()
+    clip = str(options.get("clip", ""))
+    if root is None:
+        raise ValueError("clip: no shared data folder on this machine")
+    path = (root / clip).resolve()
+    if not path.is_relative_to(root.resolve()) or path.suffix.lower() != ".bvh" or not path.is_file():
+        raise ValueError(f"clip: expected a .bvh file inside the shared data folder, got {clip!r}")
+    try:
+        points = bvh_points(load_bvh(path))
+    except BvhError as exc:
+        raise ValueError(str(exc)) from None
+    poses = points.pose15()
+    if not np.all(np.isfinite(poses)):
+        raise ValueError(f"{path.name}: degenerate skeleton (coincident arm joints)")
+    return ClipSource(poses, points.fps, path.name)
+
+
+def puppet_clips() -> list[str]:
+    """BVH clips the Puppeteer offers (relative to the shared data folder): held-out first."""
+    from engine.retarget.humanoid_arm import sources
+
+    root = sources.shared_dir()
+    if root is None:
+        return []
+    return [str(p.relative_to(root)) for p in sources.evaluation_clips() + sources.train_clips()]
