@@ -79,6 +79,7 @@ class Studio:
         self.tab_plots = tabs.add_tab("Plots")
         if not quadruped_first:
             self.tab_retarget = tabs.add_tab("Retarget")
+        self.tab_puppet = tabs.add_tab("Puppet")
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)
@@ -88,6 +89,11 @@ class Studio:
 
         with self.tab_retarget:
             self.retarget = RetargetPanel(self.server, self)
+        from studio.panels.puppet_panel import PuppetPanel
+
+        with self.tab_puppet:
+            self.puppet = PuppetPanel(self.server, self)
+        self._root_pos: np.ndarray | None = None
         self._style_folders: list = []
         self.style_browser = self.sample_editor = self.curve_editor = None
 
@@ -218,6 +224,8 @@ class Studio:
         self.events_seen[event.kind] = self.events_seen.get(event.kind, 0) + 1
         if isinstance(event, msg.Frame):
             self.view.update(event)
+            if len(event.body_pos):
+                self._root_pos = event.body_pos[0]
             self._measure_edit_latency(event)
         elif isinstance(event, msg.Telemetry):
             self._on_telemetry(event)
@@ -247,9 +255,12 @@ class Studio:
             self.mode = "stand"
             self._build_style_panels(event.robot)
             self.retarget.on_robot(event.robot, event.robot_kind)
+            self.puppet.on_robot()
         else:
             self._send_style()  # an engine restart: give it back the edited style
-            if self.mode != "stand":
+            if self.mode == "puppet" and self.puppet.options:
+                self.link.send(msg.SetMode("puppet", self.puppet.options))
+            elif self.mode not in ("stand", "puppet"):
                 self.link.send(msg.SetMode(self.mode, {"sample": self.sample_editor.sample_name}))
         self.loaded.set()
 
@@ -264,6 +275,8 @@ class Studio:
             self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
                                              np.zeros(0), False, False, 0.0))
         self._shade_joint_limits(s.get("joint_limit_proximity"))
+        if "puppet" in s:
+            self.puppet.on_telemetry(s, self._root_pos)
         if self.curve_editor is not None and "phase" in s and self.session is not None and self.sample_editor:
             try:
                 iv = self.session.style.samples[self.sample_editor.sample_name].intervals
