@@ -78,7 +78,7 @@ class _ProgressBar:
 def cmd_train_arms(args: argparse.Namespace) -> int:
     from engine.retarget.humanoid_arm.training import ArmTrainingPlan, train_arms
 
-    plan = ArmTrainingPlan.quick() if args.quick else ArmTrainingPlan.full()
+    plan = ArmTrainingPlan.quick() if args.quick else ArmTrainingPlan.full(args.robot)
     if args.seed != 0:
         from dataclasses import replace
 

@@ -42,7 +42,12 @@ class ArmTrainingPlan:
     ff_iterations: int = 2000
 
     @classmethod
-    def full(cls) -> "ArmTrainingPlan":
+    def full(cls, robot: str = "g1") -> "ArmTrainingPlan":
+        """The plan of the shipped weights (``studio train-arms --robot R`` reproduces them). TALOS: smaller
+        sets and fewer iterations (its slower joints make a sparser graph: more nodes instead)."""
+        if robot == "talos":
+            return cls(DatasetSizes(glue_clip_stride=4, glue_synthetic=200, robot=10_000),
+                       TrainConfig(iterations=1500, la_dpp_chunk=1024), graph_nodes=5000)
         return cls(DatasetSizes(), TrainConfig(iterations=3000, la_dpp_chunk=2048))
 
     @classmethod
