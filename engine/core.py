@@ -349,6 +349,8 @@ class EngineCore:
                                       st["graph"], st["hold"]])
         if session.pose15 is not None:
             signals["puppet_pose15"] = session.pose15
+        if session.x is not None:
+            signals["puppet_q"] = session.x  # LWL2's output, in session.arms.joint_names order
         cm = session.arms.capsules
         measured = q[[self.robot.joint_names.index(j) for j in session.arms.joint_names]]
         signals["puppet_capsule_distance"] = cm.signed_distances(measured)
