@@ -86,6 +86,7 @@ class Studio:
         self.tab_plots = tabs.add_tab("Plots")
         if not quadruped_first:
             self.tab_retarget = tabs.add_tab("Retarget")
+        self.tab_puppet = tabs.add_tab("Puppet")
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)
@@ -95,6 +96,11 @@ class Studio:
 
         with self.tab_retarget:
             self.retarget = RetargetPanel(self.server, self)
+        from studio.panels.puppet_panel import PuppetPanel
+
+        with self.tab_puppet:
+            self.puppet = PuppetPanel(self.server, self)
+        self._root_pos: np.ndarray | None = None
         self._style_folders: list = []
         self.style_browser: StyleBrowser | None = None
         self.sample_editor: SampleEditor | None = None
@@ -225,6 +231,8 @@ class Studio:
         self.events_seen[event.kind] = self.events_seen.get(event.kind, 0) + 1
         if isinstance(event, msg.Frame):
             self.view.update(event)
+            if len(event.body_pos):
+                self._root_pos = event.body_pos[0]
             self._measure_edit_latency(event)
         elif isinstance(event, msg.Telemetry):
             self._on_telemetry(event)
@@ -254,9 +262,12 @@ class Studio:
             self.mode = "stand"
             self._build_style_panels(event.robot)
             self.retarget.on_robot(event.robot, event.robot_kind)
+            self.puppet.on_robot()
         else:
             self._send_style()  # an engine restart: give it back the edited style
-            if self.mode != "stand" and self.sample_editor is not None:
+            if self.mode == "puppet" and self.puppet.options:
+                self.link.send(msg.SetMode("puppet", self.puppet.options))
+            elif self.mode not in ("stand", "puppet") and self.sample_editor is not None:
                 self.link.send(msg.SetMode(self.mode, {"sample": self.sample_editor.sample_name}))
         self.loaded.set()
 
@@ -271,8 +282,9 @@ class Studio:
             self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
                                              np.zeros(0), False, False, 0.0))
         self._shade_joint_limits(s.get("joint_limit_proximity"))
-        style = self.session.style if self.session is not None else None
-        if self.curve_editor is not None and "phase" in s and style is not None and self.sample_editor:
+        if "puppet" in s:
+            self.puppet.on_telemetry(s, self._root_pos)
+        if self.curve_editor is not None and "phase" in s and self.session is not None and self.sample_editor:
             try:
                 iv = style.samples[self.sample_editor.sample_name].intervals
                 phi = float(s["phase"][0]) % 1.0

@@ -27,6 +27,10 @@ def register(sub) -> None:  # noqa: ANN001 - argparse's private subparsers type
     train.add_argument("--quick", action="store_true", help="tiny datasets and networks (a smoke run, < 1 min)")
     train.add_argument("--out", default=None, help="weights path without suffix (default: the shipped weights folder)")
     train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--resume", action="store_true",
+                       help="continue an interrupted run from its checkpoint (same options; default: start afresh)")
+    train.add_argument("--checkpoint-dir", default=None,
+                       help="where the resumable state lives (default: ~/.cache/motion-studio/train-arms/<out>-<hash>)")
 
     puppet = sub.add_parser("puppet", help="retarget a BVH clip onto a humanoid's arms and torso (LWL2)")
     puppet.add_argument("--robot", choices=ARM_ROBOTS, required=True)
@@ -74,7 +78,7 @@ class _ProgressBar:
 def cmd_train_arms(args: argparse.Namespace) -> int:
     from engine.retarget.humanoid_arm.training import ArmTrainingPlan, train_arms
 
-    plan = ArmTrainingPlan.quick() if args.quick else ArmTrainingPlan.full()
+    plan = ArmTrainingPlan.quick() if args.quick else ArmTrainingPlan.full(args.robot)
     if args.seed != 0:
         from dataclasses import replace
 
@@ -82,11 +86,18 @@ def cmd_train_arms(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     if out is not None and out.suffix in (".json", ".safetensors"):
         out = out.with_suffix("")
+    from engine.retarget.humanoid_arm.metadata import weights_path
+    from engine.retarget.humanoid_arm.training import default_checkpoint_dir
+
+    ckpt_dir = Path(args.checkpoint_dir) if args.checkpoint_dir else default_checkpoint_dir(out or weights_path(args.robot))
     try:
-        summary = train_arms(args.robot, plan, out, _ProgressBar())
+        summary = train_arms(args.robot, plan, out, _ProgressBar(), checkpoint_dir=ckpt_dir, resume=args.resume)
     except KeyboardInterrupt:
-        print("\nstudio: train-arms cancelled; nothing written", file=sys.stderr)
+        print(f"\nstudio: train-arms cancelled; no weights written; continue with --resume (state in {ckpt_dir})",
+              file=sys.stderr)
         return 130
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
     print(json.dumps(summary, indent=1))
     return 0
 
