@@ -149,17 +149,6 @@ def cell_schedule(velocity: tuple[float, float, float]):
     return from_keyframes([[0.0, 0.0, 0.0, 0.0], [RAMP_S, *map(float, velocity)]], "gait library")
 
 
-def mujoco_joint_names(robot) -> list[str]:  # noqa: ANN001 - RobotModel
-    """Names of qpos[7:] in MuJoCo order (the free joint excluded)."""
-    import mujoco
-
-    names = []
-    for j in range(robot.mj_model.njnt):
-        if robot.mj_model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
-            names.append(robot.mj_model.joint(j).name)
-    return names
-
-
 def run_cell(robot_name: str, style_doc: dict, velocity: tuple[float, float, float], duration_s: float) -> dict:
     """Plan and walk one velocity; returns the summary and both recordings as npz bytes."""
     from engine.gait.offline_plan import run_plan
@@ -172,11 +161,8 @@ def run_cell(robot_name: str, style_doc: dict, velocity: tuple[float, float, flo
     schedule = cell_schedule(velocity)
     t0 = time.perf_counter()
     reference = run_plan(robot, style, schedule, duration_s)
-    summary, simulated = run_walk(robot, style, schedule, duration_s, record=True)
-    simulated["joint_names"] = np.array(mujoco_joint_names(robot), dtype=str)  # qpos[7:] order
-    simulated["robot"] = np.array(robot.name)
-    simulated["style"] = np.array(style.name)
-    simulated["fps"] = np.array(1.0 / (4 * float(robot.mj_model.opt.timestep)))  # recorded every 4th tick
+    summary, simulated = run_walk(robot, style, schedule, duration_s, record=True, record_reference=True,
+                                  command_text=",".join(f"{v:g}" for v in velocity))  # a walk-run file
     summary = {**summary, "command": [float(v) for v in velocity], "cell_wall_time_s": round(time.perf_counter() - t0, 3)}
     return {"summary": summary, "reference": _npz_bytes(reference), "simulated": _npz_bytes(simulated)}
 

@@ -39,7 +39,7 @@ from engine.motion_files import (
 
 JOBS = ("retarget", "import", "export", "poses")
 DEMO_SOURCES = {"demo:trot": "synthetic trot (a1 proportions, 2 s, 30 fps)"}
-EXPORT_SUFFIX = {"amp-json": ".json", "unitree-csv": ".csv", "npz": ".npz"}
+EXPORT_SUFFIX = {"amp-json": ".json", "unitree-csv": ".csv", "beyondmimic-npz": ".npz", "npz": ".npz"}
 PROGRESS_PERIOD_S = 0.1  # at most ten progress events a second per job
 
 
