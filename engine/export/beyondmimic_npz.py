@@ -116,7 +116,7 @@ def beyondmimic_arrays(motion: RobotMotion) -> dict[str, np.ndarray]:
         pos[t] = data.xpos[bodies]
         quat[t] = data.xquat[bodies]
         for k, b in enumerate(bodies):
-            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, vel6, 0)
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, b, vel6, 0)  # body frame origin
             vang[t, k] = vel6[:3]
             vlin[t, k] = vel6[3:]
     fps = motion.fps
