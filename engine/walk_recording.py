@@ -98,3 +98,47 @@ def load_run_motion(path: str | Path, take: str = "simulated") -> RobotMotion:
     return RobotMotion(fps=sim.fps, qpos=ref, joint_names=sim.joint_names, contact=sim.contact, robot=sim.robot,
                        method="walk-reference", foot_names=sim.foot_names,
                        source={**sim.source, "file": where, "take": "reference"}, metrics=sim.metrics)
+
+
+class WalkRecorder:
+    """Accumulates a walk in the studio's engine (the Record button): one frame every 4th 500 Hz tick,
+    the simulated state and the reference (the ghost's IK at that instant); :meth:`arrays` is a
+    walk-run file. At most ``max_s`` seconds (then :attr:`full`)."""
+
+    def __init__(self, robot, style_name: str, fps: float, command_text: str = "joystick",  # noqa: ANN001
+                 max_s: float = 600.0):
+        self.robot = robot
+        self.style_name = style_name
+        self.fps = float(fps)
+        self.command_text = command_text
+        self.max_frames = int(max_s * self.fps)
+        self._rows: dict[str, list] = {k: [] for k in ("t", "qpos", "qvel", "contact", "reference_qpos", "command")}
+
+    @property
+    def frames(self) -> int:
+        return len(self._rows["t"])
+
+    @property
+    def duration_s(self) -> float:
+        return self.frames / self.fps
+
+    @property
+    def full(self) -> bool:
+        return self.frames >= self.max_frames
+
+    def add(self, t_s: float, qpos: np.ndarray, qvel: np.ndarray, contact: np.ndarray, reference_qpos: np.ndarray,
+            command: np.ndarray) -> None:
+        if self.full:
+            return
+        for key, value in (("t", t_s), ("qpos", qpos), ("qvel", qvel), ("contact", contact),
+                           ("reference_qpos", reference_qpos), ("command", command)):
+            self._rows[key].append(np.array(value, copy=True))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        if self.frames == 0:
+            raise ValueError("nothing recorded yet (the robot must walk: Test or Edit mode)")
+        arrays = {k: np.asarray(v) for k, v in self._rows.items()}
+        arrays["contact"] = arrays["contact"].astype(bool)
+        summary = {"frames": self.frames, "duration_s": round(self.duration_s, 3)}
+        arrays.update(run_fields(self.robot, self.style_name, arrays, summary, self.fps, self.command_text))
+        return arrays
