@@ -28,15 +28,18 @@ def test_record_ten_seconds_of_joystick_walking_and_export(tmp_path, monkeypatch
             wait_for_text(page, "test mode", timeout_ms=60_000)
             page.get_by_role("button", name="● Record").click()
             wait_for_text(page, "Recording…", timeout_ms=60_000)
-            page.get_by_role("button", name="▲ forward").click()  # a tap latches forward until ■ Stop
-            wait_for_text(page, "latched", timeout_ms=60_000)
-            # 10 s of simulated walking (a loaded machine simulates slower than real time: wait on the condition)
-            page.wait_for_function(
-                "() => { const m = document.body.innerText.match(/Recording… (\\d+\\.\\d) s simulated/);"
-                " return m && parseFloat(m[1]) >= 10.0; }", timeout=900_000, polling=500)
+            # Hold ▲ forward until 10 s of simulated walking are recorded (a loaded machine simulates far slower
+            # than real time: wait on the recorded simulated time, never on the wall clock).
+            page.get_by_role("button", name="▲ forward").hover()
+            page.mouse.down()
+            try:
+                page.wait_for_function(
+                    "() => { const m = document.body.innerText.match(/Recording… (\\d+\\.\\d) s simulated/);"
+                    " return m && parseFloat(m[1]) >= 10.0; }", timeout=1_500_000, polling=500)
+            finally:
+                page.mouse.up()
             page.get_by_role("button", name="■ Stop recording").click()
             page.wait_for_function("() => /Saved runs\\/[\\w.-]+\\.npz/.test(document.body.innerText)", timeout=120_000)
-            page.get_by_role("button", name="■ Stop").click()
             saved = SAVED.search(page.inner_text("body"))
             assert saved, page.inner_text("body")[-500:]
             page.get_by_role("button", name="Export recording").click()
