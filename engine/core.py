@@ -12,6 +12,7 @@ velocity, paper §6.1). Quadrupeds and source skeletons only stand / are shown.
 from __future__ import annotations
 
 import math
+import time
 from typing import TYPE_CHECKING, Callable
 
 import mujoco
@@ -32,6 +33,8 @@ FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) 
 MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
+RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
+RUNS_DIR = "runs"  # recordings, in the motion library
 
 
 class EngineCore:
@@ -58,6 +61,9 @@ class EngineCore:
         self._ticks = 0
         self.style_revision = 0
         self._pending_revision: int | None = None
+        self.recorder = None  # engine.walk_recording.WalkRecorder while the Record button is on
+        self._record_request = ""
+        self._record_name = ""
         from engine.jobs import JobRunner
 
         self.jobs = JobRunner()  # long jobs (retargeting, ...) on worker threads; the loop drains their events
@@ -66,6 +72,8 @@ class EngineCore:
     # ------------------------------------------------------------------ robot
     def load(self, name: str) -> None:
         self._close_puppet()
+        if self.recorder is not None:
+            self._stop_recording()  # what was recorded of the previous robot is kept
         self.robot = load_robot(name)
         self.style = self.ctx = self.walker = self.ghost = None
         self.ghost_q = None
@@ -149,6 +157,12 @@ class EngineCore:
             self.jobs.start(command.job, command.params, command.job_id)
         elif isinstance(command, msg.CancelJob):
             self.jobs.cancel(command.job_id)
+        elif isinstance(command, msg.SetRecording):
+            self._record_request = str(command.request_id)
+            if command.recording:
+                self._start_recording(str(command.name))
+            elif self.recorder is not None:
+                self._stop_recording()
         else:
             raise ValueError(f"not supported by this engine yet: {command.kind}")
 
@@ -270,8 +284,11 @@ class EngineCore:
         self._ticks += 1
         if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
             self.style_revision, self._pending_revision = self._pending_revision, None
-        if self.walker is not None and self._ticks % GHOST_EVERY_TICKS == 0:
+        recording = self.recorder is not None and self.walker is not None and self._ticks % RECORD_EVERY_TICKS == 0
+        if self.walker is not None and (self._ticks % GHOST_EVERY_TICKS == 0 or recording):
             self._update_ghost()
+        if recording:
+            self._record_frame()
         if self.sim.fallen:
             if self._fallen_at_s is None:
                 self._fallen_at_s = self.sim.time_s
@@ -289,6 +306,47 @@ class EngineCore:
             self._ghost_data = mujoco.MjData(self.robot.mj_model)
         self._ghost_data.qpos[:] = self.robot.mj_qpos_from_pin(self.ghost_q)
         mujoco.mj_kinematics(self.robot.mj_model, self._ghost_data)
+
+    # ------------------------------------------------------------------ recording (the Record button)
+    def _start_recording(self, name: str) -> None:
+        from engine.motion_files import check_name
+        from engine.walk_recording import WalkRecorder
+
+        if self.sim is None or self.style is None:
+            raise ValueError(f"{self.robot.name} does not walk: nothing to record")
+        if name:
+            check_name(name)
+        self._record_name = name or time.strftime("run-%Y%m%d-%H%M%S")
+        fps = 1.0 / (RECORD_EVERY_TICKS * CONTROL_PERIOD_S)
+        self.recorder = WalkRecorder(self.robot, self.style.name, fps, command_text=f"studio {self.mode} mode")
+        self.emit(msg.Notice("info", f"recording {self._record_name} (Test or Edit mode walks are recorded)"))
+
+    def _record_frame(self) -> None:
+        rec, walker, data = self.recorder, self.walker, self.sim.data
+        if self._ghost_data is None or walker.ref is None:
+            return
+        rec.add(self.sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
+        if rec.full:
+            self.emit(msg.Notice("warning", f"recording reached its {rec.max_frames / rec.fps:.0f} s limit: saved"))
+            self._stop_recording()
+
+    def _stop_recording(self) -> None:
+        from engine.motion_files import confined, motions_root
+        from engine.walk_recording import save_run
+
+        rec, self.recorder = self.recorder, None
+        rel = f"{RUNS_DIR}/{self._record_name}.npz"
+        try:
+            if rec is None or rec.frames == 0:
+                raise ValueError("nothing was recorded (the robot must walk: Test or Edit mode)")
+            root = motions_root()
+            save_run(confined(root, rel), rec.arrays())
+            result = {"ok": True, "path": rel, "frames": rec.frames, "fps": rec.fps,
+                      "duration_s": round(rec.duration_s, 2)}
+        except (OSError, ValueError) as exc:
+            result = {"ok": False, "error": _one_line(f"{rel}: {exc}")}
+        self.emit(msg.JobProgress("record", 1.0, "saved" if result["ok"] else "failed", result=result,
+                                  job_id=self._record_request))
 
     def frame(self) -> msg.Frame:
         self.seq += 1

@@ -90,6 +90,9 @@ class Studio:
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)
+            from studio.panels.record_panel import RecordPanel
+
+            self.record = RecordPanel(self.server, self)
         with self.tab_plots:
             self.plots = PlotsPanel(self.server)
         from studio.panels.retarget_panel import RetargetPanel
@@ -241,7 +244,12 @@ class Studio:
         elif isinstance(event, msg.Notice):
             self._notify(event.level, event.message)
         elif isinstance(event, msg.JobProgress):
-            self.retarget.on_job(event)
+            from studio.panels.record_panel import JOB_PREFIX
+
+            if event.job == "record" or event.job_id.startswith(JOB_PREFIX):
+                self.record.on_job(event)
+            else:
+                self.retarget.on_job(event)
 
     def _on_robot_loaded(self, event: msg.RobotLoaded) -> None:
         changed = event.robot != (self.session.robot if self.session else None)
@@ -433,6 +441,7 @@ class Studio:
                         f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m, "
                         f"yaw {yaw_deg:+.0f}°")
             self.robot_panel.show_status(text)
+            self.record.tick_status()
             if tick % PLOT_EVERY_TICKS:
                 continue
             try:

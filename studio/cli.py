@@ -58,7 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     walk.add_argument("--wbc", choices=("paper", "placo"), default="paper", help="whole-body controller")
     walk.add_argument("--state", choices=("truth", "estimated"), default="truth", help="state feedback source")
     walk.add_argument("--no-feedback", action="store_true", help="disable gait feedback (for comparison)")
-    walk.add_argument("--out", default=None, help="write the recorded run (.npz)")
+    walk.add_argument("--out", default=None, help="write the recorded run (.npz): a robot motion with its reference "
+                      "(studio export reads it)")
     walk.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     from studio.cli_retarget import register as register_retarget
@@ -303,7 +304,8 @@ def cmd_walk(args: argparse.Namespace) -> int:
         print(f"studio: warning: the command exceeds the style's limits (vx {v.x_max_mps}, vy {v.y_max_mps} m/s, "
               f"wz {v.yaw_max_radps} rad/s); it is clamped", file=sys.stderr)
     summary, arrays = run_walk(load_robot(args.robot), style, schedule, args.duration, pushes, wbc=args.wbc,
-                               state_source=args.state, feedback=not args.no_feedback, record=out is not None)
+                               state_source=args.state, feedback=not args.no_feedback, record=out is not None,
+                               record_reference=out is not None, command_text=args.command)
     if out is not None:
         _save_npz(out, arrays)
     summary["command_clamped"] = clamped
