@@ -25,7 +25,7 @@ from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
 from engine.gait.offline_plan import planner_for
-from engine.gait.planner import PLANNER_RATE_HZ, GaitReference
+from engine.gait.planner import PLANNER_RATE_HZ, GaitReference, PlannerFeedback
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.robot.model import RobotModel
 from engine.sim import CONTROL_PERIOD_S
@@ -108,6 +108,7 @@ class WalkingController:
         self.command = np.zeros(3)
         self.command_filtered = np.zeros(3)
         self.tick = 0
+        self._plan_ticks = 0
         self.replans = 0
         self.ref: GaitReference | None = None
         self.plan: ComMpcSolution | None = None
@@ -160,6 +161,7 @@ class WalkingController:
         self.mpc.reset()
         self.command_filtered = np.zeros(3)
         self.tick = 0
+        self._plan_ticks = 0
         self.ref = None
         self.plan = None
         self._foot_acc = np.zeros((2, 3))
@@ -237,11 +239,11 @@ class WalkingController:
         command[:2] += fb.velocity_adjust_mps
         goal = target.copy()
         goal[:2] += fb.velocity_adjust_mps
-        planner.command_goal = goal
-        planner.command_rate_limits = self._command_accel_limits
         contact_before = self.ref.contact.copy() if self.ref is not None else np.ones(2, dtype=bool)
         fb = self._reachable_steps(fb)
-        ref = planner.step(PLAN_DT_S, command, kappa=fb.kappa, step_adjustment_xy=fb.step_adjust_m)
+        ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
+            time_scaling=fb.kappa, step_adjustment_xy_m=fb.step_adjust_m, command_goal=goal,
+            command_rate_limits=self._command_accel_limits))
         self._feet_feedforward(ref)
         self.ref = ref
         self._relatch_landed_feet(est, contact_before)
@@ -250,6 +252,12 @@ class WalkingController:
             or 0 <= self._since_touchdown[i] < self.params.observer_hold_after_touchdown_plan_ticks for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
+        self._plan_ticks += 1
+        every = max(self.params.mpc_every_plan_ticks, 1)
+        if self.plan is not None and self._plan_ticks % every != 0:
+            self._last_com, self._last_fb = com, fb
+            self._telemetry_stale = True
+            return
         # CoM MPC over the planner's contact preview; initial conditions continue the last plan.
         supports = [SupportInterval(p.t_start_s, p.t_end_s, p.polygon) for p in ref.preview]
         # LIP height: the measured CoM height, low-passed (the walking posture differs from standing).

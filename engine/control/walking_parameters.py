@@ -62,6 +62,9 @@ class WalkingParameters:
     mpc_state_pull: float = 0.0
     # The CoM MPC's preview (paper: 2 s).
     mpc_preview_s: float = 2.0
+    # The CoM MPC is solved every this many planner ticks (paper: 1, at the planner's 125 Hz);
+    # between solves the whole-body controller follows the last plan, a function of time.
+    mpc_every_plan_ticks: int = 1
 
     @classmethod
     def for_robot(cls, name: str) -> WalkingParameters:
