@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from engine.control.controller import RobotState
-from engine.control.estimator import (
+from engine.control.estimation import (
     EstimatorParams,
     ImuEkf,
     ImuEkfParams,
@@ -22,9 +22,9 @@ from engine.control.estimator import (
     LegKinematics,
     MujocoImu,
     StateEstimator,
-    _inv_sym,
-    _quat_step,
 )
+from engine.control.estimation.ekf import _inv_sym
+from engine.control.estimation.quaternion import _quat_step
 from engine.bench.estimator import benchmark_estimator
 from engine.robot.model import load_robot
 from engine.sim import Simulation

@@ -10,9 +10,8 @@ import pinocchio as pin
 import pytest
 
 from engine.control.controller import RobotState
-from engine.control.inverse_dynamics import (
-    GRAVITY_MPS2,
-    SIDES,
+from engine.constants import GRAVITY_MPS2, SIDES
+from engine.control.wbc import (
     TaskSpaceInverseDynamics,
     TrackingController,
     WbcGains,
@@ -356,7 +355,7 @@ def test_g1_survives_a_burst_of_garbage_references(g1):
 
 @pytest.mark.slow
 def test_placo_wrapper_holds_g1_standing(g1):
-    from engine.control.placo_wbc import PlacoWbc
+    from engine.control.wbc.placo_peer import PlacoWbc
 
     ours = TaskSpaceInverseDynamics(g1)
     ref = ours.hold_reference(g1.q_standing)

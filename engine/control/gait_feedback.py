@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.control.com_mpc import GRAVITY_MPS2
+from engine.constants import GRAVITY_MPS2
 
 
 @dataclass(frozen=True)

@@ -15,12 +15,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from engine.control.com_mpc import GRAVITY_MPS2, ComMpc, ComMpcSolution, SupportInterval
+from engine.constants import GRAVITY_MPS2
+from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval
 from engine.control.controller import JointCommand, RobotState
 from engine.control.disturbance_observer import ExternalForceObserver
-from engine.control.estimator import StateEstimator
+from engine.control.estimation import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
-from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
+from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference
 from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
@@ -89,7 +90,7 @@ class WalkingController:
         if wbc == "paper":
             self.wbc = TaskSpaceInverseDynamics(robot, upper_body_joints=self.ctx.upper_joints)
         elif wbc == "placo":
-            from engine.control.placo_wbc import PlacoWbc
+            from engine.control.wbc.placo_peer import PlacoWbc
 
             self.wbc = PlacoWbc(robot, upper_body_joints=self.ctx.upper_joints)
         else:

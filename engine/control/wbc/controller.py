@@ -9,7 +9,7 @@ One quadratic program per 500 Hz control tick (Eqs. 20–25)::
 
 with ``τ̄ = −Σ_c J_c,jᵀ f_c`` (actuated rows) and ``f_c = B_c ρ_c`` (Eq. 17): four unit
 basis vectors per sole corner spanning a pyramid inscribed in the friction cone of
-coefficient ``μ``. Tasks (:mod:`engine.control.tasks`): both feet (6-D pose; damping only
+coefficient ``μ``. Tasks (:mod:`engine.control.wbc.tasks`): both feet (6-D pose; damping only
 when flat on the ground), pelvis height and orientation, horizontal CoM (PD on the CoM MPC's
 reference plus its acceleration), upper-body joints, angular-momentum damping.
 
