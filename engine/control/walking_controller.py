@@ -203,8 +203,7 @@ class WalkingController:
         self.wbc_contact = reference.contact
         reference.external_wrench = self._external_wrench(est)
         cmd = self.wbc.compute(est, reference)
-        forces = self.wbc.diagnostics.contact_forces_n if self.wbc.diagnostics.ok else None
-        self._ground_force = None if forces is None else forces[..., :2].sum(axis=(0, 1))
+        self._ground_force = _horizontal_ground_force(self.wbc.diagnostics)
         self.timings.wbc = time.perf_counter() - t_wbc
         self.tick += 1
         return cmd
@@ -551,6 +550,18 @@ def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = WalkingP
 
 
 _clip_to_polygon = clip_into_polygon  # the initial-CoP clip (engine.geometry.polygon)
+
+
+def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
+    """Σ of the horizontal contact forces of a solved tick (None otherwise): Σ_c B_c ρ_c summed over
+    corners first (the friction basis is per foot), without building every corner's force."""
+    if not diag.ok:
+        return None
+    if diag.basis is None or diag.rho is None:  # a peer without the paper's basis (placo)
+        forces = diag.contact_forces_n
+        return None if forces is None else forces[..., :2].sum(axis=(0, 1))
+    per_foot = diag.rho.reshape(len(SIDES), -1, diag.basis.shape[-1]).sum(axis=1)  # (2, 4): Σ over corners
+    return np.einsum("fkb,fb->k", diag.basis[:, :2, :], per_foot)
 
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
