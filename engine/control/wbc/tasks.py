@@ -38,6 +38,9 @@ __all__ = [
 ]
 
 
+_ZEROS: dict[int, FloatArray] = {}  # q̈ = 0 per model size (read-only, shared)
+
+
 @dataclass
 class DynamicsSnapshot:
     """Pinocchio quantities of one state, shared by every task and the ID solver.
@@ -68,14 +71,18 @@ class DynamicsSnapshot:
     @classmethod
     def compute(cls, model: pin.Model, data: pin.Data, q: FloatArray, v: FloatArray,
                 frame_ids: list[int]) -> DynamicsSnapshot:
-        """Five pinocchio passes (~20 µs for G1): joint Jacobians, CRBA (M), non-linear effects,
-        CCRBA (A_h, h, CoM) and the centroidal momentum rate at q̈ = 0 (Ȧ_h q̇, and the
+        """Four pinocchio passes (~20 µs for G1): CRBA (M, and the joint Jacobians ``data.J``: pinocchio 3's
+        CRBA in the WORLD convention fills them, so no separate ``computeJointJacobians``), non-linear
+        effects, CCRBA (A_h, h, CoM) and the centroidal momentum rate at q̈ = 0 (Ȧ_h q̇, and the
         frame acceleration drifts from the same forward pass)."""
-        pin.computeJointJacobians(model, data, q)
         pin.crba(model, data, q)
         pin.nonLinearEffects(model, data, q, v)
         pin.ccrba(model, data, q, v)
-        pin.computeCentroidalMomentumTimeVariation(model, data, q, v, np.zeros(model.nv))
+        zeros = _ZEROS.get(model.nv)
+        if zeros is None:
+            zeros = _ZEROS[model.nv] = np.zeros(model.nv)
+            zeros.flags.writeable = False
+        pin.computeCentroidalMomentumTimeVariation(model, data, q, v, zeros)
         n = len(frame_ids)
         pos = np.empty((n, 3))
         rot = np.empty((n, 3, 3))
