@@ -292,7 +292,8 @@ class Studio:
         self._shade_joint_limits(s.get("joint_limit_proximity"))
         if "puppet" in s:
             self.puppet.on_telemetry(s, self._root_pos)
-        if self.curve_editor is not None and "phase" in s and self.session is not None and self.sample_editor:
+        style = self.session.style if self.session is not None else None
+        if self.curve_editor is not None and "phase" in s and style is not None and self.sample_editor:
             try:
                 iv = style.samples[self.sample_editor.sample_name].intervals
                 phi = float(s["phase"][0]) % 1.0
