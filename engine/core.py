@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from engine.control.walking_controller import WalkingController
     from engine.gait.kinematic_preview import KinematicPreview
     from engine.gait.style import Style, StyleContext
+    from engine.retarget.humanoid_arm.puppet_session import PuppetSession
+    from engine.walk_recording import WalkRecorder
 
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
 MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
@@ -56,12 +58,12 @@ class EngineCore:
         self.walker: WalkingController | None = None
         self.ghost: KinematicPreview | None = None
         self.ghost_q: np.ndarray | None = None
-        self.puppet = None  # PuppetSession in puppet mode
+        self.puppet: PuppetSession | None = None  # in puppet mode
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
         self.style_revision = 0
         self._pending_revision: int | None = None
-        self.recorder = None  # engine.walk_recording.WalkRecorder while the Record button is on
+        self.recorder: WalkRecorder | None = None  # while the Record button is on
         self._record_request = ""
         self._record_name = ""
         from engine.jobs import JobRunner
@@ -214,6 +216,7 @@ class EngineCore:
         arms = ArmRetargeter.load(self.robot.name, clearance_m=LIVE_CLEARANCE_M)  # ValueError: no weights
         source = open_source(options)
         self._close_puppet()
+        assert self.ctx is not None  # a walking robot has its style context
         self.puppet = PuppetSession(arms, source, tuple(self.ctx.upper_joints))
         self._puppet_bad_seen, self._puppet_notice_t = 0, -1e9
         self.mode = "puppet"
@@ -322,10 +325,11 @@ class EngineCore:
         self.emit(msg.Notice("info", f"recording {self._record_name} (Test or Edit mode walks are recorded)"))
 
     def _record_frame(self) -> None:
-        rec, walker, data = self.recorder, self.walker, self.sim.data
-        if self._ghost_data is None or walker.ref is None:
+        rec, walker, sim = self.recorder, self.walker, self.sim
+        if rec is None or walker is None or sim is None or self._ghost_data is None or walker.ref is None:
             return
-        rec.add(self.sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
+        data = sim.data
+        rec.add(sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
         if rec.full:
             self.emit(msg.Notice("warning", f"recording reached its {rec.max_frames / rec.fps:.0f} s limit: saved"))
             self._stop_recording()
@@ -405,6 +409,8 @@ class EngineCore:
     def _puppet_signals(self, signals: dict, q: np.ndarray) -> None:
         """The Puppeteer's status, its source pose and the simulated arms' capsule distances."""
         session = self.puppet
+        if session is None:
+            return
         st = session.stats.summary()
         src = session.source
         signals["puppet"] = np.array([st["frames"], st["inference_us_median"], st["inference_us_p99"],
