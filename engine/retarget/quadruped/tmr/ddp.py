@@ -26,7 +26,7 @@ import numpy as np
 from engine.retarget.quadruped.tmr.keypoints import KeypointSet
 
 DEFAULT_TIMESTEP_S = 0.01  # control interval of the tracker (physics runs at the model's own step inside)
-FALL_HEIGHT_FRACTION = 0.4  # base below this share of the standing height: fallen
+FALL_HEIGHT_FRACTION = 0.5  # base below this share of the standing height: fallen (targets crouch to ≥ 0.7)
 
 
 class Cancelled(Exception):
@@ -491,7 +491,7 @@ class TrackResult:
     ctrl: np.ndarray  # (H, nu) joint torques, actuator order
     contact: np.ndarray  # (H + 1, 4) bool: feet touching the floor in the rollout
     keypoints: np.ndarray  # (H + 1, 16, 3)
-    fell: bool  # the trunk, a hip or a thigh touched the floor, or the base sank below 40 % of standing height
+    fell: bool  # the trunk, a hip or a thigh touched the floor, or the base sank below half its standing height
     cost: float
     cost_history: list[float] = field(default_factory=list)
     fall_fraction: float = 1.0  # share of the horizon done before the first fall (1: did not fall)
