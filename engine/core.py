@@ -12,7 +12,8 @@ velocity, paper §6.1). Quadrupeds and source skeletons only stand / are shown.
 from __future__ import annotations
 
 import math
-from typing import Callable
+import time
+from typing import TYPE_CHECKING, Callable
 
 import mujoco
 import numpy as np
@@ -23,10 +24,19 @@ from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel, load_robot
 from engine.sim import CONTROL_PERIOD_S, Simulation, standing_controller
 
+if TYPE_CHECKING:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.kinematic_preview import KinematicPreview
+    from engine.gait.style import Style, StyleContext
+    from engine.retarget.humanoid_arm.puppet_session import PuppetSession
+    from engine.walk_recording import WalkRecorder
+
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
 MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
+RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
+RUNS_DIR = "runs"  # recordings, in the motion library
 
 
 class EngineCore:
@@ -43,16 +53,19 @@ class EngineCore:
         self.mode = "stand"
         self.edit_sample = "in_place"
         self.velocity_command = np.zeros(3)
-        self.style = None
-        self.ctx = None
-        self.walker = None
-        self.ghost = None
+        self.style: Style | None = None
+        self.ctx: StyleContext | None = None
+        self.walker: WalkingController | None = None
+        self.ghost: KinematicPreview | None = None
         self.ghost_q: np.ndarray | None = None
-        self.puppet = None  # PuppetSession in puppet mode
+        self.puppet: PuppetSession | None = None  # in puppet mode
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
         self.style_revision = 0
         self._pending_revision: int | None = None
+        self.recorder: WalkRecorder | None = None  # while the Record button is on
+        self._record_request = ""
+        self._record_name = ""
         from engine.jobs import JobRunner
 
         self.jobs = JobRunner()  # long jobs (retargeting, ...) on worker threads; the loop drains their events
@@ -61,6 +74,8 @@ class EngineCore:
     # ------------------------------------------------------------------ robot
     def load(self, name: str) -> None:
         self._close_puppet()
+        if self.recorder is not None:
+            self._stop_recording()  # what was recorded of the previous robot is kept
         self.robot = load_robot(name)
         self.style = self.ctx = self.walker = self.ghost = None
         self.ghost_q = None
@@ -144,6 +159,12 @@ class EngineCore:
             self.jobs.start(command.job, command.params, command.job_id)
         elif isinstance(command, msg.CancelJob):
             self.jobs.cancel(command.job_id)
+        elif isinstance(command, msg.SetRecording):
+            self._record_request = str(command.request_id)
+            if command.recording:
+                self._start_recording(str(command.name))
+            elif self.recorder is not None:
+                self._stop_recording()
         else:
             raise ValueError(f"not supported by this engine yet: {command.kind}")
 
@@ -195,6 +216,7 @@ class EngineCore:
         arms = ArmRetargeter.load(self.robot.name, clearance_m=LIVE_CLEARANCE_M)  # ValueError: no weights
         source = open_source(options)
         self._close_puppet()
+        assert self.ctx is not None  # a walking robot has its style context
         self.puppet = PuppetSession(arms, source, tuple(self.ctx.upper_joints))
         self._puppet_bad_seen, self._puppet_notice_t = 0, -1e9
         self.mode = "puppet"
@@ -225,7 +247,7 @@ class EngineCore:
         from engine.control.walking_controller import WalkingController
         from engine.gait.kinematic_preview import KinematicPreview
 
-        assert self.sim is not None and self.style is not None
+        assert self.sim is not None and self.style is not None and self.ctx is not None
         if self.mode == "puppet" and self.puppet is not None:
             from engine.retarget.humanoid_arm.puppet_session import puppet_walking_controller
 
@@ -265,8 +287,11 @@ class EngineCore:
         self._ticks += 1
         if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
             self.style_revision, self._pending_revision = self._pending_revision, None
-        if self.walker is not None and self._ticks % GHOST_EVERY_TICKS == 0:
+        recording = self.recorder is not None and self.walker is not None and self._ticks % RECORD_EVERY_TICKS == 0
+        if self.walker is not None and (self._ticks % GHOST_EVERY_TICKS == 0 or recording):
             self._update_ghost()
+        if recording:
+            self._record_frame()
         if self.sim.fallen:
             if self._fallen_at_s is None:
                 self._fallen_at_s = self.sim.time_s
@@ -284,6 +309,48 @@ class EngineCore:
             self._ghost_data = mujoco.MjData(self.robot.mj_model)
         self._ghost_data.qpos[:] = self.robot.mj_qpos_from_pin(self.ghost_q)
         mujoco.mj_kinematics(self.robot.mj_model, self._ghost_data)
+
+    # ------------------------------------------------------------------ recording (the Record button)
+    def _start_recording(self, name: str) -> None:
+        from engine.motion_files import check_name
+        from engine.walk_recording import WalkRecorder
+
+        if self.sim is None or self.style is None:
+            raise ValueError(f"{self.robot.name} does not walk: nothing to record")
+        if name:
+            check_name(name)
+        self._record_name = name or time.strftime("run-%Y%m%d-%H%M%S")
+        fps = 1.0 / (RECORD_EVERY_TICKS * CONTROL_PERIOD_S)
+        self.recorder = WalkRecorder(self.robot, self.style.name, fps, command_text=f"studio {self.mode} mode")
+        self.emit(msg.Notice("info", f"recording {self._record_name} (Test or Edit mode walks are recorded)"))
+
+    def _record_frame(self) -> None:
+        rec, walker, sim = self.recorder, self.walker, self.sim
+        if rec is None or walker is None or sim is None or self._ghost_data is None or walker.ref is None:
+            return
+        data = sim.data
+        rec.add(sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
+        if rec.full:
+            self.emit(msg.Notice("warning", f"recording reached its {rec.max_frames / rec.fps:.0f} s limit: saved"))
+            self._stop_recording()
+
+    def _stop_recording(self) -> None:
+        from engine.motion_files import confined, motions_root
+        from engine.walk_recording import save_run
+
+        rec, self.recorder = self.recorder, None
+        rel = f"{RUNS_DIR}/{self._record_name}.npz"
+        try:
+            if rec is None or rec.frames == 0:
+                raise ValueError("nothing was recorded (the robot must walk: Test or Edit mode)")
+            root = motions_root()
+            save_run(confined(root, rel), rec.arrays())
+            result = {"ok": True, "path": rel, "frames": rec.frames, "fps": rec.fps,
+                      "duration_s": round(rec.duration_s, 2)}
+        except (OSError, ValueError) as exc:
+            result = {"ok": False, "error": _one_line(f"{rel}: {exc}")}
+        self.emit(msg.JobProgress("record", 1.0, "saved" if result["ok"] else "failed", result=result,
+                                  job_id=self._record_request))
 
     def frame(self) -> msg.Frame:
         self.seq += 1
@@ -328,7 +395,7 @@ class EngineCore:
                 fb = tel.feedback
                 signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
                                                 fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
-            if len(ref.upper_q):
+            if len(ref.upper_q) and self.ctx is not None:
                 j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
                 idx = self.robot.joint_names.index(self.ctx.upper_joints[j])
                 signals["arm_joint"] = np.array([ref.upper_q[j], q[idx]])
@@ -342,6 +409,8 @@ class EngineCore:
     def _puppet_signals(self, signals: dict, q: np.ndarray) -> None:
         """The Puppeteer's status, its source pose and the simulated arms' capsule distances."""
         session = self.puppet
+        if session is None:
+            return
         st = session.stats.summary()
         src = session.source
         signals["puppet"] = np.array([st["frames"], st["inference_us_median"], st["inference_us_p99"],
@@ -356,6 +425,7 @@ class EngineCore:
         signals["puppet_capsule_distance"] = cm.signed_distances(measured)
 
     def _base_yaw(self) -> float:
+        assert self.sim is not None
         q = self.sim.data.qpos
         return math.atan2(2 * (q[3] * q[6] + q[4] * q[5]), 1 - 2 * (q[5] ** 2 + q[6] ** 2))
 

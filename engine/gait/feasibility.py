@@ -87,7 +87,8 @@ class FeasibilityChecker:
     """Checks samples of styles of one robot (reuses the models between calls)."""
 
     def __init__(self, robot: RobotModel, ctx: StyleContext | None = None):
-        from engine.control.walking_controller import COP_MARGIN_M, toe_trim_m
+        from engine.control.walking_controller import toe_trim_m
+        from engine.control.walking_parameters import WalkingParameters
         from engine.gait.kinematic_preview import FOOT_FRAMES, KinematicPreview
 
         self.robot = robot
@@ -96,10 +97,11 @@ class FeasibilityChecker:
         self.data = self.model.createData()
         self.ik = KinematicPreview(robot, self.ctx.upper_joints)
         self.foot_ids = [self.model.getFrameId(f) for f in FOOT_FRAMES]
-        self.margin_m = COP_MARGIN_M
-        self.toe_trim_m = toe_trim_m(robot, COP_MARGIN_M)
+        self.walking = WalkingParameters.for_robot(robot.name)
+        self.margin_m = self.walking.cop_margin_m
+        self.toe_trim_m = toe_trim_m(robot, self.margin_m, self.walking.ankle_load_factor)
         names = robot.joint_names
-        legs = set()
+        legs: set[int] = set()
         for fid in self.foot_ids:
             legs.update(j for j in self.model.supports[self.model.frames[fid].parentJoint] if j > 1)
         self.leg_joints = sorted(legs)
@@ -124,7 +126,6 @@ class FeasibilityChecker:
         return out
 
     def check_sample(self, style: Style, name: str) -> list[Finding]:
-        from engine.control.walking_controller import COMMAND_ACCEL_LIMITS
         from engine.gait.kinematic_preview import SupportCenterComPlan
         from engine.gait.offline_plan import planner_for
 
@@ -141,19 +142,22 @@ class FeasibilityChecker:
         q_prev = None
         # Like the controller: from standing, the command ramps up at the joystick's rate limits;
         # then two cycles settle at the sample's velocity and one is checked.
-        ramp_s = float(np.max(np.abs(command) / COMMAND_ACCEL_LIMITS))
+        limits = np.array(self.walking.command_accel_limits, dtype=float)
+        ramp_s = float(np.max(np.abs(command) / limits))
         n_settle = int(math.ceil((ramp_s + planner.hold_s) / dt + SETTLE_CYCLES * TICKS_PER_CYCLE))
         n_total = n_settle + TICKS_PER_CYCLE
         apex = {s: 0.0 for s in SIDES}
         swung = {s: False for s in SIDES}
         commanded = np.zeros(3)
         for k in range(n_total):
-            commanded = commanded + np.clip(command - commanded, -COMMAND_ACCEL_LIMITS * dt, COMMAND_ACCEL_LIMITS * dt)
+            commanded = commanded + np.clip(command - commanded, -limits * dt, limits * dt)
             ref = planner.step(dt, commanded, with_preview=False)
             com = com_plan.step(dt, ref)
             if k < n_settle:
                 continue
-            pct = 100.0 * (planner.blend.time_at(ref.phase) % cycle) / cycle
+            blend = planner.blend
+            assert blend is not None  # the planner blends on its first step
+            pct = 100.0 * (blend.time_at(ref.phase) % cycle) / cycle
             if q_prev is None:  # start the IK at the pelvis's pose on the path
                 yaw = float(ref.path_pose[2])
                 q[0:3] = [ref.path_pose[0], ref.path_pose[1], ref.pelvis_z]
