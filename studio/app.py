@@ -291,7 +291,7 @@ class Studio:
                                              np.zeros(0), False, False, 0.0))
         self._shade_joint_limits(s.get("joint_limit_proximity"))
         if "puppet" in s:
-            self.puppet.on_telemetry(s, self._root_pos)
+            self.puppet.on_telemetry(s, self._root_pos, event.sim_time_s)
         style = self.session.style if self.session is not None else None
         if self.curve_editor is not None and "phase" in s and style is not None and self.sample_editor:
             try:

@@ -39,6 +39,8 @@ def register(sub) -> None:  # noqa: ANN001 - argparse's private subparsers type
     puppet.add_argument("--weights", default=None, help="trained weights (default: the shipped ones for --robot)")
     puppet.add_argument("--fps", type=float, default=30.0, help="output rate: the clip is decimated to at most this")
     puppet.add_argument("--json", action="store_true", help="print the summary as JSON")
+    puppet.add_argument("--refine-iters", type=int, default=None,
+                        help="refinement steps after LWR (default 5; 0: the paper's LWL2 alone)")
 
     stream = sub.add_parser("stream-bvh", help="replay a BVH clip in real time as live mocap datagrams (UDP JSON)")
     stream.add_argument("bvh", help="BVH clip")
@@ -139,7 +141,12 @@ def cmd_puppet(args: argparse.Namespace) -> int:
     from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
 
     try:
-        arms = ArmRetargeter.load(args.robot, Path(args.weights) if args.weights else None)
+        from engine.retarget.humanoid_arm.puppeteer import REFINE_ITERS
+
+        refine = REFINE_ITERS if args.refine_iters is None else args.refine_iters
+        if not 0 <= refine <= 100:
+            raise CliError(f"--refine-iters: expected 0..100, got {refine}")
+        arms = ArmRetargeter.load(args.robot, Path(args.weights) if args.weights else None, refine_iters=refine)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     n = len(poses)
@@ -167,7 +174,7 @@ def cmd_puppet(args: argparse.Namespace) -> int:
         "frames": n, "fps": round(fps, 3), "collision_free_fraction": round(float(free.mean()), 4),
         "hand_error_mm": round(float(hand.mean() * 1000), 1), "elbow_error_mm": round(float(elbow.mean() * 1000), 1),
         "inference_us": {"median": round(float(np.median(times) * 1e6), 1), "p99": round(float(np.percentile(times, 99) * 1e6), 1)},
-        "graph_fallbacks": arms.graph_fallbacks, "holds": arms.holds,
+        "graph_fallbacks": arms.graph_fallbacks, "holds": arms.holds, "refine_iters": arms.refine_iters,
         "k_counts": {str(k): int((ks == k).sum()) for k in (1, 2, 3)},
     }
     if args.json:

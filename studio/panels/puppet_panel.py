@@ -58,6 +58,19 @@ class PuppetPanel:
             self.stop_button = gui.add_button("Stop puppet", icon=viser.Icon.PLAYER_STOP, disabled=True)
             self.show_skeleton = gui.add_checkbox("Show source skeleton", True)
             self.status = gui.add_markdown("Puppet: idle")
+        with gui.add_folder("Gesture → walking style"):
+            self.record_s = gui.add_slider("Record seconds", min=0.5, max=10.0, step=0.5, initial_value=2.0)
+            self.knots = gui.add_slider("Knots", min=2, max=32, step=1, initial_value=8)
+            self.record = gui.add_button("Record gesture", icon=viser.Icon.PLAYER_RECORD, disabled=True)
+            self.apply = gui.add_button("Use as arm curves", icon=viser.Icon.CHECK, disabled=True)
+            self.undo = gui.add_button("Undo style edit", icon=viser.Icon.ARROW_BACK_UP)
+            self.record_status = gui.add_markdown("Start the puppet, record a span of its arms, then make it the "
+                                                  "arm curves of the current gait sample (one undoable edit).")
+        self.record.on_click(lambda _: self.start_recording())
+        self.apply.on_click(lambda _: self.apply_recording())
+        self.undo.on_click(lambda _: self.undo_edit())
+        self._recording: list[tuple[float, np.ndarray]] | None = None
+        self._recorded: tuple[np.ndarray, np.ndarray] | None = None
         self.start.on_click(lambda _: self.start_puppet())
         self.stop_button.on_click(lambda _: self.stop_puppet())
         self.show_skeleton.on_update(lambda _: self._skeleton_visible())
@@ -84,18 +97,71 @@ class PuppetPanel:
         self.studio.link.send(msg.SetMode("puppet", options))
         self.active = True
         self.start.disabled, self.stop_button.disabled = False, False
+        self.record.disabled = False
         self.status.content = f"Puppet: starting on {robot} from {where}…"
 
     def stop_puppet(self) -> None:
         self.active, self.options = False, None
-        self.stop_button.disabled = True
+        self._recording = None
+        self.stop_button.disabled = self.record.disabled = True
         self.studio.set_mode("stand")
         self.status.content = "Puppet: idle"
         self._skeleton_visible()
 
+    # ------------------------------------------------------------------ gesture → style
+    def start_recording(self) -> None:
+        if not self.active:
+            return
+        self._recording, self._recorded = [], None
+        self.apply.disabled = True
+        self.record_status.content = f"Recording {self.record_s.value:g} s…"
+
+    def _record(self, t_s: float, q: np.ndarray) -> None:
+        rec = self._recording
+        if rec is None:
+            return
+        if rec and t_s <= rec[-1][0]:
+            return
+        rec.append((t_s, np.array(q, dtype=float)))
+        if t_s - rec[0][0] >= float(self.record_s.value):
+            self._recorded = (np.array([r[0] for r in rec]), np.stack([r[1] for r in rec]))
+            self._recording = None
+            self.apply.disabled = False
+            self.record_status.content = (f"Recorded {len(rec)} frames over {t_s - rec[0][0]:.1f} s: "
+                                          f"**Use as arm curves** of `{self.studio.sample_name}`")
+
+    def apply_recording(self) -> None:
+        """The recording as the current sample's upper-body curves: one undoable style edit."""
+        from engine.retarget.humanoid_arm.style_curves import style_with_gesture
+        from engine.retarget.humanoid_arm.upper_body import SPECS
+
+        session = self.studio.session
+        if self._recorded is None or session is None or session.style is None:
+            self.record_status.content = "Nothing recorded (or no walking style open)"
+            return
+        sample = self.studio.sample_name
+        t, q = self._recorded
+        try:
+            joints = SPECS[self.studio.robot_name]().joints
+            new = style_with_gesture(session.style, sample, t, q, joints, int(self.knots.value), session.ctx)
+        except (ValueError, KeyError) as exc:
+            self.record_status.content = f"Refused: {exc}"
+            return
+        result = session.apply(new, f"gesture → {sample} arm curves")
+        self.record_status.content = (f"`{sample}`: {len(joints)} arm curves with {int(self.knots.value)} knots from "
+                                      f"{t[-1] - t[0]:.1f} s of the puppet (Undo style edit reverts it)" if result.ok
+                                      else f"Refused: {result.message}")
+
+    def undo_edit(self) -> None:
+        session = self.studio.session
+        if session is not None:
+            self.record_status.content = session.undo().message
+
     def on_robot(self) -> None:
         """Another robot loaded: it starts standing, the puppet is off."""
         self.active, self.options = False, None
+        self._recording = self._recorded = None
+        self.record.disabled = self.apply.disabled = True
         self.stop_button.disabled = True
         self.status.content = "Puppet: idle"
         self._skeleton_visible()
@@ -104,7 +170,7 @@ class PuppetPanel:
         if self.skeleton is not None:
             self.skeleton.visible = bool(self.active and self.show_skeleton.value)
 
-    def on_telemetry(self, signals: dict, frame_pelvis: np.ndarray | None = None) -> None:
+    def on_telemetry(self, signals: dict, frame_pelvis: np.ndarray | None = None, sim_time_s: float = 0.0) -> None:
         """Telemetry from the engine (the link's thread)."""
         s = signals.get("puppet")
         if s is None or not self.active:
@@ -119,6 +185,9 @@ class PuppetPanel:
         if text != self.status.content:
             self.status.content = text
             self.status_updates += 1
+        q = signals.get("puppet_q")
+        if q is not None and self._recording is not None:
+            self._record(float(sim_time_s), q)
         pose = signals.get("puppet_pose15")
         if pose is not None and self.show_skeleton.value:
             hips = (frame_pelvis if frame_pelvis is not None else np.array([0.0, 0.0, 0.75])) + SKELETON_OFFSET

@@ -1,5 +1,6 @@
 """The Puppeteer workspace in the browser: G1 stands under the whole-body controller while a held-out CMU clip
-drives its arms (LWL2); the status counts frames and capsule collisions; Stop returns to standing."""
+drives its arms (LWL2); the status counts frames and capsule collisions; two seconds of the arms become the
+in_place sample's arm curves and are undone; Stop returns to standing."""
 
 from __future__ import annotations
 
@@ -31,6 +32,14 @@ def test_puppeteer_drives_g1_arms_from_a_clip(artifacts):
             text = page.inner_text("body")
             assert "LWL2" in text and "datagrams" in text
             page.screenshot(path=str(artifacts / "puppet_running.png"))
+            # two seconds of the arms become the in_place sample's arm curves (one undoable edit), then undo
+            page.get_by_role("button", name="Record gesture").click()
+            wait_for_text(page, "Recorded", 240_000)
+            page.get_by_role("button", name="Use as arm curves").click()
+            wait_for_text(page, "in_place: 11 arm curves with 8 knots", 60_000)
+            page.screenshot(path=str(artifacts / "puppet_gesture_applied.png"))
+            page.get_by_role("button", name="Undo style edit").click()
+            wait_for_text(page, "undid gesture → in_place arm curves", 60_000)
             page.get_by_role("button", name="Stop puppet").click()
             wait_for_text(page, "Puppet: idle")
     finally:

@@ -181,6 +181,8 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
     for f in (ds_file, ckpt_file):
         if f is not None:
             f.unlink(missing_ok=True)
+    if checkpoint_dir is not None and not any(checkpoint_dir.iterdir()):
+        checkpoint_dir.rmdir()
     return {"weights": str(out.with_suffix(".safetensors")), **{k: meta[k] for k in ("dataset_sizes", "graph", "timing_s")}}
 
 
