@@ -361,8 +361,9 @@ def load_config(path: Path) -> RobotConfig:
                 raise r.fail(where, f"expected [low, high] with 0 < low < high, got {value!r}")
             gait_feedback[key] = (float(value[0]), float(value[1]))
         else:
-            gait_feedback[key] = r.get(feedback_table, key, "control.gait_feedback.", float)
-            if gait_feedback[key] < 0:
+            number = r.get(feedback_table, key, "control.gait_feedback.", float)
+            gait_feedback[key] = number
+            if number < 0:
                 raise r.fail(where, f"expected a non-negative number, got {value!r}")
 
     return RobotConfig(

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from engine.retarget.quadruped.tmr.keypoints import KeypointSet, keypoint_trajectory
-from engine.retarget.quadruped.tmr.motion_io import RobotMotion
+from engine.retarget.motion import RobotMotion
 
 GRAVITY_MPS2 = 9.81
 
