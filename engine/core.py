@@ -229,8 +229,10 @@ class EngineCore:
             self.puppet = None
 
     def _puppet_tick(self) -> None:
+        from engine.retarget.humanoid_arm.puppet_session import PuppetWalkingController
+
         walker, session = self.walker, self.puppet
-        assert self.sim is not None and session is not None
+        assert self.sim is not None and session is not None and isinstance(walker, PuppetWalkingController)
         t = self.sim.time_s
         walker.set_clock(t)
         if session.due(t):

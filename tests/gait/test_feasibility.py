@@ -71,7 +71,8 @@ def _swing_curve(duration_s, start, mid, end):
 
 def test_the_issues_low_and_wide_style_is_flagged():
     """Issue 13's example (pelvis 4 cm lower, stance 3 cm wider than neutral: valid, falls in the
-    sweep when it walks backward): the stance ankle at its limit, raise the pelvis."""
+    sweep's reverse leg) is flagged: in reverse_fast the stance ankle is at its limit, raise the
+    pelvis (README: that finding does not by itself explain the fall at −0.2 m/s)."""
     ctx, neutral = _neutral()
     style = _every_sample(neutral, lambda s: dataclasses.replace(s, attributes=dataclasses.replace(
         s.attributes, pelvis_height_m=s.attributes.pelvis_height_m - 0.04,

@@ -72,6 +72,11 @@ class SharedLatentWAE(nn.Module):
             self.register_buffer(f"mean_{k}", torch.zeros(d, dtype=torch.float64))
             self.register_buffer(f"std_{k}", torch.ones(d, dtype=torch.float64))
 
+    def normalisation_of(self, domain: str) -> tuple[np.ndarray, np.ndarray]:
+        """(mean, std) of a domain's raw features, float64 numpy copies of the registered buffers."""
+        mean, std = getattr(self, f"mean_{domain}"), getattr(self, f"std_{domain}")
+        return mean.numpy().copy(), std.numpy().copy()
+
     # normalisation (numpy in, numpy out at the edges)
     def set_normalisation(self, domain: str, data: np.ndarray) -> None:
         getattr(self, f"mean_{domain}").copy_(torch.as_tensor(data.mean(axis=0)))
@@ -95,8 +100,10 @@ class SharedLatentWAE(nn.Module):
 
     def numpy_encoder(self, domain: str):
         """A numpy callable (N, D) raw → (N, latent) equal to :meth:`encode` (to float32 rounding)."""
-        net = NumpyMLP(self.encoders[domain])
-        mean, std = getattr(self, f"mean_{domain}").numpy().copy(), getattr(self, f"std_{domain}").numpy().copy()
+        encoder = self.encoders[domain]
+        assert isinstance(encoder, ResNetMLP)
+        net = NumpyMLP(encoder)
+        mean, std = self.normalisation_of(domain)
         return lambda x: net((np.atleast_2d(x) - mean) / std)
 
     def transfer(self, src: str, dst: str, x: np.ndarray) -> np.ndarray:
@@ -173,7 +180,8 @@ def train_wae(model: SharedLatentWAE, domains: dict[str, DomainData], glue: dict
     for k in names:
         model.set_normalisation(k, domains[k].data)
         normed[k] = torch.as_tensor(model.normalise(k, domains[k].data), dtype=torch.float32)
-        feats = domains[k].dpp_features if domains[k].dpp_features is not None else normed[k].numpy()
+        dpp = domains[k].dpp_features
+        feats = dpp if dpp is not None else normed[k].numpy()
         samplers[k] = BatchSampler(feats, cfg.batch_size, rng, cfg.la_dpp, chunk=cfg.la_dpp_chunk)
     glue_t = None
     if glue:
