@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,7 @@ class GaitFeedbackGains:
 
         cfg = load_robot_config(name)
         known = {f.name: f for f in fields(self)}
-        values = {}
+        values: dict[str, Any] = {}  # float or (low, high) per field, checked against the field above
         for key, value in cfg.gait_feedback.items():
             if key not in known:
                 raise RobotConfigError(f"{cfg.path.name}: control.gait_feedback.{key}: unknown gain; expected one of "

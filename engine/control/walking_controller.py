@@ -21,7 +21,7 @@ from engine.control.controller import JointCommand, RobotState
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
-from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference
+from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
 from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
@@ -87,6 +87,7 @@ class WalkingController:
         self.planner.path_follows_feet = self.params.path_follows_feet
         self.mpc = ComMpc(preview_s=self.params.mpc_preview_s)
         self.feedback = GaitFeedback(GaitFeedbackGains.for_robot(robot.name), enabled=feedback)
+        self.wbc: WholeBodyController
         if wbc == "paper":
             self.wbc = TaskSpaceInverseDynamics(robot, upper_body_joints=self.ctx.upper_joints)
         elif wbc == "placo":
@@ -169,12 +170,12 @@ class WalkingController:
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
         self._landing = False
-        self._com_z = None
+        self._com_z: float | None = None  # the LIP height, low-passed (set on the first MPC tick)
         com = pin.centerOfMass(self.model, data, q, state.v)
         self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
         self.observer.reset(data.vcom[0][:2].copy())
         self._mpc_shift = np.zeros(2)
-        self._ground_force = None
+        self._ground_force: np.ndarray | None = None  # horizontal ground force of the last WBC tick
 
     # ------------------------------------------------------------------ one tick
     def compute(self, state: RobotState) -> JointCommand:
@@ -379,6 +380,7 @@ class WalkingController:
 
     def _relatch_landed_feet(self, est: RobotState, contact_before: np.ndarray) -> None:
         """A few ticks after touchdown, latch the foothold where the foot really is."""
+        assert self.ref is not None, "called after the planner's step"
         for i, side in enumerate(SIDES):
             if not self.ref.contact[i]:
                 self._since_touchdown[i] = -1
@@ -496,7 +498,7 @@ class WalkingController:
             tel.mpc_status = plan.status
         tel.support_polygon = ref.preview[0].polygon if ref.preview else np.zeros((0, 2))
         tel.preview_polygons = [p.polygon for p in ref.preview]
-        holds = []
+        holds: list[np.ndarray] = []
         for p in ref.preview:
             for hold in p.footholds.values():
                 row = hold.as_array()

@@ -117,8 +117,8 @@ class TaskSpaceInverseDynamics:
         self._foot_kp, self._foot_kd = np.zeros((n_feet, 6)), np.zeros((n_feet, 6))
         self._foot_vel, self._foot_acc = np.zeros((n_feet, 6)), np.zeros((n_feet, 6))
         self._foot_w = self._w[:6 * n_feet].reshape(n_feet, 6)
-        for i, task in enumerate(self.foot_tasks):
-            task.kp, task.kd, task.velocity, task.acceleration = (
+        for i, foot in enumerate(self.foot_tasks):
+            foot.kp, foot.kd, foot.velocity, foot.acceleration = (
                 self._foot_kp[i], self._foot_kd[i], self._foot_vel[i], self._foot_acc[i])
         r = 0
         for task in self.tasks:
@@ -215,7 +215,7 @@ class TaskSpaceInverseDynamics:
         elif self.qp_backend != "osqp":
             result = qp_backends.solve(qp.standard_form(), self.qp_backend)
             message = result.status
-            if result.ok:
+            if result.ok and result.x is not None:
                 solution = (result.x[:self.nv].copy(), np.clip(result.x[self.nv:], 0.0, qp.rho_up))
         if solution is None:
             backend = "osqp"
@@ -271,9 +271,9 @@ class TaskSpaceInverseDynamics:
         jac, rhs, nf = self._jac, self._rhs, self._foot_rows
         jac[:nf] = snap.frame_jacobian.reshape(nf, nv)
         acc = self._foot_acc + self._foot_kd * (self._foot_vel - snap.frame_velocity)
-        for i, task in enumerate(self.foot_tasks):
-            if task.kp.any():  # swing or heel/toe: PD on the pose (a flat contact foot is damped only)
-                acc[i] += task.kp * task.compute_error(snap)
+        for i, foot in enumerate(self.foot_tasks):
+            if foot.kp.any():  # swing or heel/toe: PD on the pose (a flat contact foot is damped only)
+                acc[i] += foot.kp * foot.compute_error(snap)
         np.subtract(acc, snap.frame_drift, out=rhs[:nf].reshape(acc.shape))
         r = nf
         for task in self.tasks[len(self.foot_tasks):]:
@@ -364,6 +364,7 @@ class TaskSpaceInverseDynamics:
         return tau
 
     def _setpoints(self, state: RobotState, qdd: FloatArray, tau: FloatArray) -> JointCommand:
+        assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
         self.q_des, self.qd_des = integrate_setpoints(self.q_des, self.qd_des, qdd[6:], state, self.gains, self.dt_s)
         return JointCommand(self.q_des.copy(), self.qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
 

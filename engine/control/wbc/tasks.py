@@ -19,13 +19,17 @@ errors are ``log3(R* Rᵀ)`` (world axes); accelerations of frame origins are cl
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+#: A per-row gain or weight: one value for every row, or one per row.
+Gain: TypeAlias = "float | Sequence[float] | FloatArray"
 
 __all__ = [
     "AngularMomentumTask",
@@ -109,7 +113,7 @@ class Task(ABC):
     dim: int
     constant_jacobian: bool = False  # J never changes (the solver may copy it once)
 
-    def __init__(self, dim: int, kp: float | FloatArray, kd: float | FloatArray, weight: float | FloatArray):
+    def __init__(self, dim: int, kp: Gain, kd: Gain, weight: Gain):
         self.dim = dim
         self.kp = np.broadcast_to(np.asarray(kp, dtype=float), (dim,)).copy()
         self.kd = np.broadcast_to(np.asarray(kd, dtype=float), (dim,)).copy()
@@ -139,8 +143,7 @@ class Task(ABC):
 class FramePoseTask(Task):
     """6-D pose of a frame (a foot sole): world position and orientation, [linear; angular]."""
 
-    def __init__(self, frame_index: int, kp: float | FloatArray = 0.0, kd: float | FloatArray = 0.0,
-                 weight: float | FloatArray = 1.0):
+    def __init__(self, frame_index: int, kp: Gain = 0.0, kd: Gain = 0.0, weight: Gain = 1.0):
         super().__init__(6, kp, kd, weight)
         self.frame_index = frame_index  # index into the snapshot's frames
         self.position_m = np.zeros(3)
@@ -182,7 +185,7 @@ class FramePoseTask(Task):
 class PelvisTask(Task):
     """Pelvis (floating base) height and orientation: rows [z; ωx; ωy; ωz], world axes."""
 
-    def __init__(self, kp: float | FloatArray = 0.0, kd: float | FloatArray = 0.0, weight: float | FloatArray = 1.0):
+    def __init__(self, kp: Gain = 0.0, kd: Gain = 0.0, weight: Gain = 1.0):
         super().__init__(4, kp, kd, weight)
         self.height_m = 0.0
         self.height_rate_mps = 0.0
@@ -244,7 +247,7 @@ class ComTask(Task):
     J = A_h,lin / m and J̇ q̇ = (Ȧ_h q̇)_lin / m: the linear momentum rate over the mass.
     """
 
-    def __init__(self, kp: float | FloatArray = 0.0, kd: float | FloatArray = 0.0, weight: float | FloatArray = 1.0):
+    def __init__(self, kp: Gain = 0.0, kd: Gain = 0.0, weight: Gain = 1.0):
         super().__init__(3, kp, kd, weight)
         self.position_m = np.zeros(3)
         self.velocity_mps = np.zeros(3)
@@ -280,8 +283,8 @@ class JointTask(Task):
 
     constant_jacobian = True
 
-    def __init__(self, v_indices: list[int] | NDArray[np.int64], nv: int, kp: float | FloatArray = 0.0,
-                 kd: float | FloatArray = 0.0, weight: float | FloatArray = 1.0):
+    def __init__(self, v_indices: list[int] | NDArray[np.int64], nv: int, kp: Gain = 0.0, kd: Gain = 0.0,
+                 weight: Gain = 1.0):
         idx = np.asarray(v_indices, dtype=np.int64)
         super().__init__(idx.size, kp, kd, weight)
         self.v_indices = idx
@@ -324,7 +327,7 @@ class JointTask(Task):
 class AngularMomentumTask(Task):
     """Centroidal angular momentum rate k̇* = kd (k* − k): damps whole-body spin (k* = 0)."""
 
-    def __init__(self, kd: float | FloatArray = 0.0, weight: float | FloatArray = 1.0):
+    def __init__(self, kd: Gain = 0.0, weight: Gain = 1.0):
         super().__init__(3, 0.0, kd, weight)
         self.momentum_nms = np.zeros(3)
 
