@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import mujoco
 import numpy as np
@@ -229,8 +229,9 @@ class EngineCore:
             self.puppet = None
 
     def _puppet_tick(self) -> None:
-        walker, session = self.walker, self.puppet
-        assert self.sim is not None and session is not None
+        walker: Any = self.walker  # the puppet's WalkingController subclass (set_clock, set_arm_target)
+        session = self.puppet
+        assert self.sim is not None and session is not None and walker is not None
         t = self.sim.time_s
         walker.set_clock(t)
         if session.due(t):
@@ -240,7 +241,7 @@ class EngineCore:
             bad = getattr(session.source, "bad", 0)
             if bad > self._puppet_bad_seen and t - self._puppet_notice_t >= 2.0:  # at most one notice per 2 s
                 self._puppet_bad_seen, self._puppet_notice_t = bad, t
-                self.emit(msg.Notice("warning", _one_line(f"Puppeteer: {session.source.last_error} "
+                self.emit(msg.Notice("warning", _one_line(f"Puppeteer: {getattr(session.source, 'last_error', '')} "
                                                           f"({bad} bad datagrams ignored)")))
 
     def _start_walking(self) -> None:

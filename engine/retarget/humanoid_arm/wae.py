@@ -14,7 +14,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, cast
 
 import numpy as np
 import torch
@@ -77,6 +77,11 @@ class SharedLatentWAE(nn.Module):
         getattr(self, f"mean_{domain}").copy_(torch.as_tensor(data.mean(axis=0)))
         getattr(self, f"std_{domain}").copy_(torch.as_tensor(np.maximum(data.std(axis=0), 1e-3)))
 
+    def normalisation(self) -> dict[str, dict[str, list[float]]]:
+        """{domain: {"mean": [...], "std": [...]}} (the metadata file's copy)."""
+        return {k: {"mean": getattr(self, f"mean_{k}").tolist(), "std": getattr(self, f"std_{k}").tolist()}
+                for k in self.dims}
+
     def normalise(self, domain: str, x: np.ndarray) -> np.ndarray:
         return (x - getattr(self, f"mean_{domain}").numpy()) / getattr(self, f"std_{domain}").numpy()
 
@@ -95,7 +100,7 @@ class SharedLatentWAE(nn.Module):
 
     def numpy_encoder(self, domain: str):
         """A numpy callable (N, D) raw → (N, latent) equal to :meth:`encode` (to float32 rounding)."""
-        net = NumpyMLP(self.encoders[domain])
+        net = NumpyMLP(cast(ResNetMLP, self.encoders[domain]))
         mean, std = getattr(self, f"mean_{domain}").numpy().copy(), getattr(self, f"std_{domain}").numpy().copy()
         return lambda x: net((np.atleast_2d(x) - mean) / std)
 
@@ -173,7 +178,8 @@ def train_wae(model: SharedLatentWAE, domains: dict[str, DomainData], glue: dict
     for k in names:
         model.set_normalisation(k, domains[k].data)
         normed[k] = torch.as_tensor(model.normalise(k, domains[k].data), dtype=torch.float32)
-        feats = domains[k].dpp_features if domains[k].dpp_features is not None else normed[k].numpy()
+        dpp = domains[k].dpp_features
+        feats = dpp if dpp is not None else normed[k].numpy()
         samplers[k] = BatchSampler(feats, cfg.batch_size, rng, cfg.la_dpp, chunk=cfg.la_dpp_chunk)
     glue_t = None
     if glue:
