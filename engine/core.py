@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Callable
 
 import mujoco
 import numpy as np
@@ -229,9 +229,10 @@ class EngineCore:
             self.puppet = None
 
     def _puppet_tick(self) -> None:
-        walker: Any = self.walker  # the puppet's WalkingController subclass (set_clock, set_arm_target)
-        session = self.puppet
-        assert self.sim is not None and session is not None and walker is not None
+        from engine.retarget.humanoid_arm.puppet_session import PuppetWalkingController
+
+        walker, session = self.walker, self.puppet
+        assert self.sim is not None and session is not None and isinstance(walker, PuppetWalkingController)
         t = self.sim.time_s
         walker.set_clock(t)
         if session.due(t):

@@ -145,7 +145,7 @@ def cell_id(velocity: Iterable[float]) -> str:
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle
     return buf.getvalue()
 
 
@@ -285,6 +285,7 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
         import ray
 
         repo = str(Path(__file__).resolve().parents[1])
+        runtime_env: dict[str, object]
         if address:
             runtime_env = {"working_dir": repo, "excludes": [".venv", ".git", "docs", "tests", "*.npz"]}
         else:

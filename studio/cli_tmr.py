@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from studio.cli import CliError
 
 GENERATED_CLIPS = ("standing", "trot", "hop")
@@ -29,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     tmr.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     batch = sub.add_parser("retarget-batch", help="run TMR for clips × robots on Ray (resumable)")
-    batch.add_argument("clips", nargs="+", help="robot motions (.npz) or generated clips gen:standing|gen:trot|gen:hop")
+    batch.add_argument("clips", nargs="+", help="robot motions (.npz), source motions (keypoint npz or any importable "
+                       "file: SMR to each robot first) or generated clips gen:standing|gen:trot|gen:hop")
     batch.add_argument("--robots", default=None, help="comma-separated robots (default: each file's own robot)")
     batch.add_argument("--method", default="stmr", choices=("stmr",), help="retargeting method (TMR on the clip)")
     add_tmr_options(batch)
@@ -203,7 +206,37 @@ def cmd_tmr(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- batch
 
 
+def _batch_clip(spec: str):  # noqa: ANN202
+    """A batch clip: a robot motion (npz, robot-motion/1) or a source motion (keypoint npz or any importable
+    file, which each robot gets through SMR first)."""
+    from engine.retarget.importers import import_source
+    from engine.retarget.motion import ROBOT_FORMAT, MotionFormatError, RobotMotion
+
+    path = Path(spec)
+    if path.suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                robot_motion = "format" in f.files and str(f["format"]) == ROBOT_FORMAT
+        except FileNotFoundError:
+            raise CliError(f"{path.name}: file not found") from None
+        except Exception:  # noqa: BLE001 - any unreadable file is one line (named below by the loader)
+            robot_motion = True
+        if robot_motion:
+            try:
+                return RobotMotion.load(path)
+            except MotionFormatError as exc:
+                raise CliError(str(exc)) from None
+    try:
+        return import_source(path)
+    except MotionFormatError as exc:
+        raise CliError(str(exc)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CliError(f"{path.name}: cannot read ({exc.__class__.__name__})") from None
+
+
 def _clip_motion(spec: str, robot):  # noqa: ANN001, ANN202
+    from engine.retarget.motion import RobotMotion
+    from engine.retarget.quadruped.pipeline import retarget_detailed
     from engine.retarget.quadruped.tmr import kinematic_clips
 
     if spec.startswith("gen:"):
@@ -211,7 +244,10 @@ def _clip_motion(spec: str, robot):  # noqa: ANN001, ANN202
         if name not in GENERATED_CLIPS:
             raise CliError(f"{spec}: expected gen:{'|gen:'.join(GENERATED_CLIPS)}")
         return getattr(kinematic_clips, name)(robot)
-    return _load_motion(spec)
+    motion = _batch_clip(spec)
+    if isinstance(motion, RobotMotion):
+        return motion
+    return retarget_detailed(motion, robot.name, "smr").motion  # a source: SMR to this robot, then TMR
 
 
 def job_key(spec: str, robot: str, settings) -> str:  # noqa: ANN001
@@ -245,6 +281,9 @@ def run_batch_job(spec: str, robot_name: str, settings, out_path: str) -> dict: 
 
 
 def cmd_retarget_batch(args: argparse.Namespace) -> int:
+    from engine.retarget.motion import RobotMotion
+    from engine.retarget.quadruped.tmr.deformation import DeformationError, check_segments
+
     settings = _settings(args)
     _check_address(args.address)
     out_dir = Path(args.out)
@@ -253,7 +292,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     robots = [r for r in (args.robots or "").split(",") if r]
     for r in robots:
         _quadruped(r)
-    jobs = []
+    jobs: list[tuple[str, str]] = []  # (clip spec, robot)
     for spec in args.clips:
         if spec.startswith("gen:"):
             if not robots:
@@ -262,7 +301,16 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
                 raise CliError(f"{spec}: expected gen:{'|gen:'.join(GENERATED_CLIPS)}")
             jobs.extend((spec, r) for r in robots)
             continue
-        motion = _load_motion(spec)
+        motion = _batch_clip(spec)
+        if not isinstance(motion, RobotMotion):  # a source motion: SMR to each robot first
+            if not robots:
+                raise CliError(f"{Path(spec).name}: a source motion needs --robots")
+            try:
+                check_segments(settings.segments, motion.frames, motion.fps)
+            except DeformationError as exc:
+                raise CliError(f"{Path(spec).name}: keypoints: {exc}") from None
+            jobs.extend((spec, r) for r in robots)
+            continue
         targets = robots or [motion.robot]
         for r in targets:
             _check_motion(motion, _quadruped(r), Path(spec).name, settings)
@@ -289,6 +337,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     if todo:
         from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
 
+        executor: LocalExecutor | RayExecutor
         if args.address is None and args.jobs == 1:
             executor = LocalExecutor()  # one job at a time needs no Ray
         else:

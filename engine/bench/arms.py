@@ -56,17 +56,8 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
                      "agreement": agree["agreement"], "mujoco_only": agree["mujoco_only"],
                      "capsules_only": agree["capsules_only"], "conservative": agree["conservative"]})
         for group, paths in groups.items():
-            stats: dict[str, dict[str, list]] = {m: {"hand": [], "elbow": [], "free": [], "t": []}
-                                                  for m in ("lwl2", "lwl2-paper", "ik+fix", "feed-forward")}
-
-            def add(method: str, x: np.ndarray, p: np.ndarray, t_s: float) -> None:
-                h, e = arm_errors_m(ub, x, p)
-                s = stats[method]
-                s["hand"].append(h)
-                s["elbow"].append(e)
-                s["free"].append(cm.is_free(x))
-                s["t"].append(t_s)
-
+            stats: dict[str, dict[str, list[float]]] = {
+                m: {"hand": [], "elbow": [], "free": [], "t": []} for m in ("lwl2", "lwl2-paper", "ik+fix", "feed-forward")}
             fallbacks = holds = frames = 0
             for path in paths:
                 pts = bvh_points(load_bvh(path))
@@ -79,14 +70,29 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
                 for p in poses:
                     for a, method in ((arms, "lwl2"), (paper, "lwl2-paper")):
                         step = a.retarget(p)
-                        add(method, step.x, p, step.inference_s)
+                        s = stats[method]
+                        h, e = arm_errors_m(ub, step.x, p)
+                        s["hand"].append(h)
+                        s["elbow"].append(e)
+                        s["free"].append(cm.is_free(step.x))
+                        s["t"].append(step.inference_s)
                     t0 = time.perf_counter()
-                    x_ik, _ = ik.solve(p, x_ik)
-                    add("ik+fix", x_ik, p, time.perf_counter() - t0)
+                    x_ik, ok = ik.solve(p, x_ik)
+                    s = stats["ik+fix"]
+                    s["t"].append(time.perf_counter() - t0)
+                    h, e = arm_errors_m(ub, x_ik, p)
+                    s["hand"].append(h)
+                    s["elbow"].append(e)
+                    s["free"].append(cm.is_free(x_ik))
                     if arms.feed_forward is not None:
                         t0 = time.perf_counter()
                         x_ff = arms.feed_forward_pose(p)
-                        add("feed-forward", x_ff, p, time.perf_counter() - t0)
+                        s = stats["feed-forward"]
+                        s["t"].append(time.perf_counter() - t0)
+                        h, e = arm_errors_m(ub, x_ff, p)
+                        s["hand"].append(h)
+                        s["elbow"].append(e)
+                        s["free"].append(cm.is_free(x_ff))
                 fallbacks += arms.graph_fallbacks
                 holds += arms.holds
             lwl2_median = float(np.median(stats["lwl2"]["t"]))

@@ -252,9 +252,9 @@ class WalkingController:
             or 0 <= self._since_touchdown[i] < self.params.observer_hold_after_touchdown_plan_ticks for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
-        self._plan_ticks += 1
         every = max(self.params.mpc_every_plan_ticks, 1)
-        if self.plan is not None and self._plan_ticks % every != 0:
+        self._plan_ticks += 1
+        if self.plan is not None and (self._plan_ticks - 1) % every != 0:
             self._last_com, self._last_fb = com, fb
             self._telemetry_stale = True
             return

@@ -132,5 +132,5 @@ def beyondmimic_arrays(motion: RobotMotion) -> dict[str, np.ndarray]:
 
 def export_beyondmimic_npz(motion: RobotMotion, path: str | Path) -> None:
     buf = io.BytesIO()
-    np.savez(buf, **beyondmimic_arrays(motion))  # np.savez, as csv_to_npz
+    np.savez(buf, **beyondmimic_arrays(motion))  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle; np.savez as csv_to_npz
     atomic_write_bytes(path, buf.getvalue())

@@ -6,9 +6,10 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
 
 * reach — least-squares IK of both soles, pelvis height and rotation (the pelvis free to move
   horizontally, pulled gently toward the support-centre CoM plan of the kinematic preview):
-  a residual above ``REACH_TOLERANCE_M`` means no leg posture reaches the foot; the leg
-  joints then at a limit name the reason ("right knee straight: lower the pelvis or shorten
-  the stride", "left knee fully bent: raise the pelvis height");
+  a foot on the ground more than ``REACH_TOLERANCE_M`` from its plan (a swing foot more than
+  ``SWING_REACH_TOLERANCE_M``) means no leg posture reaches it; the leg joints then at a
+  limit name the reason ("right knee straight: lower the pelvis or shorten the stride",
+  "left knee fully bent: raise the pelvis height");
 * joint speed — finite differences of that IK against the model's velocity limits;
 * torque — in single support, the links' gravity plus the robot's weight carried through the
   stance sole's middle, against the torque limit the controller uses (90 % of the effort);
@@ -37,7 +38,12 @@ from engine.robot.model import RobotModel
 
 TICKS_PER_CYCLE = 24
 SETTLE_CYCLES = 2.0  # cycles at the sample's velocity before the checked one
-REACH_TOLERANCE_M = 0.01
+REACH_TOLERANCE_M = 0.01  # a foot on the ground (or the pelvis height) this far out of reach: flagged
+# A swing foot may miss its curve by a little more: walks of ``studio bench styles`` and one-factor
+# variants of G1 neutral (README) show swing misses of 10–15 mm just after liftoff (the ankle at
+# its limit) walk, while a heel pitch of 0.4 rad mid-swing (misses of 19–24 mm, the ankle at its
+# limit for most of the swing) falls, and a foot on the ground 10 mm out of reach falls.
+SWING_REACH_TOLERANCE_M = 0.018
 COM_WEIGHT = 0.3
 LIMIT_MARGIN_RAD = 0.01
 VELOCITY_SHARE = 1.0  # joint speed beyond this share of the velocity limit is flagged
@@ -74,6 +80,8 @@ def _joint_words(name: str) -> tuple[str | None, str]:
 def _hint(kind: str, words: str, bent: bool | None = None) -> str:
     if kind == "joint_limit" and words == "knee":
         return "raise the pelvis height" if bent else "lower the pelvis or shorten the stride"
+    if kind == "joint_limit" and words == "ankle":
+        return "raise the pelvis height, shorten the stride or reduce the heel/toe pitch"
     if kind in ("reach", "joint_limit"):
         return "raise or lower the pelvis height, shorten the stride or narrow the stance"
     if kind == "torque":
@@ -162,13 +170,24 @@ class FeasibilityChecker:
                 yaw = float(ref.path_pose[2])
                 q[0:3] = [ref.path_pose[0], ref.path_pose[1], ref.pelvis_z]
                 q[3:7] = [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]  # pinocchio: x, y, z, w
-            q, residual, foot_err = self._reach_ik(ref, q, com)
-            if residual > REACH_TOLERANCE_M:
-                side = SIDES[int(np.argmax(foot_err))]
-                self._add(findings, Finding(name, pct, "reach", side,
-                                            f"the {side} foot is out of the leg's reach ({1000 * residual:.0f} mm short): "
-                                            + _hint("reach", "")))
-                self._limits(findings, name, pct, q)  # which joint stops it
+            q, pelvis_err, foot_err = self._reach_ik(ref, q, com)
+            short = [foot_err[i] - (REACH_TOLERANCE_M if ref.contact[i] else SWING_REACH_TOLERANCE_M) for i in range(2)]
+            if max(short) > 0.0 or pelvis_err > REACH_TOLERANCE_M:
+                at_limit = self._limits(q)  # which joints stop it
+                i = int(np.argmax(short)) if max(short) > 0.0 else int(np.argmax(foot_err))
+                side = SIDES[i]
+                mine = [lim for lim in at_limit if lim[0].startswith(side)] or at_limit
+                why, hint = (f", {mine[0][1]}", mine[0][2]) if mine else ("", _hint("reach", ""))
+                if max(short) <= 0.0:
+                    text = f"the pelvis cannot reach its height ({1000 * pelvis_err:.0f} mm off){why}"
+                elif ref.contact[i]:
+                    text = f"the {side} foot cannot stay where it is planned on the ground{why} ({1000 * foot_err[i]:.0f} mm short)"
+                else:
+                    text = f"the {side} foot's swing is out of the leg's reach{why} ({1000 * foot_err[i]:.0f} mm short)"
+                self._add(findings, Finding(name, pct, "reach", side, f"{text}: {hint}"))
+                for key, phrase, lim_hint in at_limit:
+                    if not mine or key != mine[0][0]:  # (the one named above is not repeated)
+                        self._add(findings, Finding(name, pct, "joint_limit", key, f"{phrase}: {lim_hint}"))
             if q_prev is not None:
                 self._speed(findings, name, pct, pin.difference(self.model, q_prev, q) / dt)
             q_prev = q
@@ -195,9 +214,10 @@ class FeasibilityChecker:
 
     def _reach_ik(self, ref, q0: np.ndarray, com_xy: np.ndarray) -> tuple[np.ndarray, float, list[float]]:
         """Least-squares IK of both soles (6-D each), pelvis height and rotation; the pelvis may
-        move horizontally (the controller places the CoM): the residual is what no posture of
+        move horizontally (the controller places the CoM): the residuals are what no posture of
         the legs reaches. Joints stay within their limits. The CoM is pulled toward the plan's
-        (weight ``COM_WEIGHT``) so the posture is the one the controller would take."""
+        (weight ``COM_WEIGHT``) so the posture is the one the controller would take.
+        Returns (q, pelvis height error, [sole position error per foot])."""
         model, data = self.model, self.data
         q = q0.copy()
         if len(self.ik.upper_q_index):
@@ -237,22 +257,23 @@ class FeasibilityChecker:
         pin.framesForwardKinematics(model, data, q)
         foot_err = [float(np.linalg.norm(data.oMf[f].translation - ref.foot_pos[i])) for i, f in enumerate(self.foot_ids)]
         root = data.oMf[self.ik.root_id]
-        residual = max(max(foot_err), abs(ref.pelvis_z - float(root.translation[2])))
-        return q, residual, foot_err
+        return q, abs(ref.pelvis_z - float(root.translation[2])), foot_err
 
-    def _limits(self, findings: dict, name: str, pct: float, q: np.ndarray) -> None:
+    def _limits(self, q: np.ndarray) -> list[tuple[str, str, str]]:
+        """Leg joints at a limit: [("left:knee", "left knee straight", advice)]."""
         leg = q[self.leg_q]
         near_lo = leg <= self.lower + LIMIT_MARGIN_RAD
         near_hi = leg >= self.upper - LIMIT_MARGIN_RAD
+        out = []
         for j in np.flatnonzero(near_lo | near_hi):
             side, words = _joint_words(self.leg_names[j])
             limit = self.upper[j] if near_hi[j] else self.lower[j]
             other = self.lower[j] if near_hi[j] else self.upper[j]
             straight = abs(limit) < abs(other)  # the knee's limit nearer zero is the straight leg
             what = ("straight" if straight else "fully bent") if words == "knee" else "at its limit"
-            self._add(findings, Finding(name, pct, "joint_limit", f"{side}:{words}",
-                                        f"{side + ' ' if side else ''}{words} {what}: "
-                                        + _hint("joint_limit", words, bent=not straight)))
+            out.append((f"{side}:{words}", f"{side + ' ' if side else ''}{words} {what}",
+                        _hint("joint_limit", words, bent=not straight)))
+        return out
 
     def _speed(self, findings: dict, name: str, pct: float, v: np.ndarray) -> None:
         speed = np.abs(v[self.leg_v])

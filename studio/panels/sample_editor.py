@@ -235,7 +235,7 @@ class SampleEditor:
 def feasibility_markdown(sample: str, findings: list, limit: int = 3) -> str:
     """The check's findings for one sample as the panel shows them."""
     if not findings:
-        return f"✅ **{sample}**: nothing in the way of walking it"
+        return f"✓ **{sample}**: nothing in the way of walking it"
     lines = [f"⚠️ **{f.sample}**, around {f.phase_pct:.0f} % of the cycle: {f.message}" for f in findings[:limit]]
     more = len(findings) - limit
     if more > 0:

@@ -38,3 +38,22 @@ def test_talos_gait_feedback_comes_from_its_config() -> None:
     gains = GaitFeedbackGains.for_robot("talos")
     assert (gains.time_kp_per_m, gains.time_kd_s_per_m, gains.step_gain) == (3.0, 0.9, 0.7)
     assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
+
+
+def test_mpc_rate_parameter_solves_every_other_planner_tick() -> None:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.sim import Simulation
+
+    robot = load_robot("g1")
+    params = replace(WalkingParameters.for_robot("g1"), mpc_every_plan_ticks=2)
+    ctrl = WalkingController(robot, load_style(styles_dir("g1") / "neutral.json"), params=params)
+    solves = []
+    solve = ctrl.mpc.solve
+    ctrl.mpc.solve = lambda *a, **k: solves.append(ctrl.tick) or solve(*a, **k)
+    sim = Simulation(robot, ctrl)
+    for _ in range(40):  # 10 planner ticks
+        sim.step()
+    assert solves == [0, 8, 16, 24, 32]  # the first plan at once, then every second planner tick (8 ms apart)
+    assert ctrl.plan is not None and ctrl.plan.ok

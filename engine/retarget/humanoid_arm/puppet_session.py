@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from engine.control.walking_controller import WalkingController
 from engine.retarget.humanoid_arm.live import DatagramError, parse_datagram
 from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
 
@@ -34,6 +35,7 @@ class ClipSource:
         if len(poses15) == 0:
             raise ValueError(f"{name}: no frames")
         self.poses, self.fps, self.name = np.asarray(poses15, dtype=float), float(fps), name
+        self.last_error = ""  # a clip has no transport errors (the same interface as UdpSource)
 
     def pose_at(self, t_s: float) -> np.ndarray:
         return self.poses[int(t_s * self.fps) % len(self.poses)]
@@ -133,50 +135,50 @@ class PuppetSession:
         self.source.close()
 
 
-def puppet_walking_controller(robot, style, ctx=None):
+class PuppetWalkingController(WalkingController):
     """A :class:`~engine.control.walking_controller.WalkingController` whose upper-body reference comes from
     the puppet (linear interpolation of the latest two targets over one period); wrists and joints LWL2 does
     not drive keep the gait's reference, except wrists held at zero like LWL2's capsule model assumes."""
-    from engine.control.walking_controller import WalkingController
+    puppet_index: np.ndarray | None = None
+    _from: np.ndarray | None = None
+    _to: np.ndarray | None = None
+    _t0 = 0.0
+    _period = 1.0 / RATE_HZ
+    _clock = 0.0
 
-    class PuppetWalkingController(WalkingController):
-        puppet_index: np.ndarray | None = None
-        _from: np.ndarray | None = None
-        _to: np.ndarray | None = None
-        _t0 = 0.0
-        _period = 1.0 / RATE_HZ
-        _clock = 0.0
+    def set_arm_target(self, index: np.ndarray, x: np.ndarray, now_s: float, period_s: float) -> None:
+        cur = self._current(now_s)
+        self.puppet_index = index
+        self._from = x.copy() if cur is None else cur
+        self._to, self._t0, self._period = x.copy(), now_s, period_s
 
-        def set_arm_target(self, index: np.ndarray, x: np.ndarray, now_s: float, period_s: float) -> None:
-            cur = self._current(now_s)
-            self.puppet_index = index
-            self._from = x.copy() if cur is None else cur
-            self._to, self._t0, self._period = x.copy(), now_s, period_s
+    def set_clock(self, now_s: float) -> None:
+        self._clock = now_s
 
-        def set_clock(self, now_s: float) -> None:
-            self._clock = now_s
+    def _current(self, now_s: float) -> np.ndarray | None:
+        if self._to is None or self._from is None:
+            return None
+        s = min(max((now_s - self._t0) / self._period, 0.0), 1.0)
+        return self._from + s * (self._to - self._from)
 
-        def _current(self, now_s: float) -> np.ndarray | None:
-            if self._to is None or self._from is None:
-                return None
-            s = min(max((now_s - self._t0) / self._period, 0.0), 1.0)
-            return self._from + s * (self._to - self._from)
+    def _wbc_reference(self, dt_since: float):  # noqa: ANN202 - WbcReference
+        ref = super()._wbc_reference(dt_since)
+        target = self._current(self._clock)
+        if target is None or self.puppet_index is None:
+            return ref
+        q = np.array(ref.upper_body_q_rad, dtype=float)
+        qd = np.zeros_like(q)
+        for k, name in enumerate(self.ctx.upper_joints):
+            if "wrist" in name:
+                q[k] = 0.0
+        q[self.puppet_index] = target
+        if self._to is not None and self._from is not None and self._clock - self._t0 < self._period:
+            qd[self.puppet_index] = (self._to - self._from) / self._period
+        return dataclasses.replace(ref, upper_body_q_rad=q, upper_body_qd_radps=qd)
 
-        def _wbc_reference(self, dt_since: float):  # noqa: ANN202 - WbcReference
-            ref = super()._wbc_reference(dt_since)
-            target = self._current(self._clock)
-            if target is None or self.puppet_index is None:
-                return ref
-            q = np.array(ref.upper_body_q_rad, dtype=float)
-            qd = np.zeros_like(q)
-            for k, name in enumerate(self.ctx.upper_joints):
-                if "wrist" in name:
-                    q[k] = 0.0
-            q[self.puppet_index] = target
-            if self._to is not None and self._from is not None and self._clock - self._t0 < self._period:
-                qd[self.puppet_index] = (self._to - self._from) / self._period
-            return dataclasses.replace(ref, upper_body_q_rad=q, upper_body_qd_radps=qd)
 
+def puppet_walking_controller(robot, style, ctx=None) -> PuppetWalkingController:  # noqa: ANN001 - RobotModel, Style, StyleContext
+    """The walking controller of puppet mode (see :class:`PuppetWalkingController`)."""
     return PuppetWalkingController(robot, style, ctx=ctx)
 
 

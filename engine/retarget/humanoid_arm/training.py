@@ -161,7 +161,8 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
         raise KeyboardInterrupt
     meta = {
         "format": "lwl2-arms/1", "robot": robot, "joint_names": ub.joint_names,
-        "normalisation": model.normalisation(),
+        "normalisation": {k: dict(zip(("mean", "std"), (a.tolist() for a in model.normalisation_of(k))))
+                          for k in ("mocap", "robot")},
         "dataset_sizes": ds.sizes(), "datasets": ds.info, "licence_of_training_data": ds.info["licence"],
         "plan": {"sizes": asdict(plan.sizes), "train": asdict(plan.train), "latent_dim": plan.latent_dim,
                  "hidden": plan.hidden, "graph_nodes": int(len(node_idx)), "graph_neighbours": plan.graph_neighbours,
@@ -177,9 +178,9 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
                               "graph_indptr": graph.indptr.astype(np.int64), "graph_indices": graph.indices.astype(np.int32)},
                  meta)
     save_feed_forward(ff, out)
-    for done in (ds_file, ckpt_file):
-        if done is not None:
-            done.unlink(missing_ok=True)
+    for leftover in (ds_file, ckpt_file):
+        if leftover is not None:
+            leftover.unlink(missing_ok=True)
     if checkpoint_dir is not None and not any(checkpoint_dir.iterdir()):
         checkpoint_dir.rmdir()
     return {"weights": str(out.with_suffix(".safetensors")), **{k: meta[k] for k in ("dataset_sizes", "graph", "timing_s")}}

@@ -14,7 +14,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, cast
+from typing import Callable
 
 import numpy as np
 import torch
@@ -72,15 +72,15 @@ class SharedLatentWAE(nn.Module):
             self.register_buffer(f"mean_{k}", torch.zeros(d, dtype=torch.float64))
             self.register_buffer(f"std_{k}", torch.ones(d, dtype=torch.float64))
 
+    def normalisation_of(self, domain: str) -> tuple[np.ndarray, np.ndarray]:
+        """(mean, std) of a domain's raw features, float64 numpy copies of the registered buffers."""
+        mean, std = getattr(self, f"mean_{domain}"), getattr(self, f"std_{domain}")
+        return mean.numpy().copy(), std.numpy().copy()
+
     # normalisation (numpy in, numpy out at the edges)
     def set_normalisation(self, domain: str, data: np.ndarray) -> None:
         getattr(self, f"mean_{domain}").copy_(torch.as_tensor(data.mean(axis=0)))
         getattr(self, f"std_{domain}").copy_(torch.as_tensor(np.maximum(data.std(axis=0), 1e-3)))
-
-    def normalisation(self) -> dict[str, dict[str, list[float]]]:
-        """{domain: {"mean": [...], "std": [...]}} (the metadata file's copy)."""
-        return {k: {"mean": getattr(self, f"mean_{k}").tolist(), "std": getattr(self, f"std_{k}").tolist()}
-                for k in self.dims}
 
     def normalise(self, domain: str, x: np.ndarray) -> np.ndarray:
         return (x - getattr(self, f"mean_{domain}").numpy()) / getattr(self, f"std_{domain}").numpy()
@@ -100,8 +100,10 @@ class SharedLatentWAE(nn.Module):
 
     def numpy_encoder(self, domain: str):
         """A numpy callable (N, D) raw → (N, latent) equal to :meth:`encode` (to float32 rounding)."""
-        net = NumpyMLP(cast(ResNetMLP, self.encoders[domain]))
-        mean, std = getattr(self, f"mean_{domain}").numpy().copy(), getattr(self, f"std_{domain}").numpy().copy()
+        encoder = self.encoders[domain]
+        assert isinstance(encoder, ResNetMLP)
+        net = NumpyMLP(encoder)
+        mean, std = self.normalisation_of(domain)
         return lambda x: net((np.atleast_2d(x) - mean) / std)
 
     def transfer(self, src: str, dst: str, x: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ import numpy as np
 from engine.retarget.quadruped.tmr.keypoints import KeypointSet
 
 DEFAULT_TIMESTEP_S = 0.01  # control interval of the tracker (physics runs at the model's own step inside)
-FALL_HEIGHT_FRACTION = 0.4  # base below this share of the standing height: fallen
+FALL_HEIGHT_FRACTION = 0.5  # base below this share of the standing height: fallen (targets crouch to ≥ 0.7)
 
 
 class Cancelled(Exception):
@@ -155,6 +155,7 @@ def rollout(dyn: MjDynamics, cost: StageCost, x0: tuple, U: np.ndarray, data: mu
         mujoco.mj_forward(m, data)
         u = U[k].copy()
         if nominal is not None:
+            assert k_ff is not None and K is not None  # a closed-loop pass has its gains
             dx = dyn.state_difference(nominal[k], states[k])
             u = u + step_size * k_ff[k] + K[k] @ dx
         u = np.clip(u, dyn.u_lower, dyn.u_upper)
@@ -249,12 +250,13 @@ def ilqr(dyn: MjDynamics, cost: StageCost, x0: tuple, U0: np.ndarray, settings: 
         for k in range(len(U) + 1):
             dyn.restore(data, states[k])
             mujoco.mj_forward(dyn.model, data)
+            A: np.ndarray | None = None  # the terminal step has no dynamics
+            B: np.ndarray | None = None
             if k < len(U):
                 l, lx, lu, lxx, luu, lux = cost.expand(k, data, U[k])
                 A, B = dyn.derivatives(states[k], U[k])
             else:
                 l, lx, lu, lxx, luu, lux = cost.expand(k, data, None)
-                A = B = None
             derivs.append((l, lx, lu, lxx, luu, lux, A, B))
             if cancel is not None and k % 20 == 0 and cancel():
                 raise Cancelled()
@@ -443,7 +445,7 @@ class TrackingCost:
                 wts.append(np.array([w.foot_clearance_in_swing]))
                 if with_jac:
                     J = np.zeros((1, nx))
-                    if gap < 0.0:
+                    if gap < 0.0 and Jkp is not None:
                         J[0, :nv] = Jkp[fi, 2]
                     jac.append(J)
         r = np.concatenate(res)
@@ -491,9 +493,10 @@ class TrackResult:
     ctrl: np.ndarray  # (H, nu) joint torques, actuator order
     contact: np.ndarray  # (H + 1, 4) bool: feet touching the floor in the rollout
     keypoints: np.ndarray  # (H + 1, 16, 3)
-    fell: bool  # the trunk, a hip or a thigh touched the floor, or the base sank below 40 % of standing height
+    fell: bool  # the trunk, a hip or a thigh touched the floor, or the base sank below half its standing height
     cost: float
     cost_history: list[float] = field(default_factory=list)
+    fall_fraction: float = 1.0  # share of the horizon done before the first fall (1: did not fall)
     iterations: int = 0
     wall_time_s: float = 0.0
     derivative_time_s: float = 0.0
@@ -654,20 +657,25 @@ class MotionTracker:
         contact = np.zeros((H + 1, 4), dtype=bool)
         kps = np.zeros((H + 1, 16, 3))
         fell = False
+        fall_k = H
         for k in range(H + 1):
             mujoco.mj_forward(m, d)
             qpos[k], qvel[k] = d.qpos, d.qvel
             kps[k] = self.keypoints.positions(d)
             c, f = self._contacts(d)
             contact[k] = c
+            if f and not fell:
+                fall_k = k
             fell = fell or f
             if k < H:
                 dyn.step(d, U[k])
                 if not np.all(np.isfinite(d.qpos)):
                     qpos[k + 1:], qvel[k + 1:], kps[k + 1:] = qpos[k], 0.0, kps[k]
+                    fall_k = k if not fell else fall_k
                     fell = True
                     break
-        return TrackResult(self.dt_s, qpos, qvel, np.asarray(U).copy(), contact, kps, fell, cost=float("nan"))
+        return TrackResult(self.dt_s, qpos, qvel, np.asarray(U).copy(), contact, kps, fell, cost=float("nan"),
+                           fall_fraction=(fall_k / H if fell and H else 1.0))
 
     def fallen(self, snap: tuple) -> bool:
         """The trunk, a hip or a thigh touches the floor in state ``snap``."""

@@ -111,7 +111,8 @@ def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: 
     target = deformed_target(robot, qpos, contact, fps, deformation, tracker)
     result = tracker.track(target, cancel=cancel)
     score = tmr_score(result.qpos, result.contact, target.qpos, target.contact, np.asarray(log2_alpha), result.fell,
-                      settings.w_contact, settings.w_alpha)
+                      settings.w_contact, settings.w_alpha, result.fall_fraction)
+    score["fell_at_s"] = round(result.fall_fraction * target.horizon * tracker.dt_s, 3) if result.fell else None
     return Evaluation(np.asarray(log2_alpha, float), score, result.fell,
                       tracking_error_mm(result.keypoints, target.keypoints), target.horizon * tracker.dt_s,
                       result.qpos, result.qvel, result.ctrl, result.contact, target.contact, result.keypoints,
@@ -160,7 +161,7 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
         "robot": motion.robot, "segments": settings.segments, "alpha": [round(a, 4) for a in alpha],
         "duration_s": {"before": round((len(qpos) - 1) / fps, 4), "after": round(best.duration_s, 4)},
         "bo_evaluations": bo.evaluations, "bo_converged": bo.converged, "score": round(best.score["score"], 5),
-        "replay_fell": bool(best.fell), "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
+        "replay_fell": bool(best.fell), "replay_fell_at_s": best.score["fell_at_s"], "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
         "dtw_vs_kinematic_pct": None if not np.isfinite(dtw_smr) else round(dtw_smr, 3),
         "tracking_error_mm": round(best.tracking_error_mm, 2), "contact_iou": round(best.score["contact_iou"], 4),
         "base_l1_m": round(best.score["d_b_m"], 5), "euler_l1_rad": round(best.score["d_E_rad"], 5),
@@ -168,6 +169,7 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
     }
     out.metrics = {**summary}
     evaluations = [{"alpha": [round(2.0 ** float(v), 4) for v in x], "score": round(s, 5), "replay_fell": bool(ev.fell),
+                    "fell_at_s": ev.score["fell_at_s"],
                     "tracking_error_mm": round(ev.tracking_error_mm, 2), "duration_s": round(ev.duration_s, 3),
                     "wall_time_s": round(ev.wall_time_s, 1)}
                    for (x, s), ev in zip(bo.history, bo.payloads)]
