@@ -242,7 +242,7 @@ class EngineCore:
             bad = getattr(session.source, "bad", 0)
             if bad > self._puppet_bad_seen and t - self._puppet_notice_t >= 2.0:  # at most one notice per 2 s
                 self._puppet_bad_seen, self._puppet_notice_t = bad, t
-                self.emit(msg.Notice("warning", _one_line(f"Puppeteer: {session.source.last_error} "
+                self.emit(msg.Notice("warning", _one_line(f"Puppeteer: {getattr(session.source, 'last_error', '')} "
                                                           f"({bad} bad datagrams ignored)")))
 
     def _start_walking(self) -> None:

@@ -204,7 +204,7 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
     sim = Simulation(model, walker)
     session = PuppetSession(arms, source, tuple(ctx.upper_joints))
     ub, cm = arms.ub, arms.capsules
-    mj_index = np.array([model.joint_names.index(j) for j in ub.joint_names])
+    mj_index = np.array([model.joint_names.index(j) for j in ub.joint_names])  # into sim.joint_positions()
     worst = np.inf
     collided = 0
     checks = 0
@@ -220,7 +220,7 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
             if x is not None:
                 walker.set_arm_target(session.index, x, t, 1.0 / session.rate_hz)
             if t >= settle_s:
-                d = cm.min_signed_distance(sim.data.qpos[7 + mj_index])
+                d = cm.min_signed_distance(sim.joint_positions()[mj_index])
                 worst = min(worst, d)
                 collided += d < 0.0
                 checks += 1
