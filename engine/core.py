@@ -12,7 +12,8 @@ velocity, paper §6.1). Quadrupeds and source skeletons only stand / are shown.
 from __future__ import annotations
 
 import math
-from typing import Callable
+import time
+from typing import TYPE_CHECKING, Callable
 
 import mujoco
 import numpy as np
@@ -23,10 +24,19 @@ from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel, load_robot
 from engine.sim import CONTROL_PERIOD_S, Simulation, standing_controller
 
+if TYPE_CHECKING:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.kinematic_preview import KinematicPreview
+    from engine.gait.style import Style, StyleContext
+    from engine.retarget.humanoid_arm.puppet_session import PuppetSession
+    from engine.walk_recording import WalkRecorder
+
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
-MODES = ("stand", "test", "edit")
+MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
+RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
+RUNS_DIR = "runs"  # recordings, in the motion library
 
 
 class EngineCore:
@@ -43,15 +53,19 @@ class EngineCore:
         self.mode = "stand"
         self.edit_sample = "in_place"
         self.velocity_command = np.zeros(3)
-        self.style = None
-        self.ctx = None
-        self.walker = None
-        self.ghost = None
+        self.style: Style | None = None
+        self.ctx: StyleContext | None = None
+        self.walker: WalkingController | None = None
+        self.ghost: KinematicPreview | None = None
         self.ghost_q: np.ndarray | None = None
+        self.puppet: PuppetSession | None = None  # in puppet mode
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
         self.style_revision = 0
         self._pending_revision: int | None = None
+        self.recorder: WalkRecorder | None = None  # while the Record button is on
+        self._record_request = ""
+        self._record_name = ""
         from engine.jobs import JobRunner
 
         self.jobs = JobRunner()  # long jobs (retargeting, ...) on worker threads; the loop drains their events
@@ -59,6 +73,9 @@ class EngineCore:
 
     # ------------------------------------------------------------------ robot
     def load(self, name: str) -> None:
+        self._close_puppet()
+        if self.recorder is not None:
+            self._stop_recording()  # what was recorded of the previous robot is kept
         self.robot = load_robot(name)
         self.style = self.ctx = self.walker = self.ghost = None
         self.ghost_q = None
@@ -142,6 +159,12 @@ class EngineCore:
             self.jobs.start(command.job, command.params, command.job_id)
         elif isinstance(command, msg.CancelJob):
             self.jobs.cancel(command.job_id)
+        elif isinstance(command, msg.SetRecording):
+            self._record_request = str(command.request_id)
+            if command.recording:
+                self._start_recording(str(command.name))
+            elif self.recorder is not None:
+                self._stop_recording()
         else:
             raise ValueError(f"not supported by this engine yet: {command.kind}")
 
@@ -166,6 +189,10 @@ class EngineCore:
             raise ValueError(f"mode: expected one of {', '.join(MODES)}, got {mode!r}")
         if mode != "stand" and (self.sim is None or self.style is None):
             raise ValueError(f"{self.robot.name} has no walking style: it can only stand")
+        if mode == "puppet":
+            self._start_puppet(options)
+            return
+        self._close_puppet()
         sample = options.get("sample", self.edit_sample)
         from engine.gait.velocity_sampler import SAMPLE_NAMES
 
@@ -182,16 +209,61 @@ class EngineCore:
         else:
             self._start_walking()
 
+    def _start_puppet(self, options: dict) -> None:
+        from engine.retarget.humanoid_arm.puppet_session import LIVE_CLEARANCE_M, PuppetSession, open_source
+        from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+
+        arms = ArmRetargeter.load(self.robot.name, clearance_m=LIVE_CLEARANCE_M)  # ValueError: no weights
+        source = open_source(options)
+        self._close_puppet()
+        assert self.ctx is not None  # a walking robot has its style context
+        self.puppet = PuppetSession(arms, source, tuple(self.ctx.upper_joints))
+        self._puppet_bad_seen, self._puppet_notice_t = 0, -1e9
+        self.mode = "puppet"
+        self._start_walking()
+        self.emit(msg.Notice("info", f"Puppeteer: {self.robot.name}'s arms follow {source.name}"))
+
+    def _close_puppet(self) -> None:
+        if self.puppet is not None:
+            self.puppet.close()
+            self.puppet = None
+
+    def _puppet_tick(self) -> None:
+        from engine.retarget.humanoid_arm.puppet_session import PuppetWalkingController
+
+        walker, session = self.walker, self.puppet
+        assert self.sim is not None and session is not None and isinstance(walker, PuppetWalkingController)
+        t = self.sim.time_s
+        walker.set_clock(t)
+        if session.due(t):
+            x = session.step(t)
+            if x is not None:
+                walker.set_arm_target(session.index, x, t, 1.0 / session.rate_hz)
+            bad = getattr(session.source, "bad", 0)
+            if bad > self._puppet_bad_seen and t - self._puppet_notice_t >= 2.0:  # at most one notice per 2 s
+                self._puppet_bad_seen, self._puppet_notice_t = bad, t
+                self.emit(msg.Notice("warning", _one_line(f"Puppeteer: {session.source.last_error} "
+                                                          f"({bad} bad datagrams ignored)")))
+
     def _start_walking(self) -> None:
         from engine.control.walking_controller import WalkingController
         from engine.gait.kinematic_preview import KinematicPreview
 
-        assert self.sim is not None and self.style is not None
-        self.walker = WalkingController(self.robot, self.style, ctx=self.ctx)
+        assert self.sim is not None and self.style is not None and self.ctx is not None
+        if self.mode == "puppet" and self.puppet is not None:
+            from engine.retarget.humanoid_arm.puppet_session import puppet_walking_controller
+
+            self.walker = puppet_walking_controller(self.robot, self.style, ctx=self.ctx)
+            self.puppet.arms.reset()
+            self.puppet.next_t_s = None
+        else:
+            self.walker = WalkingController(self.robot, self.style, ctx=self.ctx)
         self.sim.set_controller(self.walker)
         self.ghost = KinematicPreview(self.robot, self.ctx.upper_joints)
 
     def command_now(self) -> np.ndarray:
+        if self.mode == "puppet":
+            return np.zeros(3)
         if self.mode == "edit" and self.style is not None:
             return np.array(self.style.velocities.velocity_of(self.edit_sample))
         return self.velocity_command
@@ -211,12 +283,17 @@ class EngineCore:
         assert self.sim is not None
         if self.walker is not None:
             self.walker.set_command(self.command_now())
+            if self.puppet is not None:
+                self._puppet_tick()
         self.sim.step()
         self._ticks += 1
         if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
             self.style_revision, self._pending_revision = self._pending_revision, None
-        if self.walker is not None and self._ticks % GHOST_EVERY_TICKS == 0:
+        recording = self.recorder is not None and self.walker is not None and self._ticks % RECORD_EVERY_TICKS == 0
+        if self.walker is not None and (self._ticks % GHOST_EVERY_TICKS == 0 or recording):
             self._update_ghost()
+        if recording:
+            self._record_frame()
         if self.sim.fallen:
             if self._fallen_at_s is None:
                 self._fallen_at_s = self.sim.time_s
@@ -234,6 +311,48 @@ class EngineCore:
             self._ghost_data = mujoco.MjData(self.robot.mj_model)
         self._ghost_data.qpos[:] = self.robot.mj_qpos_from_pin(self.ghost_q)
         mujoco.mj_kinematics(self.robot.mj_model, self._ghost_data)
+
+    # ------------------------------------------------------------------ recording (the Record button)
+    def _start_recording(self, name: str) -> None:
+        from engine.motion_files import check_name
+        from engine.walk_recording import WalkRecorder
+
+        if self.sim is None or self.style is None:
+            raise ValueError(f"{self.robot.name} does not walk: nothing to record")
+        if name:
+            check_name(name)
+        self._record_name = name or time.strftime("run-%Y%m%d-%H%M%S")
+        fps = 1.0 / (RECORD_EVERY_TICKS * CONTROL_PERIOD_S)
+        self.recorder = WalkRecorder(self.robot, self.style.name, fps, command_text=f"studio {self.mode} mode")
+        self.emit(msg.Notice("info", f"recording {self._record_name} (Test or Edit mode walks are recorded)"))
+
+    def _record_frame(self) -> None:
+        rec, walker, sim = self.recorder, self.walker, self.sim
+        if rec is None or walker is None or sim is None or self._ghost_data is None or walker.ref is None:
+            return
+        data = sim.data
+        rec.add(sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
+        if rec.full:
+            self.emit(msg.Notice("warning", f"recording reached its {rec.max_frames / rec.fps:.0f} s limit: saved"))
+            self._stop_recording()
+
+    def _stop_recording(self) -> None:
+        from engine.motion_files import confined, motions_root
+        from engine.walk_recording import save_run
+
+        rec, self.recorder = self.recorder, None
+        rel = f"{RUNS_DIR}/{self._record_name}.npz"
+        try:
+            if rec is None or rec.frames == 0:
+                raise ValueError("nothing was recorded (the robot must walk: Test or Edit mode)")
+            root = motions_root()
+            save_run(confined(root, rel), rec.arrays())
+            result = {"ok": True, "path": rel, "frames": rec.frames, "fps": rec.fps,
+                      "duration_s": round(rec.duration_s, 2)}
+        except (OSError, ValueError) as exc:
+            result = {"ok": False, "error": _one_line(f"{rel}: {exc}")}
+        self.emit(msg.JobProgress("record", 1.0, "saved" if result["ok"] else "failed", result=result,
+                                  job_id=self._record_request))
 
     def frame(self) -> msg.Frame:
         self.seq += 1
@@ -278,16 +397,37 @@ class EngineCore:
                 fb = tel.feedback
                 signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
                                                 fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
-            if len(ref.upper_q):
+            if len(ref.upper_q) and self.ctx is not None:
                 j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
                 idx = self.robot.joint_names.index(self.ctx.upper_joints[j])
                 signals["arm_joint"] = np.array([ref.upper_q[j], q[idx]])
+            if self.puppet is not None:
+                self._puppet_signals(signals, q)
             if self.ghost_q is not None and self._ghost_data is not None:
                 signals["ghost_body_pos"] = self._ghost_data.xpos[1:].copy()
                 signals["ghost_body_quat"] = self._ghost_data.xquat[1:].copy()
         return msg.Telemetry(self.sim.time_s, {k: np.asarray(v, dtype=np.float32) for k, v in signals.items()})
 
+    def _puppet_signals(self, signals: dict, q: np.ndarray) -> None:
+        """The Puppeteer's status, its source pose and the simulated arms' capsule distances."""
+        session = self.puppet
+        if session is None:
+            return
+        st = session.stats.summary()
+        src = session.source
+        signals["puppet"] = np.array([st["frames"], st["inference_us_median"], st["inference_us_p99"],
+                                      getattr(src, "received", st["frames"]), getattr(src, "bad", 0),
+                                      st["graph"], st["hold"]])
+        if session.pose15 is not None:
+            signals["puppet_pose15"] = session.pose15
+        if session.x is not None:
+            signals["puppet_q"] = session.x  # LWL2's output, in session.arms.joint_names order
+        cm = session.arms.capsules
+        measured = q[[self.robot.joint_names.index(j) for j in session.arms.joint_names]]
+        signals["puppet_capsule_distance"] = cm.signed_distances(measured)
+
     def _base_yaw(self) -> float:
+        assert self.sim is not None
         q = self.sim.data.qpos
         return math.atan2(2 * (q[3] * q[6] + q[4] * q[5]), 1 - 2 * (q[5] ** 2 + q[6] ** 2))
 

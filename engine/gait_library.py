@@ -8,6 +8,8 @@ A library is a folder::
     DIR/cells/<cell>/summary.json    the walk's figures; written last: its presence marks the cell done
     DIR/index.json                   every finished cell with its figures and file paths
     DIR/summary.png                  the velocity grid coloured by fell / stance slip / tracking error
+    DIR/exports/<format>/<cell>_<take>.<ext>   with ``export_formats``: each cell's simulated walk and its
+                                     reference in the learning formats (engine/export/), resampled to ``fps``
 
 Each cell's command ramps from standing to its velocity in ``RAMP_S`` and holds it. Cells run as
 Ray tasks (a local Ray by default, ``address`` for a cluster); workers return the recordings as
@@ -36,6 +38,7 @@ AXES = ("vx", "vy", "wz")
 AXIS_UNITS = {"vx": "m/s", "vy": "m/s", "wz": "rad/s"}
 RAMP_S = 1.5  # command ramp from standing to the cell's velocity
 MAX_POINTS_PER_AXIS = 101
+MIN_SPACING = 0.002  # m/s or rad/s between grid points: cell folders name velocities to 0.001, so they stay unique
 SCHEMA = "motion-studio/gait-library"
 RAY_START_ATTEMPTS = 3
 SLIP_LIMIT_MM = 2.0  # the stack's stance-slip goal: above it a cell is marked as slipping
@@ -124,6 +127,9 @@ def parse_grid(text: str) -> Grid:
             raise GridError(f"--grid: {name}: one point needs LO = HI, got {low:g}:{high:g}:1")
         if count > 1 and low == high:
             raise GridError(f"--grid: {name}: {count} points need LO < HI, got {low:g}:{high:g}")
+        if count > 1 and (high - low) / (count - 1) < MIN_SPACING:
+            raise GridError(f"--grid: {name}: expected points at least {MIN_SPACING:g} apart, got {count} points "
+                            f"over {low:g}:{high:g}; use fewer points or a wider range")
         axes[name] = Axis(name, low, high, count)
     full = tuple(axes.get(n, Axis(n, 0.0, 0.0, 1)) for n in AXES)
     return Grid(full)  # type: ignore[arg-type]
@@ -139,7 +145,7 @@ def cell_id(velocity: Iterable[float]) -> str:
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle
     return buf.getvalue()
 
 
@@ -147,17 +153,6 @@ def cell_schedule(velocity: tuple[float, float, float]):
     from engine.gait.command_schedule import from_keyframes
 
     return from_keyframes([[0.0, 0.0, 0.0, 0.0], [RAMP_S, *map(float, velocity)]], "gait library")
-
-
-def mujoco_joint_names(robot) -> list[str]:  # noqa: ANN001 - RobotModel
-    """Names of qpos[7:] in MuJoCo order (the free joint excluded)."""
-    import mujoco
-
-    names = []
-    for j in range(robot.mj_model.njnt):
-        if robot.mj_model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
-            names.append(robot.mj_model.joint(j).name)
-    return names
 
 
 def run_cell(robot_name: str, style_doc: dict, velocity: tuple[float, float, float], duration_s: float) -> dict:
@@ -172,11 +167,8 @@ def run_cell(robot_name: str, style_doc: dict, velocity: tuple[float, float, flo
     schedule = cell_schedule(velocity)
     t0 = time.perf_counter()
     reference = run_plan(robot, style, schedule, duration_s)
-    summary, simulated = run_walk(robot, style, schedule, duration_s, record=True)
-    simulated["joint_names"] = np.array(mujoco_joint_names(robot), dtype=str)  # qpos[7:] order
-    simulated["robot"] = np.array(robot.name)
-    simulated["style"] = np.array(style.name)
-    simulated["fps"] = np.array(1.0 / (4 * float(robot.mj_model.opt.timestep)))  # recorded every 4th tick
+    summary, simulated = run_walk(robot, style, schedule, duration_s, record=True, record_reference=True,
+                                  command_text=",".join(f"{v:g}" for v in velocity))  # a walk-run file
     summary = {**summary, "command": [float(v) for v in velocity], "cell_wall_time_s": round(time.perf_counter() - t0, 3)}
     return {"summary": summary, "reference": _npz_bytes(reference), "simulated": _npz_bytes(simulated)}
 
@@ -226,6 +218,34 @@ class LibraryRun:
         atomic_write_bytes(folder / "simulated.npz", result["simulated"])
         atomic_write_text(folder / "summary.json", json.dumps(result["summary"], indent=1))  # last: marks done
 
+    def export_path(self, velocity, fmt: str, take: str) -> Path:
+        from engine.export import SUFFIXES
+
+        return self.out / "exports" / fmt / f"{cell_id(velocity)}_{take}{SUFFIXES[fmt][0]}"
+
+    def export_cells(self, formats: Iterable[str], fps: float | None = None) -> int:
+        """Every finished cell's takes in ``formats`` (files already written are kept: resumable).
+        Returns how many files were written."""
+        from engine.export import export_motion
+        from engine.retarget.motion import MotionFormatError
+        from engine.walk_recording import TAKES, load_run_motion
+
+        written = 0
+        for velocity in self.grid.velocities():
+            if not self.finished(velocity):
+                continue
+            for take in TAKES:
+                try:
+                    motion = load_run_motion(self.cell_dir(velocity) / "simulated.npz", take)
+                except MotionFormatError:
+                    continue  # a cell of an older library has no reference take
+                for fmt in formats:
+                    path = self.export_path(velocity, fmt, take)
+                    if not path.is_file():
+                        export_motion(motion, fmt, path, fps=fps)
+                        written += 1
+        return written
+
     def index(self) -> dict:
         cells = []
         for velocity in self.grid.velocities():
@@ -240,14 +260,17 @@ class LibraryRun:
                 "velocity_rmse": s["velocity_rmse"], "distance_m": s["distance_m"],
                 "wall_time_s": s.get("cell_wall_time_s"),
                 "reference": str(rel / "reference.npz"), "simulated": str(rel / "simulated.npz"),
+                "exports": sorted(str(p.relative_to(self.out)) for p in (self.out / "exports").glob(
+                    f"*/{cell_id(velocity)}_*") if p.is_file()),
             })
         return {**self.meta, "cells_total": len(self.grid.velocities()), "cells_done": len(cells), "cells": cells}
 
 
 def run_library(run: LibraryRun, address: str | None = None, workers: int | None = None,
-                progress: Callable[[int, int, int], None] | None = None) -> dict:
-    """Run every unfinished cell on Ray; write the index and the summary figure. Returns the index
-    plus ``skipped``/``ran`` counts and the wall time."""
+                progress: Callable[[int, int, int], None] | None = None,
+                export_formats: Iterable[str] = (), export_fps: float | None = None) -> dict:
+    """Run every unfinished cell on Ray; export the cells in ``export_formats``; write the index and
+    the summary figure. Returns the index plus ``skipped``/``ran``/``exported`` counts and the wall time."""
     run.check_folder()
     run.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(run.out / "library.json", json.dumps(run.meta, indent=1))
@@ -262,6 +285,7 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
         import ray
 
         repo = str(Path(__file__).resolve().parents[1])
+        runtime_env: dict[str, object]
         if address:
             runtime_env = {"working_dir": repo, "excludes": [".venv", ".git", "docs", "tests", "*.npz"]}
         else:
@@ -293,13 +317,14 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
         finally:
             if started_here:
                 ray.shutdown()
+    exported = run.export_cells(export_formats, export_fps) if export_formats else 0
     wall = time.perf_counter() - t0
     index = run.index()
     index["wall_time_s"] = round(wall, 2)
     index["workers"] = workers
     atomic_write_text(run.out / "index.json", json.dumps(index, indent=1))
     write_summary_png(index, run.out / "summary.png")
-    return {**index, "ran": done, "skipped": skipped}
+    return {**index, "ran": done, "skipped": skipped, "exported": exported}
 
 
 def _start_ray(ray, runtime_env: dict, kwargs: dict, attempts: int = RAY_START_ATTEMPTS) -> None:  # noqa: ANN001

@@ -13,7 +13,8 @@ Jobs (all paths relative to the motion library, :mod:`engine.motion_files`):
   name, uvm_ghost} → writes ``<robot>/<name>.npz`` (and ``<robot>/<name>.uvm.npz``, the UVM comparison, for smr)
   → {path, metrics, playback}
 * ``import``    {root: "shared"|"motions", path, name} → writes ``source/<name>.npz`` → {path, frames, fps}
-* ``export``    {motion, format: amp-json|unitree-csv|npz, amp_full} → writes ``exports/<stem>.<ext>`` → {path}
+* ``export``    {motion, format: amp-json|unitree-csv|beyondmimic-npz|npz, amp_full, fps?, take?: simulated|reference}
+  → writes ``exports/<stem>.<ext>`` → {path, frames, fps}
 * ``poses``     {motion, source?, ghost?} → {playback} (nothing written)
 
 ``playback`` holds what a viewer needs to show a motion without any kinematics of its own: the robot's body poses
@@ -39,7 +40,7 @@ from engine.motion_files import (
 
 JOBS = ("retarget", "import", "export", "poses")
 DEMO_SOURCES = {"demo:trot": "synthetic trot (a1 proportions, 2 s, 30 fps)"}
-EXPORT_SUFFIX = {"amp-json": ".json", "unitree-csv": ".csv", "npz": ".npz"}
+EXPORT_SUFFIX = {"amp-json": ".json", "unitree-csv": ".csv", "beyondmimic-npz": ".npz", "npz": ".npz"}
 PROGRESS_PERIOD_S = 0.1  # at most ten progress events a second per job
 
 
@@ -257,13 +258,29 @@ class JobRunner:
         if fmt not in FORMATS:
             raise JobError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
         src = confined(self.root, str(params.get("motion", "")))
-        motion = RobotMotion.load(src)
+        take = str(params.get("take", "simulated"))
+        fps = params.get("fps")
+        if fps is not None:
+            from engine.export.resample import check_fps
+
+            try:
+                fps = check_fps(fps)
+            except ValueError as exc:
+                raise JobError(str(exc).replace("--fps", "fps")) from None
+        if take == "simulated":
+            motion = RobotMotion.load(src)
+        else:
+            from engine.walk_recording import load_run_motion
+
+            motion = load_run_motion(src, take)
         amp_full = bool(params.get("amp_full", False))
-        stem = f"{motion.robot}_{src.stem}" + ("_full" if amp_full and fmt == "amp-json" else "")
+        stem = (f"{motion.robot}_{src.stem}" + ("_full" if amp_full and fmt == "amp-json" else "")
+                + ("" if take == "simulated" else f"_{take}") + (f"_{fps:g}fps" if fps is not None else ""))
         out = confined(self.root, f"{EXPORTS_DIR}/{check_name(stem)}{EXPORT_SUFFIX[fmt]}")
         report(0.5, f"exporting {fmt}")
-        export_motion(motion, fmt, out, amp_full=amp_full)
-        return {"path": str(out.relative_to(self.root.resolve())), "format": fmt}
+        written = export_motion(motion, fmt, out, amp_full=amp_full, fps=fps)
+        return {"path": str(out.relative_to(self.root.resolve())), "format": fmt, "frames": written.frames,
+                "fps": written.fps}
 
     def _job_poses(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
         from engine.retarget.motion import KeypointMotion, RobotMotion

@@ -104,12 +104,23 @@ class CancelJob:
 
 
 @dataclass(frozen=True)
+class SetRecording:
+    """Start (``recording``) or stop the recording of the walk; on stop the engine writes
+    ``runs/<name>.npz`` in the motion library and answers with ``JobProgress(job="record", result=…)``."""
+
+    recording: bool
+    name: str = ""
+    request_id: str = ""
+    kind: str = "set_recording"
+
+
+@dataclass(frozen=True)
 class Shutdown:
     kind: str = "shutdown"
 
 
 Command = (Reset | SetPaused | ApplyPush | SwitchRobot | SetVelocityCommand | SetStyle | SetMode | SetPlaybackSpeed
-           | StartJob | CancelJob | Shutdown)
+           | StartJob | CancelJob | SetRecording | Shutdown)
 
 # ------------------------------------------------------------------ events (engine → studio)
 

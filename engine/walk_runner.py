@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -70,8 +71,13 @@ class ContactMeter:
 
 
 def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duration_s: float,
-             pushes: list[PushSpec] = (), wbc: str = "paper", state_source: str = "truth",
-             feedback: bool = True, record: bool = True) -> tuple[dict, dict[str, np.ndarray]]:
+             pushes: Sequence[PushSpec] = (), wbc: str = "paper", state_source: str = "truth",
+             feedback: bool = True, record: bool = True, record_reference: bool = False,
+             command_text: str | None = None) -> tuple[dict, dict[str, np.ndarray]]:
+    """Walk ``duration_s`` of simulated time; returns the summary and, with ``record``, the walk-run
+    arrays (engine/walk_recording.py: a RobotMotion plus the analysis arrays, every 4th tick).
+    ``record_reference`` adds ``reference_qpos``: the kinematic preview of the gait reference at each
+    recorded instant (whole-body IK, the studio's ghost; costs one IK solve per recorded frame)."""
     controller = WalkingController(robot, style, wbc=wbc, state_source=state_source, feedback=feedback)
     sim = Simulation(robot, controller)
     if state_source == "estimated":
@@ -89,7 +95,13 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
                                             "foot_pos", "foot_ref", "kappa", "step_adjust", "velocity_adjust",
                                             "sample_weights", "base_vel_body", "external_force",
                                             "pelvis_height_ref", "pelvis_height_achieved", "pelvis_yaw_ref",
-                                            "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved")}
+                                            "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved",
+                                            "reference_qpos")}
+    preview = None
+    if record and record_reference:
+        from engine.gait.kinematic_preview import KinematicPreview
+
+        preview = KinematicPreview(robot, controller.ctx.upper_joints)
     # The paper's Fig. 14 tracking quantities: pelvis height, pelvis yaw and an elbow.
     upper = list(controller.ctx.upper_joints)
     elbow = next((j for j in upper if "elbow" in j and "left" in j), next((j for j in upper if "elbow" in j), None))
@@ -128,6 +140,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             fell, fall_time = True, sim.time_s
             break
         ref = controller.ref
+        assert ref is not None  # the controller has planned once it has stepped
         data = sim.data
         xy = data.qpos[:2]
         path_len += float(np.linalg.norm(xy - last_xy))
@@ -163,7 +176,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         # plus a landing foot from the moment it touches down a few ms early).
         cop, fz = meter.cop(data)
         if cop is not None and fz > 0.2 * robot.mass_kg * GRAVITY_MPS2:
-            support = controller.wbc_contact.any(axis=1)  # the feet the controller stands on
+            support = np.asarray(controller.wbc_contact.any(axis=1))  # the feet the controller stands on
             corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
             if corners:
                 cop_checks += 1
@@ -194,6 +207,9 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["pelvis_yaw_achieved"].append(yaw)
             rec["elbow_ref"].append(float(ref.upper_q[elbow_ref_index]) if elbow_ref_index is not None else math.nan)
             rec["elbow_achieved"].append(float(data.qpos[elbow_qpos]) if elbow_qpos is not None else math.nan)
+            if preview is not None:
+                com_xy = controller.plan.com_at(ref.t_s)[0] if controller.plan is not None else data.subtree_com[root][:2]
+                rec["reference_qpos"].append(robot.mj_qpos_from_pin(preview.solve(ref, np.asarray(com_xy))))
     wall = time.perf_counter() - wall0
     sim_time = sim.time_s
     err = np.array(vel_err) if vel_err else np.zeros((1, 3))
@@ -214,5 +230,11 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         "cop_inside_fraction": round(cop_inside / cop_checks, 5) if cop_checks else None,
         "timing_us": {k: pct(v) for k, v in timings.items()},
     }
+    if preview is None:
+        rec.pop("reference_qpos")
     arrays = {k: np.asarray(v) for k, v in rec.items()}
+    if record:
+        from engine.walk_recording import run_fields
+
+        arrays.update(run_fields(robot, style.name, arrays, summary, 1.0 / (4 * dt), command_text))
     return summary, arrays

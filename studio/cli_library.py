@@ -22,6 +22,9 @@ def add_parser(sub) -> None:  # noqa: ANN001 - argparse's subparsers action
     lib.add_argument("--out", required=True, help="library folder (created; a second run resumes it)")
     lib.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray)")
     lib.add_argument("--workers", type=int, default=None, help="cells run at once (default: every CPU Ray has)")
+    lib.add_argument("--export", default="", metavar="FMT[,FMT]",
+                     help="also export every cell (simulated and reference) as unitree-csv, beyondmimic-npz, amp-json")
+    lib.add_argument("--fps", type=float, default=None, help="--export: resample to this rate (e.g. 30 or 50)")
     lib.add_argument("--json", action="store_true", help="print the index as JSON at the end")
 
 
@@ -34,6 +37,21 @@ def cmd_library(args: argparse.Namespace) -> int:
         grid = parse_grid(args.grid)
     except GridError as exc:
         raise CliError(str(exc)) from None
+    formats = [f.strip() for f in args.export.split(",") if f.strip()]
+    from engine.export import FORMATS
+
+    for fmt in formats:
+        if fmt not in FORMATS:
+            raise CliError(f"--export: {fmt}: expected formats among {', '.join(FORMATS)}")
+    if args.fps is not None:
+        from engine.export.resample import check_fps
+
+        try:
+            check_fps(args.fps)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        if not formats:
+            raise CliError("--fps: only with --export")
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers: expected at least 1, got {args.workers}")
     args.command = "stand"  # each cell makes its own command; _walk_inputs checks robot, duration, style
@@ -47,7 +65,8 @@ def cmd_library(args: argparse.Namespace) -> int:
     run = LibraryRun(args.robot, style.name, style_to_json_dict(style), grid, float(args.duration), Path(args.out))
     try:
         run.check_folder()
-        index = run_library(run, address=args.address, workers=args.workers, progress=text_progress())
+        index = run_library(run, address=args.address, workers=args.workers, progress=text_progress(),
+                            export_formats=formats, export_fps=args.fps)
     except LibraryError as exc:
         raise CliError(str(exc)) from None
     if args.json:
@@ -56,5 +75,6 @@ def cmd_library(args: argparse.Namespace) -> int:
         fell = sum(c["fell"] for c in index["cells"])
         print(f"{args.out}: {index['cells_done']}/{index['cells_total']} cells ({index['ran']} run, "
               f"{index['skipped']} already done) in {index['wall_time_s']:.1f} s; {fell} fell; "
-              f"index.json and summary.png written")
+              f"index.json and summary.png written"
+              + (f"; {index['exported']} exported files in {args.out}/exports" if formats else ""))
     return 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from studio.cli import CliError
@@ -45,14 +46,17 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     add_tmr_options(ret, prefix="stmr: ")
 
-    exp = sub.add_parser("export", help="export a retargeted robot motion")
-    exp.add_argument("motion", help="a robot motion (.npz from studio retarget)")
+    exp = sub.add_parser("export", help="export a robot motion (studio retarget) or a walk run (studio walk --out)")
+    exp.add_argument("motion", help="a robot motion or walk-run .npz")
     exp.add_argument("--format", required=True, choices=EXPORT_FORMATS)
     exp.add_argument("--out", required=True, help="output file")
     exp.add_argument("--amp-full", action="store_true", help="amp-json: AMP_for_hardware's 61-value frames")
     exp.add_argument("--amp-leg-order", choices=("pybullet", "isaac"), default="pybullet",
                      help="--amp-full legs: pybullet FR, FL, RR, RL (AMP_for_hardware's loader reorders them; default) "
                           "or isaac FL, FR, RL, RR (STMR_RL's loader, whose reorder is commented out)")
+    exp.add_argument("--fps", type=float, default=None, help="resample to this rate (lerp, root slerp), e.g. 30 or 50")
+    exp.add_argument("--take", choices=("simulated", "reference"), default="simulated",
+                     help="walk runs: the simulated walk (default) or the reference it tracked")
 
 
 def _load_source(path: str, fmt: str | None):
@@ -184,13 +188,20 @@ def _mm(value) -> str:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from engine.export import export_motion
-    from engine.retarget.motion import MotionFormatError, RobotMotion
+    from engine.export import SUFFIXES, export_motion
+    from engine.export.resample import check_fps
+    from engine.export.unitree_csv import missing_joints
+    from engine.retarget.motion import MotionFormatError
+    from engine.walk_recording import load_run_motion
 
-    suffix = {"amp-json": (".json", ".txt"), "unitree-csv": (".csv",), "npz": (".npz",)}[args.format]
-    out = _check_out(args.out, suffix)
+    out = _check_out(args.out, SUFFIXES[args.format])
+    if args.fps is not None:
+        try:
+            check_fps(args.fps)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
     try:
-        motion = RobotMotion.load(args.motion)
+        motion = load_run_motion(args.motion, args.take)
     except MotionFormatError as exc:
         raise CliError(str(exc)) from None
     if args.amp_full and args.format != "amp-json":
@@ -206,9 +217,22 @@ def cmd_export(args: argparse.Namespace) -> int:
             raise CliError(f"{Path(args.motion).name}: robot: {exc}") from None
         if kind != "quadruped" or len(motion.joint_names) != 12:
             raise CliError(f"{Path(args.motion).name}: robot: --amp-full expects a 12-joint quadruped, got {motion.robot}")
-    _write(out, lambda path: export_motion(motion, args.format, path, amp_full=args.amp_full,
-                                           amp_leg_order=args.amp_leg_order))
+    if args.format == "beyondmimic-npz":
+        from engine.robot.config import RobotConfigError, load_robot_config
+
+        try:
+            load_robot_config(motion.robot)
+        except RobotConfigError as exc:
+            raise CliError(f"{Path(args.motion).name}: robot: {exc}") from None
+    result: dict = {}
+    _write(out, lambda path: result.setdefault("motion", export_motion(motion, args.format, path,
+                                                                        amp_full=args.amp_full,
+                                                                        amp_leg_order=args.amp_leg_order, fps=args.fps)))
+    written = result["motion"]
+    if args.format in ("unitree-csv", "beyondmimic-npz") and missing_joints(motion):
+        print(f"studio: warning: {Path(args.motion).name}: joints {', '.join(missing_joints(motion))} of "
+              f"Unitree's {motion.robot} order are not in the motion; written as 0", file=sys.stderr)
     print(f"{Path(args.motion).name} → {out} ({args.format}"
           f"{f', 61-value AMP frames, legs {args.amp_leg_order}' if args.amp_full else ''}, "
-          f"{motion.frames} frames at {motion.fps:g} fps)")
+          f"{written.frames} frames at {written.fps:g} fps)")
     return 0

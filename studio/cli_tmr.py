@@ -292,7 +292,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     robots = [r for r in (args.robots or "").split(",") if r]
     for r in robots:
         _quadruped(r)
-    jobs = []
+    jobs: list[tuple[str, str]] = []  # (clip spec, robot)
     for spec in args.clips:
         if spec.startswith("gen:"):
             if not robots:
@@ -337,6 +337,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     if todo:
         from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
 
+        executor: LocalExecutor | RayExecutor
         if args.address is None and args.jobs == 1:
             executor = LocalExecutor()  # one job at a time needs no Ray
         else:

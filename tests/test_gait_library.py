@@ -10,7 +10,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.gait_library import AXES, GridError, LibraryError, LibraryRun, cell_id, parse_grid, run_library
+from engine.gait_library import (
+    AXES,
+    MIN_SPACING,
+    GridError,
+    LibraryError,
+    LibraryRun,
+    cell_id,
+    parse_grid,
+    run_library,
+)
 from tests.conftest import run_studio
 
 finite = st.floats(-2.0, 2.0, allow_nan=False).map(lambda x: round(x, 3))
@@ -20,7 +29,7 @@ finite = st.floats(-2.0, 2.0, allow_nan=False).map(lambda x: round(x, 3))
 def axis_specs(draw):
     low = draw(finite)
     high = draw(finite.filter(lambda h: h > low))
-    count = draw(st.integers(2, 12))
+    count = draw(st.integers(2, 12).filter(lambda n: (high - low) / (n - 1) >= MIN_SPACING))
     return low, high, count
 
 
@@ -44,6 +53,13 @@ def test_grid_has_the_product_of_its_axes_evenly_spaced(specs, present):
         else:
             assert list(values) == [0.0]  # a left-out axis is zero
     assert len({cell_id(v) for v in velocities}) == len(velocities)  # folder names are unique
+
+
+def test_points_closer_than_the_folder_resolution_are_refused():
+    # six points over 4 mm/s would name two cells the same folder (velocities are named to 0.001)
+    with pytest.raises(GridError, match="at least 0.002 apart"):
+        parse_grid("wz=0.121:0.125:6")
+    assert parse_grid("wz=0.12:0.13:6").shape[2] == 6
 
 
 @given(lo=finite, hi=finite, n=st.integers(-3, 0))
@@ -97,6 +113,34 @@ def test_resume_skips_finished_cells_without_starting_ray(tmp_path):
     assert (tmp_path / "lib" / "summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_library_exports_each_cell_in_the_learning_formats_and_resumes(tmp_path):
+    """Finished cells (walk-run files) are exported, simulated and reference takes; a second call keeps them."""
+    from engine.robot.model import load_robot
+    from engine.walk_recording import run_fields, save_run
+
+    robot = load_robot("g1")
+    run = LibraryRun("g1", "neutral", {}, parse_grid("vx=0:0.2:2"), 5.0, tmp_path / "lib")
+    for v in run.grid.velocities():
+        _finish(run, v)
+        qpos = np.tile(robot.mj_standing_qpos(), (25, 1))
+        qpos[:, 0] = np.linspace(0.0, v[0], 25)
+        arrays = {"qpos": qpos, "contact": np.ones((25, 2), bool), "reference_qpos": qpos + 0.001 * (np.arange(36) >= 7)}
+        arrays.update(run_fields(robot, "neutral", arrays, {}, 125.0))
+        save_run(run.cell_dir(v) / "simulated.npz", arrays)
+    formats = ("unitree-csv", "beyondmimic-npz", "amp-json")
+    assert run.export_cells(formats, fps=50.0) == 2 * 2 * 3
+    csv = np.loadtxt(run.export_path((0.2, 0.0, 0.0), "unitree-csv", "reference"), delimiter=",", ndmin=2)
+    # 25 frames at 125 fps span 0.192 s: 10 frames at 50 fps, the last at 0.18 s (x lerped: 0.2 · 0.18 / 0.192)
+    assert csv.shape == (10, 36) and np.isclose(csv[-1, 0], 0.2 * 0.18 / 0.192)
+    with np.load(run.export_path((0.0, 0.0, 0.0), "beyondmimic-npz", "simulated")) as bm:
+        assert bm["fps"].tolist() == [50] and bm["joint_pos"].shape == (10, 29)
+    stamp = run.export_path((0.0, 0.0, 0.0), "amp-json", "simulated").stat().st_mtime_ns
+    assert run.export_cells(formats, fps=50.0) == 0
+    assert run.export_path((0.0, 0.0, 0.0), "amp-json", "simulated").stat().st_mtime_ns == stamp
+    cells = run.index()["cells"]
+    assert len(cells[0]["exports"]) == 6 and all(p.startswith("exports/") for p in cells[0]["exports"])
+
+
 def test_a_folder_of_another_library_is_refused(tmp_path):
     run = LibraryRun("dino", "neutral", {}, parse_grid("vx=0"), 5.0, tmp_path / "lib")
     (tmp_path / "lib").mkdir()
@@ -135,6 +179,9 @@ def test_tiny_library_runs_on_ray_and_resumes(tmp_path):
     (["--grid", "vx=0", "--workers", "0"], "--workers: expected at least 1"),
     (["--grid", "vx=0", "--duration", "-1"], "--duration"),
     (["--grid", "vx=0", "--style", "nope"], "unknown style 'nope'"),
+    (["--grid", "vx=0", "--export", "bvh"], "--export: bvh: expected formats among"),
+    (["--grid", "vx=0", "--export", "amp-json", "--fps", "0"], "--fps: expected 0 < fps"),
+    (["--grid", "vx=0:0.5:0,vy=0"], "--grid: vx: expected at least 1 point"),
 ])
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, args, message):
     out = tmp_path / "lib"

@@ -107,7 +107,7 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
     shared = shared_dir()
     if shared is None:
         return [{"section": "tmr-clips", "note": "shared data folder absent: set MOTION_STUDIO_SHARED"}]
-    executor = LocalExecutor()
+    executor: LocalExecutor | RayExecutor = LocalExecutor()
     if address is not None or parallel > 1:
         try:
             executor = RayExecutor(address=address)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.control.com_mpc import GRAVITY_MPS2
+from engine.constants import GRAVITY_MPS2
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,8 @@ class GaitFeedbackGains:
 
     @classmethod
     def for_robot(cls, name: str) -> "GaitFeedbackGains":
-        gains = cls(time_kp_per_m=3.0, time_kd_s_per_m=0.9, step_gain=0.7) if name == "talos" else cls()
-        return gains.with_config_overrides(name)
+        """The defaults with the robot's ``[control.gait_feedback]`` table (robots/<name>.toml) applied."""
+        return cls().with_config_overrides(name)
 
     def with_config_overrides(self, name: str) -> "GaitFeedbackGains":
         """These gains with robot ``name``'s ``[control.gait_feedback]`` table applied."""

@@ -2,8 +2,8 @@
 
     min ½ xᵀ H x + fᵀ x   s.t.   lb ≤ x ≤ ub,   A_eq x = b_eq,   c_lo ≤ C x ≤ c_up
 
-The CoM MPC (:mod:`engine.control.com_mpc`) and the whole-body QP
-(:mod:`engine.control.inverse_dynamics`) each keep a hand-written dense active-set solver that
+The CoM MPC (:mod:`engine.control.mpc`) and the whole-body QP
+(:mod:`engine.control.wbc`) each keep a hand-written dense active-set solver that
 exploits their structure (Sherman–Morrison on the MPC's rank-one stiff term; closed-form
 elimination of q̈ in the ID). Both QPs can also be handed to a maintained solver through
 :func:`solve`: ``daqp``, ``proxsuite`` (dense ProxQP), ``quadprog`` (Goldfarb–Idnani), ``osqp``

@@ -59,6 +59,23 @@ class ContactPhase:
     polygon: np.ndarray  # (M, 2) counter-clockwise
 
 
+@dataclass(frozen=True)
+class PlannerFeedback:
+    """The controller's input to the planner each tick (paper §7.1, Gait Feedback), passed to
+    :meth:`GaitPlanner.step` rather than written into planner fields.
+
+    ``time_scaling`` is κ (> 1 speeds the gait up); ``step_adjustment_xy_m`` moves the upcoming
+    foothold (world x, y); ``command_goal`` and ``command_rate_limits`` are the command preview:
+    where the joystick is heading and how fast the command may change (m/s², m/s², rad/s²), so
+    footholds ahead are planned along that ramp (None: today's command holds for the preview).
+    """
+
+    time_scaling: float = 1.0
+    step_adjustment_xy_m: np.ndarray | None = None
+    command_goal: np.ndarray | None = None
+    command_rate_limits: np.ndarray | None = None
+
+
 @dataclass
 class GaitReference:
     """The planner output r(t) of Eq. 2 with everything the controller and the studio need."""
@@ -118,6 +135,7 @@ class _Pose:
     rot: np.ndarray
 
 
+_NO_FEEDBACK = PlannerFeedback()
 PATH_TABLE_STEP_S = 0.05
 PATH_TABLE_HORIZON_S = 3.0
 
@@ -138,9 +156,9 @@ class GaitPlanner:
         # re-latching to where it really landed) that moves the path frame with it, so later
         # footholds are planned from the feet the robot stands on rather than a dead-reckoned path.
         self.path_follows_feet = 0.0
-        # Command preview: where the joystick is heading and how fast the command may change
-        # (m/s², m/s², rad/s²). Footholds ahead are then planned along the ramp the command will
-        # follow, not as if today's command held for the whole preview (None: it holds).
+        # Command preview of the last step's PlannerFeedback: where the joystick is heading and how
+        # fast the command may change. Footholds ahead are then planned along the ramp the command
+        # will follow, not as if today's command held for the whole preview (None: it holds).
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -232,9 +250,13 @@ class GaitPlanner:
         return lo <= f < hi
 
     # ------------------------------------------------------------------ stepping
-    def step(self, dt_s: float, command: np.ndarray, kappa: float = 1.0,
-             step_adjustment_xy: np.ndarray | None = None, with_preview: bool = True) -> GaitReference:
-        """Advance by ``dt_s`` under ``command`` (time-scaled by κ) and return r(t)."""
+    def step(self, dt_s: float, command: np.ndarray, feedback: PlannerFeedback | None = None,
+             with_preview: bool = True) -> GaitReference:
+        """Advance by ``dt_s`` under ``command`` and the controller's ``feedback`` (time scaling κ,
+        step adjustment, command preview) and return r(t)."""
+        fb = feedback or _NO_FEEDBACK
+        kappa, step_adjustment_xy = fb.time_scaling, fb.step_adjustment_xy_m
+        self.command_goal, self.command_rate_limits = fb.command_goal, fb.command_rate_limits
         self.command = self.clamp_command(command)
         weights = sample_weights(tuple(self.command), self.style.velocities, self.style.blend_eta)
         fading = self._fade_from is not None

@@ -21,7 +21,7 @@ import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -340,13 +340,15 @@ def _source(where: str, data: dict) -> dict:
     return source
 
 
-def _write_npz(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+def _write_npz(path: str | Path, arrays: Mapping[str, np.ndarray | None]) -> None:
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    present = {k: v for k, v in arrays.items() if v is not None}
+    np.savez_compressed(buf, **present)  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle
     atomic_write_bytes(path, buf.getvalue())
 
 
-def _read_npz(path: str | Path) -> dict[str, np.ndarray]:
+def _read_npz(path: str | Path) -> dict[str, Any]:
+    """The file's arrays, unvalidated (the dataclasses' ``__post_init__`` checks every field)."""
     where = Path(path).name
     try:
         with np.load(path, allow_pickle=False) as f:

@@ -112,11 +112,11 @@ class LegKinematics:
     def reset(self) -> None:
         self._prev_offset = [None] * self.n_feet
 
-    def compute(self, joint_q: FloatArray, joint_qd: FloatArray, quat_xyzw=(0.0, 0.0, 0.0, 1.0),
+    def compute(self, joint_q: FloatArray, joint_qd: FloatArray, quat_wxyz=(1.0, 0.0, 0.0, 0.0),
                 omega_b_radps=(0.0, 0.0, 0.0)) -> FootKinematics:
-        """Contact points for measured joints, base attitude ``quat_xyzw`` and base rate ``omega_b_radps``."""
+        """Contact points for measured joints, base attitude ``quat_wxyz`` (w, x, y, z) and base rate ``omega_b_radps``."""
         q, v = self._q, self._v
-        q[3:7] = quat_xyzw
+        q[3:7] = (quat_wxyz[1], quat_wxyz[2], quat_wxyz[3], quat_wxyz[0])  # pinocchio: x, y, z, w
         q[7:] = joint_q
         v[3:6] = omega_b_radps
         v[6:] = joint_qd

@@ -1,6 +1,6 @@
 """placo's DynamicsSolver behind the whole-body controller interface (peer and fallback).
 
-Same reference (:class:`~engine.control.inverse_dynamics.WbcReference`), same tracked
+Same reference (:class:`~engine.control.wbc.WbcReference`), same tracked
 quantities and gains as our task-space ID, same joint set-point integration, so the two
 can be swapped and measured against each other:
 

@@ -155,6 +155,7 @@ def rollout(dyn: MjDynamics, cost: StageCost, x0: tuple, U: np.ndarray, data: mu
         mujoco.mj_forward(m, data)
         u = U[k].copy()
         if nominal is not None:
+            assert k_ff is not None and K is not None  # a closed-loop pass has its gains
             dx = dyn.state_difference(nominal[k], states[k])
             u = u + step_size * k_ff[k] + K[k] @ dx
         u = np.clip(u, dyn.u_lower, dyn.u_upper)
@@ -249,12 +250,13 @@ def ilqr(dyn: MjDynamics, cost: StageCost, x0: tuple, U0: np.ndarray, settings: 
         for k in range(len(U) + 1):
             dyn.restore(data, states[k])
             mujoco.mj_forward(dyn.model, data)
+            A: np.ndarray | None = None  # the terminal step has no dynamics
+            B: np.ndarray | None = None
             if k < len(U):
                 l, lx, lu, lxx, luu, lux = cost.expand(k, data, U[k])
                 A, B = dyn.derivatives(states[k], U[k])
             else:
                 l, lx, lu, lxx, luu, lux = cost.expand(k, data, None)
-                A = B = None
             derivs.append((l, lx, lu, lxx, luu, lux, A, B))
             if cancel is not None and k % 20 == 0 and cancel():
                 raise Cancelled()
@@ -443,7 +445,7 @@ class TrackingCost:
                 wts.append(np.array([w.foot_clearance_in_swing]))
                 if with_jac:
                     J = np.zeros((1, nx))
-                    if gap < 0.0:
+                    if gap < 0.0 and Jkp is not None:
                         J[0, :nv] = Jkp[fi, 2]
                     jac.append(J)
         r = np.concatenate(res)

@@ -139,7 +139,7 @@ GRAVITY_MPS2 = 9.81
 def flight_intervals(contact: np.ndarray) -> list[tuple[int, int]]:
     """(take-off, landing) sample pairs around every run of samples with no foot in contact; the take-off is the
     last sample with contact before the run, the landing the first after it (runs at either end are skipped)."""
-    air = ~np.asarray(contact, dtype=bool).any(axis=1)
+    air = np.asarray(~np.asarray(contact, dtype=bool).any(axis=1))
     out = []
     k = 0
     n = len(air)
