@@ -7,7 +7,7 @@ times. A local Ray that does not start (a loaded machine can miss raylet's start
 so; the in-process row is then the serial figure.
 
 ``tmr-clips`` (minutes per clip; only when asked for) — the paper's six clips (§VIII-C, Table II/Fig. 6) × go1
-and a1: SMR's motion tracked as it is (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
+and a1: UVM's and SMR's motions tracked as they are (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
 falls or not, DTW-normalised keypoint L1 (%) against SMR's motion at its frames (the same measure for both;
 STMR's against its own re-timed target too), tracking error (mm) against the motion each tracked, plus α and
 the durations, and the wall time of each stage.
@@ -123,6 +123,7 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
             smr = retarget_detailed(src, robot, "smr").motion
             t_smr = time.perf_counter() - t0
             tracked = track_motion(smr, settings)  # one inner solve at α = 1: SMR's motion as it is
+            uvm = track_motion(retarget_detailed(src, robot, "uvm").motion, settings)  # UVM's, the same way
             t0 = time.perf_counter()
             res = temporal_retarget(smr, settings, executor=executor)
             t_tmr = time.perf_counter() - t0
@@ -130,6 +131,8 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
             paper = PAPER_TABLE_II.get((robot, clip), ("", ""))
             rows.append({
                 "section": "tmr-clips", "robot": robot, "clip": clip, "duration_s": s["duration_s"]["before"],
+                "uvm_fell": uvm["replay_fell"], "uvm_dtw_pct": uvm["dtw_keypoint_l1_pct"],
+                "uvm_track_mm": uvm["tracking_error_mm"],
                 "smr_fell": tracked["replay_fell"], "smr_dtw_pct": tracked["dtw_keypoint_l1_pct"],
                 "smr_track_mm": tracked["tracking_error_mm"],
                 "stmr_alpha": ",".join(f"{a:.3f}" for a in s["alpha"]), "stmr_after_s": s["duration_s"]["after"],
