@@ -7,8 +7,9 @@ times. A local Ray that does not start (a loaded machine can miss raylet's start
 so; the in-process row is then the serial figure.
 
 ``tmr-clips`` (minutes per clip; only when asked for) — the paper's six clips (§VIII-C, Table II/Fig. 6) × go1
-and a1: SMR's motion tracked as it is (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
-falls or not, DTW-normalised keypoint L1 (%) against the method's own motion, tracking error (mm), plus α and
+and a1: UVM's and SMR's motions tracked as they are (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
+falls or not, DTW-normalised keypoint L1 (%) against SMR's motion at its frames (the same measure for both;
+STMR's against its own re-timed target too), tracking error (mm) against the motion each tracked, plus α and
 the durations, and the wall time of each stage.
 """
 
@@ -122,6 +123,7 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
             smr = retarget_detailed(src, robot, "smr").motion
             t_smr = time.perf_counter() - t0
             tracked = track_motion(smr, settings)  # one inner solve at α = 1: SMR's motion as it is
+            uvm = track_motion(retarget_detailed(src, robot, "uvm").motion, settings)  # UVM's, the same way
             t0 = time.perf_counter()
             res = temporal_retarget(smr, settings, executor=executor)
             t_tmr = time.perf_counter() - t0
@@ -129,11 +131,13 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
             paper = PAPER_TABLE_II.get((robot, clip), ("", ""))
             rows.append({
                 "section": "tmr-clips", "robot": robot, "clip": clip, "duration_s": s["duration_s"]["before"],
+                "uvm_fell": uvm["replay_fell"], "uvm_dtw_pct": uvm["dtw_keypoint_l1_pct"],
+                "uvm_track_mm": uvm["tracking_error_mm"],
                 "smr_fell": tracked["replay_fell"], "smr_dtw_pct": tracked["dtw_keypoint_l1_pct"],
                 "smr_track_mm": tracked["tracking_error_mm"],
                 "stmr_alpha": ",".join(f"{a:.3f}" for a in s["alpha"]), "stmr_after_s": s["duration_s"]["after"],
-                "stmr_fell": s["replay_fell"], "stmr_dtw_pct": s["dtw_keypoint_l1_pct"],
-                "stmr_dtw_vs_smr_pct": s["dtw_vs_kinematic_pct"], "stmr_track_mm": s["tracking_error_mm"],
+                "stmr_fell": s["replay_fell"], "stmr_fell_at_s": s["replay_fell_at_s"],
+                "stmr_dtw_pct": s["dtw_keypoint_l1_pct"], "stmr_dtw_vs_target_pct": s["dtw_vs_target_pct"], "stmr_track_mm": s["tracking_error_mm"],
                 "evals": s["bo_evaluations"], "smr_s": round(t_smr, 2), "inner_solve_s": tracked["wall_time_s"],
                 "tmr_s": round(t_tmr, 1), "paper_stmr_dtw_pct": paper[0], "paper_smr_dtw_pct": paper[1],
             })
