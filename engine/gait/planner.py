@@ -45,6 +45,10 @@ START_PHASE = PHI_RTD  # start in double support, right foot just down: the left
 START_HOLD_S = 0.6  # the clock eases in over this time: a longer first double support to shift the weight
 CONTACT_TOL_M = 1e-3
 MIN_HEEL_TOE_TRANSITION_S = 0.08
+#: A stance foot pitched beyond this at a touchdown/liftoff transition rolls on its heel or toe edge [rad].
+EDGE_CONTACT_PITCH_RAD = 0.02
+#: Depth of the strip along a rolling sole edge that the MPC may plan the CoP on [m].
+EDGE_SUPPORT_DEPTH_M = 0.02
 TARGET_SETTLE_FRACTION = 0.4
 TRANSITION_SMOOTHING_S = 0.01
 
@@ -558,7 +562,10 @@ class GaitPlanner:
             if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
                 polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
             else:
-                polygon = self._support_hull(tuple(footholds[s] for s in down), length, width)
+                # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before
+                # its liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
+                edges = tuple(self._rolling_edge(s, prev_phi, b) for s in down)
+                polygon = self._support_hull(tuple(footholds[s] for s in down), length, width, edges)
             phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
             if t1 >= horizon_s:
                 break
@@ -572,15 +579,42 @@ class GaitPlanner:
             prev_phi = b
         return phases
 
-    def _support_hull(self, holds: tuple[Foothold, ...], length: float, width: float) -> np.ndarray:
-        """Convex hull of the soles on ``holds``; latched footholds recur tick after tick, so the
+    def _rolling_edge(self, side: str, phi_start: float, phi_end: float) -> str | None:
+        """The sole edge ("heel"/"toe") ``side`` rolls on during the double support [phi_start, phi_end]
+        of the preview, or None if it stays flat: a pitched touchdown just after it touched down at
+        ``phi_start`` (for the interval under way: its pitch now), a pitched liftoff before it lifts
+        off at ``phi_end``."""
+        assert self.blend is not None
+        lo, td = SWING_PHASES[side]
+        liftoff_pitch, touchdown_pitch = self.blend.boundary_pitch[side]
+        if phi_start == self.phi and self._last_pose is not None:
+            rot = self._last_pose["feet"][side].rot
+            yaw = math.atan2(rot[1, 0], rot[0, 0])
+            pitch = -math.asin(max(-1.0, min(1.0, (rot_z(yaw).T @ rot)[2, 0])))
+            edge = _pitched_edge(min(pitch, 0.0), max(pitch, 0.0))
+            if edge is not None:
+                return edge
+        elif self.landed[side] and _at_event(phi_start, td):
+            edge = _pitched_edge(*touchdown_pitch)
+            if edge is not None:
+                return edge
+        if _at_event(phi_end, lo):
+            return _pitched_edge(*liftoff_pitch)
+        return None
+
+    def _support_hull(self, holds: tuple[Foothold, ...], length: float, width: float,
+                      edges: tuple[str | None, ...] | None = None) -> np.ndarray:
+        """Convex hull of the soles on ``holds`` (of only the strip along the heel or toe edge for a
+        foot whose ``edges`` entry names one); latched footholds recur tick after tick, so the
         hulls are kept (by value: Foothold is frozen) until the cache is full."""
-        key = (holds, length, width)
+        edges = edges if edges is not None else (None,) * len(holds)
+        key = (holds, length, width, edges)
         hull = self._hull_cache.get(key)
         if hull is None:
             if len(self._hull_cache) >= 64:
                 self._hull_cache.clear()
-            hull = convex_hull_2d(np.vstack([h.corners(length, width) for h in holds]))
+            hull = convex_hull_2d(np.vstack([_edge_strip(h.corners(length, width), length, e)
+                                             for h, e in zip(holds, edges)]))
             hull.flags.writeable = False  # shared between calls
             self._hull_cache[key] = hull
         return hull
@@ -594,3 +628,31 @@ class GaitPlanner:
         target = foothold_from_path(pose, self.stance(side))
         other = "right" if side == "left" else "left"
         return project_to_safe_region(footholds[other], target, side, self.region)
+
+
+def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:
+    """The sole edge a foot at (ψ_heel, ψ_toe) stands on: the heel when the toe is up (ψ_heel < 0),
+    the toe when the heel is up (ψ_toe > 0), None when it is (nearly) flat."""
+    if heel_pitch < -EDGE_CONTACT_PITCH_RAD:
+        return "heel"
+    if toe_pitch > EDGE_CONTACT_PITCH_RAD:
+        return "toe"
+    return None
+
+
+def _edge_strip(corners: np.ndarray, length_m: float, edge: str | None) -> np.ndarray:
+    """The sole rectangle ``corners`` (back-left, back-right, front-right, front-left) cut to the strip
+    EDGE_SUPPORT_DEPTH_M deep along its heel or toe edge (the whole sole for ``edge`` None)."""
+    if edge is None:
+        return corners
+    f = min(EDGE_SUPPORT_DEPTH_M / max(length_m, 1e-9), 1.0)
+    bl, br, fr, fl = corners
+    if edge == "heel":
+        return np.array([bl, br, br + f * (fr - br), bl + f * (fl - bl)])
+    return np.array([fl + f * (bl - fl), fr + f * (br - fr), fr, fl])
+
+
+def _at_event(phi: float, event_phi: float) -> bool:
+    """φ is the event at ``event_phi`` of some cycle."""
+    d = phi - event_phi
+    return abs(d - round(d)) < 1e-9

@@ -169,3 +169,51 @@ def test_preview_covers_two_seconds_with_valid_polygons():
         x, y = p.polygon[:, 0], p.polygon[:, 1]
         area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
         assert area > 0  # counter-clockwise and not degenerate
+
+
+def _heel_strike_style(pitch_rad: float):
+    """G1 neutral with every swing ending on the heel (toe up by ``pitch_rad``) and rolling flat after."""
+    import copy
+    import json
+
+    from engine.gait.style import style_from_dict
+
+    data = json.loads((REPO / "styles/g1/neutral.json").read_text())
+    for sample in data["samples"].values():
+        lo, td = sample["intervals"]["left_swing_s"]
+        dur = td - lo
+        sample["attributes"]["touchdown_transition_s"] = 0.1
+        for side in ("left", "right"):
+            sample["curves"][f"{side}_foot.heel_pitch"] = copy.deepcopy(
+                {"knots": [[0.0, 0.0, 0.0, 0.0, "flat"], [0.6 * dur, 0.0, 0.0, 0.0, "auto_clamped"],
+                           [dur, -pitch_rad, 0.0, 0.0, "flat"]]})
+    return style_from_dict(data, g1_context())
+
+
+def _heel_edge_feet(phase) -> list[str]:
+    """The feet of a double-support phase whose polygon vertices all lie on their heel strip."""
+    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M
+
+    on_heel = []
+    for side, hold in phase.footholds.items():
+        c, s = math.cos(hold.yaw), math.sin(hold.yaw)
+        d = phase.polygon - np.array([hold.x, hold.y])
+        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+        mine = (np.abs(local[:, 0]) <= 0.5 * SOLE[0] + 1e-9) & (np.abs(local[:, 1]) <= 0.5 * SOLE[1] + 1e-9)
+        if mine.any() and (local[mine, 0] <= -0.5 * SOLE[0] + EDGE_SUPPORT_DEPTH_M + 1e-9).all():
+            on_heel.append(side)
+    return on_heel
+
+
+@pytest.mark.parametrize("pitch_rad, rolling", [(0.0, 0), (0.3, 1)])
+def test_preview_supports_a_heel_strike_on_the_heel_edge_only(pitch_rad, rolling):
+    """While a foot rolls from its heel to flat after touchdown, only its heel edge touches the ground:
+    the MPC's double-support polygon takes that strip of it, not the whole sole."""
+    style = _heel_strike_style(pitch_rad) if pitch_rad else load_style(REPO / "styles/g1/neutral.json")
+    planner = GaitPlanner(style, g1_context(), *SOLE)
+    for _ in range(250):
+        ref = planner.step(DT, np.array([0.4, 0.0, 0.0]))
+    double = [p for p in ref.preview[1:] if len(p.footholds) == 2]
+    assert double
+    for p in double:
+        assert len(_heel_edge_feet(p)) == rolling
