@@ -41,9 +41,11 @@ def test_dino_survives_the_papers_push_while_walking_slowly():
     assert not summary["fell"], summary
     t = rec["t"]
     during = (t > 4.0) & (t < 5.5)
-    assert rec["kappa"][during].max() > 1.2
-    assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.05
-    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.02
+    # Each mechanism leaves its rest value (κ 1, no adjustment). Measured with the 10 cm soles: κ up to
+    # 1.13, step adjustment 4.7 cm, velocity adjustment 0.020 m/s (the 7.5 cm soles needed 1.2+, 5+ cm, 0.02+).
+    assert rec["kappa"][during].max() > 1.08
+    assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.03
+    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.01
 
 
 @pytest.mark.parametrize("fy_n", [25.0, -25.0], ids=["from-the-right", "from-the-left"])
