@@ -1,6 +1,7 @@
 # Motion Studio — two commands do all set-up on a fresh machine:
 #   make studio   install if needed, then serve http://127.0.0.1:8080 with the default robot
 #   make test     install if needed (and Debian's chromium for the browser tests), run every test
+#   make typecheck  mypy over engine/ and studio/ (part of make test)
 #   make test-fast  the development tier: unit, property and fuzz tests (no `slow`, no `e2e` markers)
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
@@ -10,7 +11,7 @@ STAMP  := $(VENV)/.installed
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup studio test test-fast chromium bench clean-cache
+.PHONY: setup studio test test-fast typecheck chromium bench clean-cache
 
 setup: $(STAMP)
 
@@ -28,8 +29,12 @@ studio: setup
 chromium:
 	@command -v chromium >/dev/null 2>&1 || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq chromium; }
 
-test: setup chromium
+test: setup chromium typecheck
 	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+# the type checker over engine/ and studio/ (settings in pyproject.toml [tool.mypy]): zero errors
+typecheck: setup
+	$(PY) -m mypy
 
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow and not e2e" $(PYTEST_ARGS)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import mujoco
 import numpy as np
@@ -24,8 +24,15 @@ from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel, load_robot
 from engine.sim import CONTROL_PERIOD_S, Simulation, standing_controller
 
+if TYPE_CHECKING:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.kinematic_preview import KinematicPreview
+    from engine.gait.style import Style, StyleContext
+    from engine.retarget.humanoid_arm.puppet_session import PuppetSession
+    from engine.walk_recording import WalkRecorder
+
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
-MODES = ("stand", "test", "edit")
+MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
 RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
@@ -46,16 +53,17 @@ class EngineCore:
         self.mode = "stand"
         self.edit_sample = "in_place"
         self.velocity_command = np.zeros(3)
-        self.style = None
-        self.ctx = None
-        self.walker = None
-        self.ghost = None
+        self.style: Style | None = None
+        self.ctx: StyleContext | None = None
+        self.walker: WalkingController | None = None
+        self.ghost: KinematicPreview | None = None
         self.ghost_q: np.ndarray | None = None
+        self.puppet: PuppetSession | None = None  # in puppet mode
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
         self.style_revision = 0
         self._pending_revision: int | None = None
-        self.recorder = None  # engine.walk_recording.WalkRecorder while the Record button is on
+        self.recorder: WalkRecorder | None = None  # while the Record button is on
         self._record_request = ""
         self._record_name = ""
         from engine.jobs import JobRunner
@@ -65,6 +73,7 @@ class EngineCore:
 
     # ------------------------------------------------------------------ robot
     def load(self, name: str) -> None:
+        self._close_puppet()
         if self.recorder is not None:
             self._stop_recording()  # what was recorded of the previous robot is kept
         self.robot = load_robot(name)
@@ -180,6 +189,10 @@ class EngineCore:
             raise ValueError(f"mode: expected one of {', '.join(MODES)}, got {mode!r}")
         if mode != "stand" and (self.sim is None or self.style is None):
             raise ValueError(f"{self.robot.name} has no walking style: it can only stand")
+        if mode == "puppet":
+            self._start_puppet(options)
+            return
+        self._close_puppet()
         sample = options.get("sample", self.edit_sample)
         from engine.gait.velocity_sampler import SAMPLE_NAMES
 
@@ -196,16 +209,61 @@ class EngineCore:
         else:
             self._start_walking()
 
+    def _start_puppet(self, options: dict) -> None:
+        from engine.retarget.humanoid_arm.puppet_session import LIVE_CLEARANCE_M, PuppetSession, open_source
+        from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+
+        arms = ArmRetargeter.load(self.robot.name, clearance_m=LIVE_CLEARANCE_M)  # ValueError: no weights
+        source = open_source(options)
+        self._close_puppet()
+        assert self.ctx is not None  # a walking robot has its style context
+        self.puppet = PuppetSession(arms, source, tuple(self.ctx.upper_joints))
+        self._puppet_bad_seen, self._puppet_notice_t = 0, -1e9
+        self.mode = "puppet"
+        self._start_walking()
+        self.emit(msg.Notice("info", f"Puppeteer: {self.robot.name}'s arms follow {source.name}"))
+
+    def _close_puppet(self) -> None:
+        if self.puppet is not None:
+            self.puppet.close()
+            self.puppet = None
+
+    def _puppet_tick(self) -> None:
+        from engine.retarget.humanoid_arm.puppet_session import PuppetWalkingController
+
+        walker, session = self.walker, self.puppet
+        assert self.sim is not None and session is not None and isinstance(walker, PuppetWalkingController)
+        t = self.sim.time_s
+        walker.set_clock(t)
+        if session.due(t):
+            x = session.step(t)
+            if x is not None:
+                walker.set_arm_target(session.index, x, t, 1.0 / session.rate_hz)
+            bad = getattr(session.source, "bad", 0)
+            if bad > self._puppet_bad_seen and t - self._puppet_notice_t >= 2.0:  # at most one notice per 2 s
+                self._puppet_bad_seen, self._puppet_notice_t = bad, t
+                self.emit(msg.Notice("warning", _one_line(f"Puppeteer: {getattr(session.source, 'last_error', '')} "
+                                                          f"({bad} bad datagrams ignored)")))
+
     def _start_walking(self) -> None:
         from engine.control.walking_controller import WalkingController
         from engine.gait.kinematic_preview import KinematicPreview
 
-        assert self.sim is not None and self.style is not None
-        self.walker = WalkingController(self.robot, self.style, ctx=self.ctx)
+        assert self.sim is not None and self.style is not None and self.ctx is not None
+        if self.mode == "puppet" and self.puppet is not None:
+            from engine.retarget.humanoid_arm.puppet_session import puppet_walking_controller
+
+            self.walker = puppet_walking_controller(self.robot, self.style, ctx=self.ctx)
+            self.puppet.arms.reset()
+            self.puppet.next_t_s = None
+        else:
+            self.walker = WalkingController(self.robot, self.style, ctx=self.ctx)
         self.sim.set_controller(self.walker)
         self.ghost = KinematicPreview(self.robot, self.ctx.upper_joints)
 
     def command_now(self) -> np.ndarray:
+        if self.mode == "puppet":
+            return np.zeros(3)
         if self.mode == "edit" and self.style is not None:
             return np.array(self.style.velocities.velocity_of(self.edit_sample))
         return self.velocity_command
@@ -225,6 +283,8 @@ class EngineCore:
         assert self.sim is not None
         if self.walker is not None:
             self.walker.set_command(self.command_now())
+            if self.puppet is not None:
+                self._puppet_tick()
         self.sim.step()
         self._ticks += 1
         if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
@@ -267,10 +327,11 @@ class EngineCore:
         self.emit(msg.Notice("info", f"recording {self._record_name} (Test or Edit mode walks are recorded)"))
 
     def _record_frame(self) -> None:
-        rec, walker, data = self.recorder, self.walker, self.sim.data
-        if self._ghost_data is None or walker.ref is None:
+        rec, walker, sim = self.recorder, self.walker, self.sim
+        if rec is None or walker is None or sim is None or self._ghost_data is None or walker.ref is None:
             return
-        rec.add(self.sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
+        data = sim.data
+        rec.add(sim.time_s, data.qpos, data.qvel, walker.ref.contact, self._ghost_data.qpos, walker.ref.command)
         if rec.full:
             self.emit(msg.Notice("warning", f"recording reached its {rec.max_frames / rec.fps:.0f} s limit: saved"))
             self._stop_recording()
@@ -336,16 +397,37 @@ class EngineCore:
                 fb = tel.feedback
                 signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
                                                 fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
-            if len(ref.upper_q):
+            if len(ref.upper_q) and self.ctx is not None:
                 j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
                 idx = self.robot.joint_names.index(self.ctx.upper_joints[j])
                 signals["arm_joint"] = np.array([ref.upper_q[j], q[idx]])
+            if self.puppet is not None:
+                self._puppet_signals(signals, q)
             if self.ghost_q is not None and self._ghost_data is not None:
                 signals["ghost_body_pos"] = self._ghost_data.xpos[1:].copy()
                 signals["ghost_body_quat"] = self._ghost_data.xquat[1:].copy()
         return msg.Telemetry(self.sim.time_s, {k: np.asarray(v, dtype=np.float32) for k, v in signals.items()})
 
+    def _puppet_signals(self, signals: dict, q: np.ndarray) -> None:
+        """The Puppeteer's status, its source pose and the simulated arms' capsule distances."""
+        session = self.puppet
+        if session is None:
+            return
+        st = session.stats.summary()
+        src = session.source
+        signals["puppet"] = np.array([st["frames"], st["inference_us_median"], st["inference_us_p99"],
+                                      getattr(src, "received", st["frames"]), getattr(src, "bad", 0),
+                                      st["graph"], st["hold"]])
+        if session.pose15 is not None:
+            signals["puppet_pose15"] = session.pose15
+        if session.x is not None:
+            signals["puppet_q"] = session.x  # LWL2's output, in session.arms.joint_names order
+        cm = session.arms.capsules
+        measured = q[[self.robot.joint_names.index(j) for j in session.arms.joint_names]]
+        signals["puppet_capsule_distance"] = cm.signed_distances(measured)
+
     def _base_yaw(self) -> float:
+        assert self.sim is not None
         q = self.sim.data.qpos
         return math.atan2(2 * (q[3] * q[6] + q[4] * q[5]), 1 - 2 * (q[5] ** 2 + q[6] ** 2))
 

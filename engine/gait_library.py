@@ -38,6 +38,7 @@ AXES = ("vx", "vy", "wz")
 AXIS_UNITS = {"vx": "m/s", "vy": "m/s", "wz": "rad/s"}
 RAMP_S = 1.5  # command ramp from standing to the cell's velocity
 MAX_POINTS_PER_AXIS = 101
+MIN_SPACING = 0.002  # m/s or rad/s between grid points: cell folders name velocities to 0.001, so they stay unique
 SCHEMA = "motion-studio/gait-library"
 RAY_START_ATTEMPTS = 3
 SLIP_LIMIT_MM = 2.0  # the stack's stance-slip goal: above it a cell is marked as slipping
@@ -126,6 +127,9 @@ def parse_grid(text: str) -> Grid:
             raise GridError(f"--grid: {name}: one point needs LO = HI, got {low:g}:{high:g}:1")
         if count > 1 and low == high:
             raise GridError(f"--grid: {name}: {count} points need LO < HI, got {low:g}:{high:g}")
+        if count > 1 and (high - low) / (count - 1) < MIN_SPACING:
+            raise GridError(f"--grid: {name}: expected points at least {MIN_SPACING:g} apart, got {count} points "
+                            f"over {low:g}:{high:g}; use fewer points or a wider range")
         axes[name] = Axis(name, low, high, count)
     full = tuple(axes.get(n, Axis(n, 0.0, 0.0, 1)) for n in AXES)
     return Grid(full)  # type: ignore[arg-type]
@@ -141,7 +145,7 @@ def cell_id(velocity: Iterable[float]) -> str:
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle
     return buf.getvalue()
 
 
@@ -281,6 +285,7 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
         import ray
 
         repo = str(Path(__file__).resolve().parents[1])
+        runtime_env: dict[str, object]
         if address:
             runtime_env = {"working_dir": repo, "excludes": [".venv", ".git", "docs", "tests", "*.npz"]}
         else:

@@ -69,7 +69,7 @@ class MujocoImu:
     """Reads the model's ``imu_gyro``/``imu_accel`` sensors as an :class:`ImuSample` (base frame).
 
     With ``noise``, white noise (density / √dt per sample), constant biases and an optional
-    bias random walk are added from a seeded RNG. :meth:`truth_quat_xyzw` reads the
+    bias random walk are added from a seeded RNG. :meth:`truth_quat_wxyz` reads the
     ``imu_quat`` ground truth — for evaluation only, never feed it to the filter.
     """
 
@@ -99,6 +99,5 @@ class MujocoImu:
             accel += np.asarray(n.accel_bias_mps2) + self.rng.normal(0.0, n.accel_noise_density_mps2_rthz * per_sample, 3)
         return ImuSample(gyro, accel)
 
-    def truth_quat_xyzw(self, data: mujoco.MjData) -> FloatArray:
-        wxyz = data.sensordata[self.quat_adr:self.quat_adr + 4]
-        return np.array([wxyz[1], wxyz[2], wxyz[3], wxyz[0]], dtype=float)
+    def truth_quat_wxyz(self, data: mujoco.MjData) -> FloatArray:
+        return np.array(data.sensordata[self.quat_adr:self.quat_adr + 4], dtype=float)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -12,6 +13,9 @@ from engine.constants import CONTROL_PERIOD_S  # noqa: F401 - re-exported: the c
 from engine.control.controller import Controller, JointCommand, RobotState, StandingPdController
 from engine.control.static_balance import static_contact_torques
 from engine.robot.model import RobotModel
+
+if TYPE_CHECKING:
+    from engine.imu import ImuNoise, MujocoImu
 
 FALL_HEIGHT_FRACTION = 0.55  # base below this fraction of its standing height → fallen
 FALL_TILT_RAD = 1.0  # base tilted more than this from upright → fallen
@@ -48,7 +52,7 @@ class Simulation:
         self.root_body_id = self.model.body(robot.config.root_link).id
         self.standing_base_z = float(robot.q_standing[2])
         self.fallen = False
-        self.imu = None
+        self.imu: MujocoImu | None = None
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -91,7 +95,7 @@ class Simulation:
         body_id = self.root_body_id if body is None else self.model.body(body).id
         self.pushes.append(Push(np.asarray(force_n, dtype=float), self.time_s, float(duration_s), body_id))
 
-    def enable_imu(self, noise: object | None = None, seed: int = 0) -> None:
+    def enable_imu(self, noise: ImuNoise | None = None, seed: int = 0) -> None:
         """Attach the simulated IMU: controllers then receive ``state.imu`` samples."""
         from engine.imu import ImuNoise, MujocoImu
 

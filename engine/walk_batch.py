@@ -4,7 +4,8 @@ A job is plain JSON (robot name, style as a dict, command spec, duration, pushes
 measure afterwards), so it travels to any Ray worker and names its result file:
 ``<out_dir>/<key>.json`` is written atomically when the job ends, and a batch started again
 with the same output folder skips every job whose result is there (resumable, cancellable:
-Ctrl+C cancels the running tasks and keeps what finished). Ray runs locally by default
+Ctrl+C cancels the running tasks and keeps what finished) unless another version of the code
+made it (``code_version()``: after a controller change the jobs run again). Ray runs locally by default
 (``address=None``) or joins a cluster (``address="ray://host:10001"`` or ``"auto"``).
 """
 
@@ -25,6 +26,22 @@ import numpy as np
 from engine.atomic_io import atomic_write_text
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+_CODE_VERSION: str | None = None
+
+
+def code_version() -> str:
+    """A hash of what a walk runs (engine/**/*.py, robots/*.toml): a result stored under another
+    version is stale (the controller changed since) and its job runs again."""
+    global _CODE_VERSION
+    if _CODE_VERSION is None:
+        h = hashlib.sha256()
+        for path in sorted([*(REPO_ROOT / "engine").rglob("*.py"), *(REPO_ROOT / "robots").glob("*.toml")]):
+            h.update(str(path.relative_to(REPO_ROOT)).encode("utf-8"))
+            h.update(path.read_bytes())
+        _CODE_VERSION = h.hexdigest()[:16]
+    return _CODE_VERSION
 
 
 def job_key(job: dict[str, Any]) -> str:
@@ -128,9 +145,11 @@ def run_batch(jobs: Iterable[dict[str, Any]], out_dir: str | os.PathLike, addres
         path = out / f"{key}.json"
         if path.exists():
             try:
-                results[key] = json.loads(path.read_text())["result"]
-                continue
-            except (ValueError, KeyError):
+                stored = json.loads(path.read_text())
+                if stored.get("code") == code_version():  # else made by other code: run it again
+                    results[key] = stored["result"]
+                    continue
+            except (ValueError, KeyError, AttributeError):
                 pass  # a damaged result: run the job again
         todo.append(key)
     done, total = len(results), len(keyed)
@@ -139,7 +158,8 @@ def run_batch(jobs: Iterable[dict[str, Any]], out_dir: str | os.PathLike, addres
         nonlocal done
         results[key] = result
         if "error" not in result:
-            atomic_write_text(out / f"{key}.json", json.dumps({"job": keyed[key], "result": result}, indent=1))
+            atomic_write_text(out / f"{key}.json", json.dumps({"job": keyed[key], "result": result, "code": code_version()},
+                                                               indent=1))
         done += 1
         if progress:
             progress(done, total, key, result)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -70,7 +71,7 @@ class ContactMeter:
 
 
 def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duration_s: float,
-             pushes: list[PushSpec] = (), wbc: str = "paper", state_source: str = "truth",
+             pushes: Sequence[PushSpec] = (), wbc: str = "paper", state_source: str = "truth",
              feedback: bool = True, record: bool = True, record_reference: bool = False,
              command_text: str | None = None) -> tuple[dict, dict[str, np.ndarray]]:
     """Walk ``duration_s`` of simulated time; returns the summary and, with ``record``, the walk-run
@@ -139,6 +140,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             fell, fall_time = True, sim.time_s
             break
         ref = controller.ref
+        assert ref is not None  # the controller has planned once it has stepped
         data = sim.data
         xy = data.qpos[:2]
         path_len += float(np.linalg.norm(xy - last_xy))
@@ -174,7 +176,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         # plus a landing foot from the moment it touches down a few ms early).
         cop, fz = meter.cop(data)
         if cop is not None and fz > 0.2 * robot.mass_kg * GRAVITY_MPS2:
-            support = controller.wbc_contact.any(axis=1)  # the feet the controller stands on
+            support = np.asarray(controller.wbc_contact.any(axis=1))  # the feet the controller stands on
             corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
             if corners:
                 cop_checks += 1

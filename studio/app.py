@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import viser
@@ -24,10 +25,16 @@ from studio.panels.robot_panel import RobotPanel
 from studio.robot_view import RobotView
 from studio.style_session import StyleSession
 
+if TYPE_CHECKING:
+    from studio.panels.curve_editor import CurveEditor
+    from studio.panels.sample_editor import SampleEditor
+    from studio.panels.style_browser import StyleBrowser
+
 STATUS_PERIOD_S = 0.25
 PLOT_EVERY_TICKS = 2  # plots redraw at 2 Hz: each redraw costs the browser's main thread (typing, 3D)
 GRAPH_OFFSET = (-2.4, 0.6, 0.15)  # the curve graph stands well left of the robot: nothing occludes it
 LIMIT_RED = np.array([230, 40, 40])
+NOTICE_COLORS: dict[str, Literal["red", "yellow", "blue"]] = {"error": "red", "warning": "yellow", "info": "blue"}
 
 
 class Studio:
@@ -79,6 +86,7 @@ class Studio:
         self.tab_plots = tabs.add_tab("Plots")
         if not quadruped_first:
             self.tab_retarget = tabs.add_tab("Retarget")
+        self.tab_puppet = tabs.add_tab("Puppet")
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)
@@ -91,8 +99,15 @@ class Studio:
 
         with self.tab_retarget:
             self.retarget = RetargetPanel(self.server, self)
+        from studio.panels.puppet_panel import PuppetPanel
+
+        with self.tab_puppet:
+            self.puppet = PuppetPanel(self.server, self)
+        self._root_pos: np.ndarray | None = None
         self._style_folders: list = []
-        self.style_browser = self.sample_editor = self.curve_editor = None
+        self.style_browser: StyleBrowser | None = None
+        self.sample_editor: SampleEditor | None = None
+        self.curve_editor: CurveEditor | None = None
 
         self.link = EngineLink(robot, self._on_event, self._on_status)
         self.server.on_client_connect(self._on_client)
@@ -173,17 +188,15 @@ class Studio:
         editor = CurveEditor(self.server, session)
         editor.root_frame.position = tuple(np.asarray(self.drive.camera.robot_ground) + GRAPH_OFFSET)
         editor.root_frame.visible = self.mode == "edit"
-        look_at_graph = editor.look_at_graph
 
-        def look_at_graph_and_follow(client, *args, **kwargs):
+        def bring_graph_beside_robot(client: viser.ClientHandle) -> None:
             """Frame the graph; "Camera follows robot" stays as it is (camera and graph travel together)."""
             if not self.drive.following:
                 self.place_graph(self.drive.camera.robot_ground)  # bring it beside the robot first
             editor.root_frame.visible = True
-            look_at_graph(client, *args, **kwargs)
-            self.drive.camera.adopt(client)
 
-        editor.look_at_graph = look_at_graph_and_follow
+        editor.before_look_at_graph = bring_graph_beside_robot
+        editor.after_look_at_graph = self.drive.camera.adopt
         editor.on_sample_picked = self.select_sample
         editor.set_sample(self.sample_editor.sample_name if self.sample_editor else "in_place")
         return editor
@@ -221,6 +234,8 @@ class Studio:
         self.events_seen[event.kind] = self.events_seen.get(event.kind, 0) + 1
         if isinstance(event, msg.Frame):
             self.view.update(event)
+            if len(event.body_pos):
+                self._root_pos = event.body_pos[0]
             self._measure_edit_latency(event)
         elif isinstance(event, msg.Telemetry):
             self._on_telemetry(event)
@@ -250,14 +265,17 @@ class Studio:
             self.overlays.set_sole(sole.length_m, sole.width_m)
         self.overlays.clear()
         if self.robot_panel.robot.value != event.robot:
-            self.robot_panel.robot.value = event.robot
+            self.robot_panel.robot.value = event.robot  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
         if changed or self.session is None:
             self.mode = "stand"
             self._build_style_panels(event.robot)
             self.retarget.on_robot(event.robot, event.robot_kind)
+            self.puppet.on_robot()
         else:
             self._send_style()  # an engine restart: give it back the edited style
-            if self.mode != "stand":
+            if self.mode == "puppet" and self.puppet.options:
+                self.link.send(msg.SetMode("puppet", self.puppet.options))
+            elif self.mode not in ("stand", "puppet") and self.sample_editor is not None:
                 self.link.send(msg.SetMode(self.mode, {"sample": self.sample_editor.sample_name}))
         self.loaded.set()
 
@@ -272,9 +290,12 @@ class Studio:
             self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
                                              np.zeros(0), False, False, 0.0))
         self._shade_joint_limits(s.get("joint_limit_proximity"))
-        if self.curve_editor is not None and "phase" in s and self.session is not None and self.sample_editor:
+        if "puppet" in s:
+            self.puppet.on_telemetry(s, self._root_pos, event.sim_time_s)
+        style = self.session.style if self.session is not None else None
+        if self.curve_editor is not None and "phase" in s and style is not None and self.sample_editor:
             try:
-                iv = self.session.style.samples[self.sample_editor.sample_name].intervals
+                iv = style.samples[self.sample_editor.sample_name].intervals
                 phi = float(s["phase"][0]) % 1.0
                 t_cycle = float(iv.phase_map().time_at(phi))
                 self.curve_editor.set_playhead(self.curve_editor.playhead_from_cycle_time(t_cycle)
@@ -293,7 +314,8 @@ class Studio:
             base = self.view.base_colors.get(body)
             if base is None:
                 continue
-            color = None if p <= 0.0 else tuple(int(c) for c in (1 - p) * np.array(base) + p * LIMIT_RED)
+            shade = (1 - p) * np.array(base) + p * np.array(LIMIT_RED)
+            color = None if p <= 0.0 else (int(shade[0]), int(shade[1]), int(shade[2]))
             key = (body, round(p, 1))
             if self._shade_cache.get(body) != key:
                 self._shade_cache[body] = key
@@ -314,7 +336,7 @@ class Studio:
             return
         self.notices.append((level, text))
         self._last_notice_time = time.monotonic()
-        color = {"error": "red", "warning": "yellow", "info": "blue"}.get(level, "blue")
+        color = NOTICE_COLORS.get(level, "blue")
         title = {"error": "Engine" if "engine" in text.lower() else "Error", "warning": "Heads up", "info": "Studio"}[
             level if level in ("error", "warning", "info") else "info"]
         for client in self.server.get_clients().values():

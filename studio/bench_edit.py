@@ -18,7 +18,7 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
     import threading
 
     from engine import protocol as msg
-    from engine.gait.curves import HermiteCurve, Knot
+    from engine.gait.curves import HermiteCurve, Knot, TangentMode
     from studio.engine_link import EngineLink
     from studio.style_session import StyleSession
 
@@ -60,13 +60,16 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
         link.send(msg.SetMode("edit", {"sample": "in_place"}))
         time.sleep(2.0)
         for i in range(edits):
-            sample = session.style.samples["in_place"]
+            style = session.style
+            assert style is not None  # opened above
+            sample = style.samples["in_place"]
             curve = sample.curves["left_foot.z"]
             d = curve.duration_s
             height = 0.05 + 0.02 * (i % 2)
-            new = HermiteCurve([Knot(0.0, 0.0, mode="flat"), Knot(0.5 * d, height), Knot(d, 0.0, mode="flat")], d)
+            new = HermiteCurve([Knot(0.0, 0.0, mode=TangentMode.FLAT), Knot(0.5 * d, height),
+                                Knot(d, 0.0, mode=TangentMode.FLAT)], d)
             t0 = time.perf_counter()
-            session.apply(session.style.with_sample("in_place", sample.with_curve("left_foot.z", new)), "bench")
+            session.apply(style.with_sample("in_place", sample.with_curve("left_foot.z", new)), "bench")
             sent[revision[0]] = t0  # the edit arrived at the server when apply() was called
             time.sleep(0.25)
     finally:

@@ -2,12 +2,13 @@
 
 The studio runs in this process (a real engine process behind it) in Test mode. C headless WebSocket
 clients speak viser's protocol (the subprotocol handshake and a camera message, as a browser tab does)
-and count what the server streams to them. Meanwhile the joystick is held (forward, then turning), the
+and count what the server streams to them; T browser tabs (Debian's headless Chromium through playwright,
+software WebGL) render the studio and count the frames they draw (requestAnimationFrame). Meanwhile the joystick is held (forward, then turning), the
 pelvis is pushed every 10 s and a sample attribute is edited every 5 s (through the style session, so
 each edit is validated, autosaved and sent to the engine).
 
 Reported: RSS of the studio and of the engine at the end of warm-up and at the end (growth in %),
-WebSocket messages and bytes per second per client, frames per second the studio received from the
+WebSocket messages and bytes per second per client, frames per second each browser tab drew, frames per second the studio received from the
 engine, sim-clock drift against the wall clock (Δsim/Δwall − 1 over the measured window, playback speed
 1), engine restarts, and every exception seen (logging records with a traceback, thread exceptions,
 error notices).
@@ -81,6 +82,59 @@ class _Client(threading.Thread):
             self.error = f"{type(exc).__name__}: {exc}"
 
 
+class _Tab(threading.Thread):
+    """One headless Chromium tab on the studio, counting the frames it renders (requestAnimationFrame)."""
+
+    COUNTER_JS = ("() => { if (!window.__soakFrames) { window.__soakFrames = 0; const tick = () => "
+                  "{ window.__soakFrames++; requestAnimationFrame(tick); }; requestAnimationFrame(tick); } "
+                  "return window.__soakFrames; }")
+
+    def __init__(self, url: str, stop: threading.Event, mark: threading.Event):
+        super().__init__(daemon=True, name="soak-tab")
+        self.url, self.stop, self.mark_event = url, stop, mark
+        self.error = ""
+        self.loaded = threading.Event()
+        self.window: tuple[int, float] | None = None
+        self.last: tuple[int, float] | None = None
+        self.finish = threading.Event()  # take a last sample and stop
+        self.finished = threading.Event()
+
+    def fps(self) -> float:
+        if self.window is None or self.last is None or self.last[1] <= self.window[1]:
+            return float("nan")
+        return (self.last[0] - self.window[0]) / (self.last[1] - self.window[1])
+
+    def run(self) -> None:
+        try:
+            from playwright.sync_api import sync_playwright
+
+            with sync_playwright() as p:
+                browser = p.chromium.launch(executable_path=shutil.which("chromium") or "/usr/bin/chromium",
+                                            args=["--no-sandbox", "--enable-unsafe-swiftshader"])
+                page = browser.new_page(viewport={"width": 800, "height": 600})
+                page.goto(self.url, timeout=120_000)
+                page.wait_for_selector("canvas", timeout=120_000)
+                page.evaluate(self.COUNTER_JS)
+                self.loaded.set()
+                while not self.stop.is_set():
+                    final = self.finish.is_set()
+                    count = int(page.evaluate(self.COUNTER_JS))
+                    now = time.monotonic()
+                    if self.mark_event.is_set() and self.window is None:
+                        self.window = (count, now)
+                    elif self.window is not None:
+                        self.last = (count, now)
+                    if final:
+                        break
+                    self.finish.wait(1.0)
+                self.finished.set()
+                browser.close()
+        except Exception as exc:  # noqa: BLE001 - reported
+            self.error = f"tab: {type(exc).__name__}: {exc}"[:200]
+            self.loaded.set()
+            self.finished.set()
+
+
 class _Errors(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.ERROR)
@@ -98,7 +152,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> list[dict]:
+def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str = "g1") -> list[dict]:
     from dataclasses import replace
 
     from engine import protocol as msg
@@ -124,6 +178,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
 
     studio.view.update = record  # type: ignore[method-assign]
     pool: list[_Client] = []
+    browsers: list[_Tab] = []
+    marked_event = threading.Event()
     try:
         if not studio.loaded.wait(180):
             raise RuntimeError("the studio did not load its robot within 180 s")
@@ -132,6 +188,11 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
         pool = [_Client(url, stop) for _ in range(clients)]
         for c in pool:
             c.start()
+        browsers = [_Tab(f"http://127.0.0.1:{studio.server.get_port()}/", stop, marked_event) for _ in range(tabs)]
+        for b in browsers:
+            b.start()
+        for b in browsers:  # the soak starts once every tab shows the studio
+            b.loaded.wait(180)
         duration_s = 60.0 * minutes
         warmup_s = min(30.0, 0.25 * duration_s)
         t0 = time.monotonic()
@@ -165,15 +226,21 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
                 rss0 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
                 for c in pool:
                     c.mark()
+                marked_event.set()
                 frame_mark = len(frames)
             time.sleep(0.1)
+        for b in browsers:  # each tab's last frame count
+            b.finish.set()
+        for b in browsers:
+            b.finished.wait(60)
         rss1 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
         window = frames[frame_mark:] if marked else frames
         (w0, s0), (w1, s1) = window[0], window[-1]
         drift = (s1 - s0) / (w1 - w0) - 1.0
         rates = [c.rates() for c in pool]
         error_notices = [t for level, t in studio.notices if level == "error"]
-        exceptions = errors.records + thread_errors + [c.error for c in pool if c.error] + error_notices
+        exceptions = (errors.records + thread_errors + [c.error for c in pool if c.error]
+                      + [b.error for b in browsers if b.error] + error_notices)
         rows = [{
             "section": "soak", "what": "studio", "minutes": round(minutes, 2), "clients": clients,
             "studio_rss_mb": f"{rss0[0]:.0f}→{rss1[0]:.0f}", "studio_rss_growth_pct": round(100 * (rss1[0] / rss0[0] - 1), 1),
@@ -181,6 +248,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
             "engine_rss_growth_pct": round(100 * (rss1[1] / rss0[1] - 1), 1) if studio.link.pid == engine_pid0 else "restarted",
             "engine_frames_per_s": round((len(window) - 1) / (w1 - w0), 1), "sim_clock_drift_pct": round(100 * drift, 2),
             "pushes": pushes, "edits": edits, "engine_restarts": studio.link.restarts - restarts0,
+            "tabs": tabs, "tab_fps": ", ".join(f"{b.fps():.1f}" for b in browsers) or "-",
             "exceptions": len(exceptions), "load_avg_1min": round(os.getloadavg()[0], 1), "cpus": os.cpu_count(),
         }]
         for i, (m, kb) in enumerate(rates):
@@ -193,6 +261,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, robot: str = "g1") -> lis
         stop.set()
         for c in pool:
             c.join(5)
+        for b in browsers:
+            b.join(30)
         studio.stop()
         threading.excepthook = previous_hook
         logging.getLogger().removeHandler(errors)

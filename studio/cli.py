@@ -9,6 +9,7 @@ import argparse
 import json
 import os
 import sys
+from typing import Callable, NoReturn
 from pathlib import Path
 
 EXIT_USAGE = 2
@@ -21,7 +22,7 @@ class CliError(Exception):
 class _Parser(argparse.ArgumentParser):
     """Usage errors as ONE line (``studio walk: error: ...``), exit 2, like every other user error."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
@@ -73,6 +74,7 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--json", action="store_true", help="print JSON instead of a table")
     bench.add_argument("--minutes", type=float, default=1.0, help="soak: how long to drive the studio")
     bench.add_argument("--clients", type=int, default=4, help="soak: headless WebSocket clients")
+    bench.add_argument("--tabs", type=int, default=2, help="soak: headless Chromium tabs rendering the studio")
 
     from studio import cli_tmr
 
@@ -330,13 +332,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from studio.bench_engine import bench_engine
     from studio.bench_soak import bench_soak
 
-    SECTIONS = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
+    SECTIONS: dict[str, Callable[..., list[dict]]] = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
     sections = args.sections or [s for s in SECTIONS if s != "soak" and s not in BATCH_SECTIONS]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")
-    if not (0 < args.minutes <= 24 * 60) or not (1 <= args.clients <= 64):
-        raise CliError(f"--minutes/--clients: expected 0 < M ≤ 1440 and 1 ≤ C ≤ 64, got {args.minutes}, {args.clients}")
+    if not (0 < args.minutes <= 24 * 60) or not (1 <= args.clients <= 64) or not (0 <= args.tabs <= 8):
+        raise CliError(f"--minutes/--clients/--tabs: expected 0 < M ≤ 1440, 1 ≤ C ≤ 64 and 0 ≤ T ≤ 8, "
+                       f"got {args.minutes}, {args.clients}, {args.tabs}")
     rows: list[dict] = []
     for section in sections:
         rows.extend(run_section(SECTIONS[section], args))

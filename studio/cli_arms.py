@@ -27,6 +27,10 @@ def register(sub) -> None:  # noqa: ANN001 - argparse's private subparsers type
     train.add_argument("--quick", action="store_true", help="tiny datasets and networks (a smoke run, < 1 min)")
     train.add_argument("--out", default=None, help="weights path without suffix (default: the shipped weights folder)")
     train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--resume", action="store_true",
+                       help="continue an interrupted run from its checkpoint (same options; default: start afresh)")
+    train.add_argument("--checkpoint-dir", default=None,
+                       help="where the resumable state lives (default: ~/.cache/motion-studio/train-arms/<out>-<hash>)")
 
     puppet = sub.add_parser("puppet", help="retarget a BVH clip onto a humanoid's arms and torso (LWL2)")
     puppet.add_argument("--robot", choices=ARM_ROBOTS, required=True)
@@ -35,6 +39,8 @@ def register(sub) -> None:  # noqa: ANN001 - argparse's private subparsers type
     puppet.add_argument("--weights", default=None, help="trained weights (default: the shipped ones for --robot)")
     puppet.add_argument("--fps", type=float, default=30.0, help="output rate: the clip is decimated to at most this")
     puppet.add_argument("--json", action="store_true", help="print the summary as JSON")
+    puppet.add_argument("--refine-iters", type=int, default=None,
+                        help="refinement steps after LWR (default 5; 0: the paper's LWL2 alone)")
 
     stream = sub.add_parser("stream-bvh", help="replay a BVH clip in real time as live mocap datagrams (UDP JSON)")
     stream.add_argument("bvh", help="BVH clip")
@@ -74,7 +80,7 @@ class _ProgressBar:
 def cmd_train_arms(args: argparse.Namespace) -> int:
     from engine.retarget.humanoid_arm.training import ArmTrainingPlan, train_arms
 
-    plan = ArmTrainingPlan.quick() if args.quick else ArmTrainingPlan.full()
+    plan = ArmTrainingPlan.quick() if args.quick else ArmTrainingPlan.full(args.robot)
     if args.seed != 0:
         from dataclasses import replace
 
@@ -82,11 +88,18 @@ def cmd_train_arms(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     if out is not None and out.suffix in (".json", ".safetensors"):
         out = out.with_suffix("")
+    from engine.retarget.humanoid_arm.metadata import weights_path
+    from engine.retarget.humanoid_arm.training import default_checkpoint_dir
+
+    ckpt_dir = Path(args.checkpoint_dir) if args.checkpoint_dir else default_checkpoint_dir(out or weights_path(args.robot))
     try:
-        summary = train_arms(args.robot, plan, out, _ProgressBar())
+        summary = train_arms(args.robot, plan, out, _ProgressBar(), checkpoint_dir=ckpt_dir, resume=args.resume)
     except KeyboardInterrupt:
-        print("\nstudio: train-arms cancelled; nothing written", file=sys.stderr)
+        print(f"\nstudio: train-arms cancelled; no weights written; continue with --resume (state in {ckpt_dir})",
+              file=sys.stderr)
         return 130
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
     print(json.dumps(summary, indent=1))
     return 0
 
@@ -128,7 +141,12 @@ def cmd_puppet(args: argparse.Namespace) -> int:
     from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
 
     try:
-        arms = ArmRetargeter.load(args.robot, Path(args.weights) if args.weights else None)
+        from engine.retarget.humanoid_arm.puppeteer import REFINE_ITERS
+
+        refine = REFINE_ITERS if args.refine_iters is None else args.refine_iters
+        if not 0 <= refine <= 100:
+            raise CliError(f"--refine-iters: expected 0..100, got {refine}")
+        arms = ArmRetargeter.load(args.robot, Path(args.weights) if args.weights else None, refine_iters=refine)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     n = len(poses)
@@ -156,7 +174,7 @@ def cmd_puppet(args: argparse.Namespace) -> int:
         "frames": n, "fps": round(fps, 3), "collision_free_fraction": round(float(free.mean()), 4),
         "hand_error_mm": round(float(hand.mean() * 1000), 1), "elbow_error_mm": round(float(elbow.mean() * 1000), 1),
         "inference_us": {"median": round(float(np.median(times) * 1e6), 1), "p99": round(float(np.percentile(times, 99) * 1e6), 1)},
-        "graph_fallbacks": arms.graph_fallbacks, "holds": arms.holds,
+        "graph_fallbacks": arms.graph_fallbacks, "holds": arms.holds, "refine_iters": arms.refine_iters,
         "k_counts": {str(k): int((ks == k).sum()) for k in (1, 2, 3)},
     }
     if args.json:

@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from studio.cli import CliError
 
 GENERATED_CLIPS = ("standing", "trot", "hop")
@@ -24,31 +26,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     tmr = sub.add_parser("tmr", help="temporal retargeting (STMR TMR): re-time a kinematic motion and track it in MuJoCo")
     tmr.add_argument("--motion", required=True, help="kinematic robot motion (.npz, robot-motion/1)")
     tmr.add_argument("--robot", default=None, help="target robot (default: the motion's robot; must match it)")
-    _common(tmr)
+    add_tmr_options(tmr)
     tmr.add_argument("--out", required=True, help="output dynamic motion (.npz)")
     tmr.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     batch = sub.add_parser("retarget-batch", help="run TMR for clips × robots on Ray (resumable)")
-    batch.add_argument("clips", nargs="+", help="robot motions (.npz) or generated clips gen:standing|gen:trot|gen:hop")
+    batch.add_argument("clips", nargs="+", help="robot motions (.npz), source motions (keypoint npz or any importable "
+                       "file: SMR to each robot first) or generated clips gen:standing|gen:trot|gen:hop")
     batch.add_argument("--robots", default=None, help="comma-separated robots (default: each file's own robot)")
     batch.add_argument("--method", default="stmr", choices=("stmr",), help="retargeting method (TMR on the clip)")
-    _common(batch)
+    add_tmr_options(batch)
     batch.add_argument("--jobs", type=int, default=None,
                        help="clips running at once (default: Ray's CPUs; 1 without --address runs in this process)")
     batch.add_argument("--out", required=True, help="output folder")
     batch.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--segments", type=int, default=1, help="S, the number of equal time segments (default 1)")
-    p.add_argument("--alpha-bound", type=float, default=1.0, help="B: log2 α ∈ [−B, B], 0 < B ≤ 2 (default 1)")
-    p.add_argument("--budget", type=int, default=8, help="Bayesian-optimisation evaluations at most (default 8)")
-    p.add_argument("--parallel", type=int, default=1, help="BO evaluations in flight on Ray (default 1: in process)")
-    p.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray when one is needed)")
-    p.add_argument("--mode", choices=("receding", "full"), default="receding", help="iLQR horizon (default receding)")
-    p.add_argument("--window", type=float, default=0.25, help="receding-horizon window in seconds (default 0.25; "
-                   "flips need the whole flight, e.g. 0.6)")
-    p.add_argument("--seed", type=int, default=0)
+def add_tmr_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
+    """The TMR options (``studio tmr``, ``studio retarget-batch``, ``studio retarget --method stmr``)."""
+    p.add_argument("--segments", type=int, default=1, help=prefix + "S, the number of equal time segments (default 1)")
+    p.add_argument("--alpha-bound", type=float, default=1.0, help=prefix + "B: log2 α ∈ [−B, B], 0 < B ≤ 2 (default 1)")
+    p.add_argument("--budget", type=int, default=8, help=prefix + "Bayesian-optimisation evaluations at most (default 8)")
+    p.add_argument("--parallel", type=int, default=1, help=prefix + "BO evaluations in flight on Ray (default 1: in "
+                   "process; more starts a local Ray unless --address)")
+    p.add_argument("--address", default=None, help=prefix + "Ray cluster address (default: a local Ray when one is needed)")
+    p.add_argument("--mode", choices=("receding", "full"), default="receding", help=prefix + "iLQR horizon (default receding)")
+    p.add_argument("--window", type=float, default=0.25, help=prefix + "receding-horizon window in seconds (default "
+                   "0.25; flips need the whole flight, e.g. 0.6)")
+    p.add_argument("--seed", type=int, default=0, help=prefix + "seed of the BO warm start")
 
 
 def _settings(args: argparse.Namespace):  # noqa: ANN202
@@ -84,6 +89,9 @@ def _check_address(address: str | None) -> None:
 
 
 def _executor(address: str | None, parallel: int):  # noqa: ANN202
+    """In process for one evaluation at a time; Ray otherwise. A cluster that does not answer is a user error (exit
+    2); a local Ray that fails to start (a loaded machine can miss raylet's start-up window) is one line on stderr
+    and the evaluations run one after the other in this process."""
     from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
 
     if address is None and parallel <= 1:
@@ -91,7 +99,28 @@ def _executor(address: str | None, parallel: int):  # noqa: ANN202
     try:
         return RayExecutor(address=address, num_cpus=None)
     except RayAddressError as exc:
-        raise CliError(str(exc)) from None
+        if address is not None:
+            raise CliError(str(exc)) from None
+        print(f"studio: {exc}; running the evaluations one at a time in this process", file=sys.stderr, flush=True)
+        return LocalExecutor()
+
+
+def run_tmr(motion, settings, address: str | None, parallel: int):  # noqa: ANN001, ANN201
+    """TMR of a kinematic motion with progress lines on stderr; None when interrupted (nothing written)."""
+    from engine.retarget.quadruped.tmr.ddp import Cancelled
+    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor
+    from engine.retarget.quadruped.tmr.tmr import temporal_retarget
+
+    executor = _executor(address, parallel)
+    if isinstance(executor, LocalExecutor):
+        from dataclasses import replace
+
+        settings = replace(settings, parallel=1)
+    try:
+        return temporal_retarget(motion, settings, executor=executor, progress=_progress_line(""))
+    except (KeyboardInterrupt, Cancelled):
+        print("studio: cancelled; nothing written", file=sys.stderr)
+        return None
 
 
 def _quadruped(name: str):  # noqa: ANN202
@@ -108,21 +137,24 @@ def _quadruped(name: str):  # noqa: ANN202
 
 
 def _load_motion(path: str):  # noqa: ANN202
-    from engine.retarget.quadruped.tmr.motion_io import MotionFileError, load_robot_motion
+    from engine.retarget.motion import MotionFormatError, RobotMotion
 
     try:
-        return load_robot_motion(path)
-    except MotionFileError as exc:
+        return RobotMotion.load(path)
+    except MotionFormatError as exc:
         raise CliError(str(exc)) from None
 
 
 def _check_motion(motion, robot, where: str, settings) -> None:  # noqa: ANN001
+    from engine.retarget.motion import LEGS
     from engine.retarget.quadruped.tmr.deformation import DeformationError, check_segments
     from engine.retarget.quadruped.tmr.kinematic_clips import mujoco_joint_names
 
     if motion.robot != robot.name:
         raise CliError(f"{where}: robot: expected a motion of {robot.name} (spatial retargeting to another robot is "
                        f"SMR's job), got {motion.robot}")
+    if tuple(motion.foot_names) != LEGS:
+        raise CliError(f"{where}: foot_names: expected {', '.join(LEGS)}, got {', '.join(motion.foot_names)}")
     expected = mujoco_joint_names(robot)
     if list(motion.joint_names) != expected:
         raise CliError(f"{where}: joint_names: expected {robot.name}'s {len(expected)} joints in MuJoCo order")
@@ -151,20 +183,14 @@ def _progress_line(prefix: str):  # noqa: ANN202
 
 
 def cmd_tmr(args: argparse.Namespace) -> int:
-    from engine.retarget.quadruped.tmr.ddp import Cancelled
-    from engine.retarget.quadruped.tmr.tmr import temporal_retarget
-
     settings = _settings(args)
     out = _out_npz(args.out)
     _check_address(args.address)
     motion = _load_motion(args.motion)
     robot = _quadruped(args.robot or motion.robot)
     _check_motion(motion, robot, Path(args.motion).name, settings)
-    executor = _executor(args.address, args.parallel)
-    try:
-        result = temporal_retarget(motion, settings, executor=executor, progress=_progress_line(""))
-    except (KeyboardInterrupt, Cancelled):
-        print("studio: cancelled; nothing written", file=sys.stderr)
+    result = run_tmr(motion, settings, args.address, args.parallel)
+    if result is None:
         return 130
     result.motion.save(out)
     s = result.summary
@@ -180,7 +206,37 @@ def cmd_tmr(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- batch
 
 
+def _batch_clip(spec: str):  # noqa: ANN202
+    """A batch clip: a robot motion (npz, robot-motion/1) or a source motion (keypoint npz or any importable
+    file, which each robot gets through SMR first)."""
+    from engine.retarget.importers import import_source
+    from engine.retarget.motion import ROBOT_FORMAT, MotionFormatError, RobotMotion
+
+    path = Path(spec)
+    if path.suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                robot_motion = "format" in f.files and str(f["format"]) == ROBOT_FORMAT
+        except FileNotFoundError:
+            raise CliError(f"{path.name}: file not found") from None
+        except Exception:  # noqa: BLE001 - any unreadable file is one line (named below by the loader)
+            robot_motion = True
+        if robot_motion:
+            try:
+                return RobotMotion.load(path)
+            except MotionFormatError as exc:
+                raise CliError(str(exc)) from None
+    try:
+        return import_source(path)
+    except MotionFormatError as exc:
+        raise CliError(str(exc)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CliError(f"{path.name}: cannot read ({exc.__class__.__name__})") from None
+
+
 def _clip_motion(spec: str, robot):  # noqa: ANN001, ANN202
+    from engine.retarget.motion import RobotMotion
+    from engine.retarget.quadruped.pipeline import retarget_detailed
     from engine.retarget.quadruped.tmr import kinematic_clips
 
     if spec.startswith("gen:"):
@@ -188,7 +244,10 @@ def _clip_motion(spec: str, robot):  # noqa: ANN001, ANN202
         if name not in GENERATED_CLIPS:
             raise CliError(f"{spec}: expected gen:{'|gen:'.join(GENERATED_CLIPS)}")
         return getattr(kinematic_clips, name)(robot)
-    return _load_motion(spec)
+    motion = _batch_clip(spec)
+    if isinstance(motion, RobotMotion):
+        return motion
+    return retarget_detailed(motion, robot.name, "smr").motion  # a source: SMR to this robot, then TMR
 
 
 def job_key(spec: str, robot: str, settings) -> str:  # noqa: ANN001
@@ -222,6 +281,9 @@ def run_batch_job(spec: str, robot_name: str, settings, out_path: str) -> dict: 
 
 
 def cmd_retarget_batch(args: argparse.Namespace) -> int:
+    from engine.retarget.motion import RobotMotion
+    from engine.retarget.quadruped.tmr.deformation import DeformationError, check_segments
+
     settings = _settings(args)
     _check_address(args.address)
     out_dir = Path(args.out)
@@ -230,7 +292,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     robots = [r for r in (args.robots or "").split(",") if r]
     for r in robots:
         _quadruped(r)
-    jobs = []
+    jobs: list[tuple[str, str]] = []  # (clip spec, robot)
     for spec in args.clips:
         if spec.startswith("gen:"):
             if not robots:
@@ -239,7 +301,16 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
                 raise CliError(f"{spec}: expected gen:{'|gen:'.join(GENERATED_CLIPS)}")
             jobs.extend((spec, r) for r in robots)
             continue
-        motion = _load_motion(spec)
+        motion = _batch_clip(spec)
+        if not isinstance(motion, RobotMotion):  # a source motion: SMR to each robot first
+            if not robots:
+                raise CliError(f"{Path(spec).name}: a source motion needs --robots")
+            try:
+                check_segments(settings.segments, motion.frames, motion.fps)
+            except DeformationError as exc:
+                raise CliError(f"{Path(spec).name}: keypoints: {exc}") from None
+            jobs.extend((spec, r) for r in robots)
+            continue
         targets = robots or [motion.robot]
         for r in targets:
             _check_motion(motion, _quadruped(r), Path(spec).name, settings)
@@ -266,6 +337,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     if todo:
         from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
 
+        executor: LocalExecutor | RayExecutor
         if args.address is None and args.jobs == 1:
             executor = LocalExecutor()  # one job at a time needs no Ray
         else:

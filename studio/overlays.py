@@ -6,6 +6,8 @@ engine planned and measured.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import viser
 
@@ -34,7 +36,7 @@ class Overlays:
         self.root = root
         self.visible = True
         self.sole = (0.17, 0.055)
-        self.handles: dict[str, object] = {}
+        self.handles: dict[str, Any] = {}  # viser scene-node handles of several kinds
 
     def set_sole(self, length_m: float, width_m: float) -> None:
         self.sole = (length_m, width_m)

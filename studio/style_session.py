@@ -215,7 +215,8 @@ class StyleSession:
                 return EditResult(False, "nothing to undo")
             previous, label = self._undo.pop()
             self._merge_key = None
-            self._redo.append((self.style, label))
+            if self.style is not None:
+                self._redo.append((self.style, label))
             self.style = previous
             self.dirty = True
             self._autosave()
@@ -228,7 +229,8 @@ class StyleSession:
                 return EditResult(False, "nothing to redo")
             following, label = self._redo.pop()
             self._merge_key = None
-            self._undo.append((self.style, label))
+            if self.style is not None:
+                self._undo.append((self.style, label))
             self.style = following
             self.dirty = True
             self._autosave()

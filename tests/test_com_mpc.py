@@ -1,4 +1,4 @@
-"""Tests for the CoM/CoP model predictive controller (engine/control/com_mpc.py)."""
+"""Tests for the CoM/CoP model predictive controller (engine/control/mpc/)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine.control.com_mpc import (
-    GRAVITY_MPS2,
+from engine.constants import GRAVITY_MPS2
+from engine.control.mpc import (
     ComMpc,
     ComMpcSolution,
     ComMpcWeights,
@@ -708,7 +708,7 @@ def test_stability_weight_softens_the_final_capture_point() -> None:
     shift=st.integers(0, 11),
 )
 def test_vectorised_geometry_matches_reference(seed, n_points, clockwise, collinear, shift) -> None:
-    from engine.control.com_mpc import _support_geometry
+    from engine.control.mpc.regions import _support_geometry
 
     rng = np.random.default_rng(seed)
     polys = []

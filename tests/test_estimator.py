@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from engine.control.controller import RobotState
-from engine.control.estimator import (
+from engine.control.estimation import (
     EstimatorParams,
     ImuEkf,
     ImuEkfParams,
@@ -22,9 +22,9 @@ from engine.control.estimator import (
     LegKinematics,
     MujocoImu,
     StateEstimator,
-    _inv_sym,
-    _quat_step,
 )
+from engine.control.estimation.ekf import _inv_sym
+from engine.control.estimation.quaternion import _quat_step
 from engine.bench.estimator import benchmark_estimator
 from engine.robot.model import load_robot
 from engine.sim import Simulation
@@ -170,10 +170,10 @@ def test_ekf_rejects_a_garbage_accelerometer_sample():
     ekf = ImuEkf(ImuEkfParams(), GRAVITY_MPS2)
     assert not ekf.initialize(np.array([np.nan, 0.0, 9.81]), 0.0)
     assert ekf.initialize(np.array([0.0, 0.0, 9.81]), 0.0)
-    before = (ekf.quat_xyzw, ekf.cov.copy())
+    before = (ekf.quat_wxyz, ekf.cov.copy())
     assert not ekf.update_gravity(np.array([np.nan, 0.0, 9.81]))
     assert not ekf.update_gravity(np.array([0.0, 0.0, 40.0]))  # an impact beyond the gate
-    assert ekf.quat_xyzw == before[0] and np.array_equal(ekf.cov, before[1])
+    assert ekf.quat_wxyz == before[0] and np.array_equal(ekf.cov, before[1])
 
 
 # ----------------------------------------------------------------------------- (2) G1 with pushes
@@ -442,7 +442,7 @@ def test_sole_contact_point_is_the_softmin_of_its_corners(roll, pitch):
     kin = LegKinematics(robot, softmin_m=0.004)
     q = robot.q_standing.copy()
     q[3:7] = pin.Quaternion(pin.rpy.rpyToMatrix(roll, pitch, 0.3)).coeffs()
-    feet = kin.compute(q[7:], np.zeros(robot.n_joints), q[3:7])
+    feet = kin.compute(q[7:], np.zeros(robot.n_joints), np.roll(q[3:7], 1))  # attitude in w, x, y, z
     data = robot.pin_model.createData()
     q_base = q.copy()
     q_base[:3] = 0.0
@@ -459,9 +459,9 @@ def test_sole_contact_point_is_the_softmin_of_its_corners(roll, pitch):
        st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3))
 def test_quaternion_step_matches_pinocchio(coeffs, rotvec):
     q = np.array(coeffs) / np.linalg.norm(coeffs)
-    stepped = np.array(_quat_step(tuple(q), *rotvec))
-    expected = pin.Quaternion(q).toRotationMatrix() @ pin.exp3(np.array(rotvec))
-    assert np.allclose(pin.Quaternion(stepped).toRotationMatrix(), expected, atol=1e-12)
+    stepped = np.array(_quat_step(tuple(q), *rotvec))  # w, x, y, z (pinocchio's Quaternion takes x, y, z, w)
+    expected = pin.Quaternion(np.roll(q, -1)).toRotationMatrix() @ pin.exp3(np.array(rotvec))
+    assert np.allclose(pin.Quaternion(np.roll(stepped, -1)).toRotationMatrix(), expected, atol=1e-12)
     assert abs(np.linalg.norm(stepped) - 1.0) < 1e-12
 
 
@@ -477,7 +477,7 @@ def test_mujoco_imu_reads_the_base_frame_and_seeds_its_noise():
     assert np.allclose(clean.accel_mps2, GRAVITY_MPS2 * up_b, atol=0.05)  # at rest: +g along "up"
     # Sensors are evaluated inside mj_step before integration: they describe the previous tick.
     assert np.allclose(clean.gyro_radps, before.v[3:6], atol=1e-12)
-    assert np.allclose(MujocoImu(robot.mj_model).truth_quat_xyzw(sim.data), before.q[3:7], atol=1e-12)
+    assert np.allclose(MujocoImu(robot.mj_model).truth_quat_wxyz(sim.data), np.roll(before.q[3:7], 1), atol=1e-12)
     a, b = (MujocoImu(robot.mj_model, REALISTIC_IMU, seed=5).read(sim.data) for _ in range(2))
     assert np.array_equal(a.gyro_radps, b.gyro_radps) and np.array_equal(a.accel_mps2, b.accel_mps2)
     noisy = [MujocoImu(robot.mj_model, REALISTIC_IMU, seed=s).read(sim.data) for s in range(200)]

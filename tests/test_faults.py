@@ -103,7 +103,8 @@ _EDITOR = textwrap.dedent("""
     while True:  # every accepted edit is autosaved
         i += 1
         s = session.style.samples["in_place"]
-        e = replace(s, attributes=replace(s.attributes, stance_width_m=0.22 + 0.04 * ((i % 10) / 10)))
+        # never 0.24 m, neutral's own width: an autosave equal to the saved file offers nothing to recover
+        e = replace(s, attributes=replace(s.attributes, stance_width_m=0.221 + 0.004 * (i % 10)))
         session.apply(session.style.with_sample("in_place", e), "edit")
 """)
 

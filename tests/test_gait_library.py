@@ -10,7 +10,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.gait_library import AXES, GridError, LibraryError, LibraryRun, cell_id, parse_grid, run_library
+from engine.gait_library import (
+    AXES,
+    MIN_SPACING,
+    GridError,
+    LibraryError,
+    LibraryRun,
+    cell_id,
+    parse_grid,
+    run_library,
+)
 from tests.conftest import run_studio
 
 finite = st.floats(-2.0, 2.0, allow_nan=False).map(lambda x: round(x, 3))
@@ -20,7 +29,7 @@ finite = st.floats(-2.0, 2.0, allow_nan=False).map(lambda x: round(x, 3))
 def axis_specs(draw):
     low = draw(finite)
     high = draw(finite.filter(lambda h: h > low))
-    count = draw(st.integers(2, 12))
+    count = draw(st.integers(2, 12).filter(lambda n: (high - low) / (n - 1) >= MIN_SPACING))
     return low, high, count
 
 
@@ -44,6 +53,13 @@ def test_grid_has_the_product_of_its_axes_evenly_spaced(specs, present):
         else:
             assert list(values) == [0.0]  # a left-out axis is zero
     assert len({cell_id(v) for v in velocities}) == len(velocities)  # folder names are unique
+
+
+def test_points_closer_than_the_folder_resolution_are_refused():
+    # six points over 4 mm/s would name two cells the same folder (velocities are named to 0.001)
+    with pytest.raises(GridError, match="at least 0.002 apart"):
+        parse_grid("wz=0.121:0.125:6")
+    assert parse_grid("wz=0.12:0.13:6").shape[2] == 6
 
 
 @given(lo=finite, hi=finite, n=st.integers(-3, 0))

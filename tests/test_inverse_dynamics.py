@@ -10,9 +10,8 @@ import pinocchio as pin
 import pytest
 
 from engine.control.controller import RobotState
-from engine.control.inverse_dynamics import (
-    GRAVITY_MPS2,
-    SIDES,
+from engine.constants import GRAVITY_MPS2, SIDES
+from engine.control.wbc import (
     TaskSpaceInverseDynamics,
     TrackingController,
     WbcGains,
@@ -356,7 +355,7 @@ def test_g1_survives_a_burst_of_garbage_references(g1):
 
 @pytest.mark.slow
 def test_placo_wrapper_holds_g1_standing(g1):
-    from engine.control.placo_wbc import PlacoWbc
+    from engine.control.wbc.placo_peer import PlacoWbc
 
     ours = TaskSpaceInverseDynamics(g1)
     ref = ours.hold_reference(g1.q_standing)
@@ -411,3 +410,27 @@ def test_actuator_torque_limits_hold_and_backends_agree(g1, backend, pattern):
     scale = abs(cost_dense) + 1.0
     assert cost_dense <= cost_osqp + 1e-6 * scale
     assert cost_osqp - cost_dense < 1e-2 * scale
+
+
+def test_snapshot_jacobians_come_from_crba() -> None:
+    """DynamicsSnapshot skips computeJointJacobians: pinocchio's CRBA (WORLD convention) fills data.J.
+    The frame Jacobians and drifts equal those of a data that ran it."""
+    import pinocchio as pin
+
+    from engine.control.wbc.tasks import DynamicsSnapshot
+
+    robot = load_robot("g1")
+    model = robot.pin_model
+    rng = np.random.default_rng(3)
+    q = robot.q_standing.copy()
+    q[7:] += rng.normal(0.0, 0.1, robot.n_joints)
+    v = rng.normal(0.0, 0.5, model.nv)
+    fids = [model.getFrameId(f"{s}_foot") for s in SIDES]
+    snap = DynamicsSnapshot.compute(model, model.createData(), q, v, fids)
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.computeCentroidalMomentumTimeVariation(model, data, q, v, np.zeros(model.nv))
+    for i, fid in enumerate(fids):
+        np.testing.assert_allclose(snap.frame_jacobian[i], pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED), atol=1e-12)
+        np.testing.assert_allclose(snap.frame_drift[i], pin.getFrameClassicalAcceleration(
+            model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector, atol=1e-9)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from engine.control.controller import RobotState
-from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
+from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference
 from engine.robot.model import load_robot
 from tools.record_stack_golden import record
 

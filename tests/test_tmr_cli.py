@@ -47,7 +47,7 @@ def test_bad_options_exit_2_with_one_line_and_write_nothing(clips, tmp_path, ext
 
 @pytest.mark.parametrize("name, extra, expected", [
     ("short.npz", ["--segments", "3"], "short.npz: qpos: expected a clip of at least two frames per segment"),
-    ("junk.npz", [], "junk.npz: expected an npz robot motion"),
+    ("junk.npz", [], "junk.npz: expected an npz motion file"),
     ("missing.npz", [], "missing.npz: file not found"),
 ])
 def test_bad_clips_exit_2_naming_the_file(clips, tmp_path, name, extra, expected) -> None:  # noqa: ANN001
@@ -124,3 +124,21 @@ def test_batch_on_ray_runs_then_resumes(clips, tmp_path) -> None:  # noqa: ANN00
     assert len(list(tmp_path.glob("*.npz"))) == 2 and len(list(tmp_path.glob("*.json"))) == 2
     second = run_studio("retarget-batch", *args, timeout=300)
     assert [r["status"] for r in json.loads(second.stdout)["jobs"]] == ["skipped (done)"] * 2
+
+
+def test_batch_takes_source_clips_through_smr_then_tmr(tmp_path) -> None:  # noqa: ANN001
+    from engine.retarget.motion import RobotMotion
+    from engine.retarget.synthetic import synthetic_trot
+
+    src = tmp_path / "kp_trot.npz"
+    synthetic_trot(frames=15, fps=30.0).save(src)
+    out_dir = tmp_path / "out"
+    alone = run_studio("retarget-batch", str(src), "--budget", "1", "--out", str(out_dir), timeout=120)
+    assert alone.returncode == 2 and "kp_trot.npz: a source motion needs --robots" in alone.stderr
+    res = run_studio("retarget-batch", str(src), "--robots", "go1", "--budget", "1", "--jobs", "1", "--out",
+                     str(out_dir), "--json", timeout=600)
+    assert res.returncode == 0, res.stderr
+    rows = json.loads(res.stdout)["jobs"]
+    assert [r["status"] for r in rows] == ["done"] and rows[0]["robot"] == "go1"
+    m = RobotMotion.load(out_dir / rows[0]["file"])
+    assert m.method == "stmr" and m.source["kinematic_method"] == "smr" and "pd_targets" in m.extra

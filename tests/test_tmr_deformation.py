@@ -72,3 +72,26 @@ def test_segments_need_two_frames_each() -> None:
         check_segments(0, 100, 50.0)
     with pytest.raises(DeformationError):
         check_segments(4, 7, 50.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(z0=st.floats(0.2, 0.5), z1=st.floats(0.2, 0.5), dx=st.floats(-0.5, 0.5), before=st.integers(1, 5),
+       air=st.integers(2, 60), after=st.integers(1, 5), dt=st.sampled_from([0.005, 0.01, 0.02]))
+def test_re_timed_flights_are_ballistic_between_take_off_and_landing(z0, z1, dx, before, air, after, dt) -> None:  # noqa: ANN001
+    from engine.retarget.quadruped.tmr.deformation import ballistic_flights, flight_intervals
+
+    n = before + air + after
+    contact = np.ones((n, 4), dtype=bool)
+    contact[before: before + air] = False
+    q = np.zeros((n, 19))
+    q[:, 3] = 1.0
+    q[:before, 2], q[before + air:, 2] = z0, z1
+    q[before + air:, 0] = dx
+    q[before: before + air, 2] = 3.0  # a kinematic arc made at another timing
+    out = ballistic_flights(q, contact, dt)
+    a, b = flight_intervals(contact)[0]
+    assert (a, b) == (before - 1, before + air)
+    np.testing.assert_allclose(out[[a, b], :3], q[[a, b], :3], atol=1e-12)  # take-off and landing kept
+    np.testing.assert_allclose(np.diff(out[a: b + 1, 2], 2), -9.81 * dt**2, atol=1e-9)  # gravity only
+    np.testing.assert_allclose(np.diff(out[a: b + 1, 0], 2), 0.0, atol=1e-12)  # constant horizontal velocity
+    np.testing.assert_array_equal(out[:, 3:], q[:, 3:])  # orientation and joints untouched

@@ -8,7 +8,7 @@ import pytest
 
 from engine.retarget.quadruped.tmr import kinematic_clips
 from engine.retarget.quadruped.tmr.ddp import MotionTracker
-from engine.retarget.quadruped.tmr.motion_io import load_robot_motion
+from engine.retarget.motion import RobotMotion
 from engine.retarget.quadruped.tmr.tmr import TMRSettings, temporal_retarget
 from engine.robot.model import load_robot
 
@@ -40,7 +40,7 @@ def test_dynamic_motion_replays_and_its_pd_targets_reproduce_the_torques(go1, st
     _, result, _ = standing_result
     path = tmp_path / "stand_tmr.npz"
     result.motion.save(path)
-    m = load_robot_motion(path)
+    m = RobotMotion.load(path)
     assert m.method == "stmr" and m.fps == pytest.approx(100.0)
     assert m.qvel.shape == (m.frames, go1.mj_model.nv) and m.ctrl.shape == (m.frames, 12)
     lim = go1.effort_limits.max()
@@ -70,8 +70,8 @@ def test_tracker_detects_a_fall(go1) -> None:  # noqa: ANN001
 def test_shipped_backflip_turns_once_with_a_ballistic_flight_and_clean_feet() -> None:
     from tests.conftest import REPO
 
-    m = load_robot_motion(REPO / "motions" / "go1" / "backflip.npz")
-    assert m.robot == "go1" and m.source["keyframes"] == 12 and m.duration_s == pytest.approx(1.48)
+    m = RobotMotion.load(REPO / "motions" / "go1" / "backflip.npz")
+    assert m.robot == "go1" and m.source["keyframes"] == 12 and (m.frames - 1) / m.fps == pytest.approx(1.48)
     q = m.qpos
     pitch = np.unwrap(2.0 * np.arctan2(q[:, 5], q[:, 3]))  # rotation about y (x = z = 0 in this clip)
     assert np.allclose(q[:, [4, 6]], 0.0, atol=1e-9)

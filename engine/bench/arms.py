@@ -5,6 +5,13 @@ Errors are hand / elbow distances (mm) to the optimisation-based targets (:func:
 directions scaled to the robot's arm, from its own shoulders); collision-free is the capsule check of every
 output frame; times are per frame on this machine, in the same run (the ratio is what to compare).
 Also: capsules against MuJoCo's collision detection on random poses.
+
+Methods: ``lwl2`` (the shipped run-time path: LWR then a few refinement steps and the fixer,
+:data:`puppeteer.REFINE_ITERS`), ``lwl2-paper`` (LWR alone, refine_iters = 0: the paper's method),
+``ik+fix`` (per-frame optimisation-based retargeting warm-started from the previous frame, then the
+fixer), ``feed-forward`` (glue-only network). Every method sees the same frames, interleaved frame by frame
+so machine load hits them alike. A ``LWL2 vs IK`` row per clip group puts the per-frame medians side by
+side with their ratio (``ik_over_lwl2`` > 1: LWL2 is faster) and the hand-error ratio (goal ≤ 1.2).
 """
 
 from __future__ import annotations
@@ -42,39 +49,50 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
             continue
         arms = ArmRetargeter.load(robot)
         ub, cm = arms.ub, arms.capsules
+        paper = ArmRetargeter.load(robot, capsules=cm, refine_iters=0)
         ik = ArmIK(ub, cm)
         agree = mujoco_agreement(cm, agreement_poses)
         rows.append({"section": "arms", "robot": robot, "method": "capsules-vs-mujoco", "clips": f"{agree['poses']} random poses",
                      "agreement": agree["agreement"], "mujoco_only": agree["mujoco_only"],
                      "capsules_only": agree["capsules_only"], "conservative": agree["conservative"]})
         for group, paths in groups.items():
-            stats = {m: {"hand": [], "elbow": [], "free": [], "t": []} for m in ("lwl2", "ik+fix", "feed-forward")}
+            stats: dict[str, dict[str, list[float]]] = {
+                m: {"hand": [], "elbow": [], "free": [], "t": []} for m in ("lwl2", "lwl2-paper", "ik+fix", "feed-forward")}
             fallbacks = holds = frames = 0
             for path in paths:
                 pts = bvh_points(load_bvh(path))
                 poses = pts.pose15()[:: max(1, int(round(pts.fps / fps)))]
                 frames += len(poses)
-                arms.reset()
-                arms.graph_fallbacks = arms.holds = 0
+                for a in (arms, paper):
+                    a.reset()
+                    a.graph_fallbacks = a.holds = 0
                 x_ik = None
                 for p in poses:
-                    step = arms.retarget(p)
-                    s = stats["lwl2"]
-                    h, e = arm_errors_m(ub, step.x, p)
-                    s["hand"].append(h), s["elbow"].append(e), s["free"].append(cm.is_free(step.x)), s["t"].append(step.inference_s)
+                    for a, method in ((arms, "lwl2"), (paper, "lwl2-paper")):
+                        step = a.retarget(p)
+                        s = stats[method]
+                        h, e = arm_errors_m(ub, step.x, p)
+                        s["hand"].append(h)
+                        s["elbow"].append(e)
+                        s["free"].append(cm.is_free(step.x))
+                        s["t"].append(step.inference_s)
                     t0 = time.perf_counter()
                     x_ik, ok = ik.solve(p, x_ik)
                     s = stats["ik+fix"]
                     s["t"].append(time.perf_counter() - t0)
                     h, e = arm_errors_m(ub, x_ik, p)
-                    s["hand"].append(h), s["elbow"].append(e), s["free"].append(cm.is_free(x_ik))
+                    s["hand"].append(h)
+                    s["elbow"].append(e)
+                    s["free"].append(cm.is_free(x_ik))
                     if arms.feed_forward is not None:
                         t0 = time.perf_counter()
                         x_ff = arms.feed_forward_pose(p)
                         s = stats["feed-forward"]
                         s["t"].append(time.perf_counter() - t0)
                         h, e = arm_errors_m(ub, x_ff, p)
-                        s["hand"].append(h), s["elbow"].append(e), s["free"].append(cm.is_free(x_ff))
+                        s["hand"].append(h)
+                        s["elbow"].append(e)
+                        s["free"].append(cm.is_free(x_ff))
                 fallbacks += arms.graph_fallbacks
                 holds += arms.holds
             lwl2_median = float(np.median(stats["lwl2"]["t"]))
@@ -88,8 +106,21 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
                        "median_us": round(float(np.median(t) * 1e6), 1), "p99_us": round(float(np.percentile(t, 99) * 1e6), 1),
                        "time_vs_lwl2": round(float(np.median(t)) / lwl2_median, 2)}
                 if method == "lwl2":
-                    row.update({"graph_steps": fallbacks, "holds": holds, "goal_p99_us": 2000})
+                    row.update({"graph_steps": fallbacks, "holds": holds, "goal_p99_us": 2000,
+                                "refine_iters": arms.refine_iters})
                 rows.append(row)
+            ik_median = float(np.median(stats["ik+fix"]["t"]))
+            hand = {m: float(np.mean(stats[m]["hand"])) for m in ("lwl2", "lwl2-paper", "ik+fix")}
+            rows.append({"section": "arms", "robot": robot, "method": "LWL2 vs IK", "clips": group,
+                         "lwl2_median_us": round(lwl2_median * 1e6, 1),
+                         "lwl2_paper_median_us": round(float(np.median(stats["lwl2-paper"]["t"])) * 1e6, 1),
+                         "ik_median_us": round(ik_median * 1e6, 1),
+                         "ik_over_lwl2": round(ik_median / lwl2_median, 2),
+                         "ik_over_lwl2_paper": round(ik_median / float(np.median(stats["lwl2-paper"]["t"])), 2),
+                         "goal_ik_over_lwl2": 10.0,
+                         "hand_lwl2_over_ik": round(hand["lwl2"] / hand["ik+fix"], 2),
+                         "hand_lwl2_paper_over_ik": round(hand["lwl2-paper"] / hand["ik+fix"], 2),
+                         "goal_hand_over_ik": 1.2})
     keys: list[str] = []
     for row in rows:  # one column set for the whole section (the table prints the first row's keys)
         keys += [k for k in row if k not in keys]

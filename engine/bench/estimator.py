@@ -13,7 +13,7 @@ from engine.sim import Simulation
 
 
 def benchmark_estimator(robot_name: str = "g1", n_ticks: int = 2000, seed: int = 0,
-                        params: EstimatorParams | None = None) -> dict[str, float]:
+                        params: EstimatorParams | None = None) -> dict[str, float | str]:
     """Cost of one :meth:`StateEstimator.update` (µs), replaying a recorded standing simulation
     with realistic sensor noise so only the estimator is timed."""
     robot = load_robot(robot_name)

@@ -32,7 +32,7 @@ def save_problems(path: str | Path, problems: Sequence[tuple[tuple, dict]]) -> N
         if sizes else np.zeros((0, 2)),
     }
     buf = io.BytesIO()
-    np.savez(buf, **np_arrays)
+    np.savez(buf, **np_arrays)  # type: ignore[arg-type]  # numpy's stub: **kwds clash with its allow_pickle: bool
     atomic_write_bytes(Path(path), buf.getvalue())
 
 
@@ -40,7 +40,7 @@ def load_problems(path: str | Path) -> list[tuple[tuple, dict]]:
     """The problems written by :func:`save_problems`."""
     with np.load(path, allow_pickle=False) as z:
         a = {k: z[k] for k in z.files}
-    problems = []
+    problems: list[tuple[tuple, dict]] = []
     s = v = 0
     for i, count in enumerate(a["support_count"]):
         supports = []
@@ -63,9 +63,9 @@ def _replay(mpc: ComMpc, problems: Sequence[tuple[tuple, dict]], skip: int = 0) 
     for i, (args, kwargs) in enumerate(problems):
         t0 = time.perf_counter()
         sol = mpc.solve(*args, **kwargs)
-        wall = time.perf_counter() - t0
+        wall_s = time.perf_counter() - t0
         if i >= skip:
-            wall_us.append(wall * 1e6)
+            wall_us.append(wall_s * 1e6)
             qp_us.append(sol.osqp_time_s * 1e6)
             iterations.append(sol.osqp_iterations)
             statuses.append(sol.status)

@@ -33,7 +33,7 @@ def call_with_known(function: Callable[..., list[dict]], options: dict) -> list[
 
 def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) -> list[dict]:
     """Call a section with the command-line options it declares as keyword parameters."""
-    mapping = {"minutes": args.minutes, "clients": args.clients, "robot": args.robot, "style": args.style, "n": args.n,
-               "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
+    mapping = {"minutes": args.minutes, "clients": args.clients, "tabs": getattr(args, "tabs", 2), "robot": args.robot,
+               "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
                "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir}
     return call_with_known(section, mapping)

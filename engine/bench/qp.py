@@ -18,17 +18,20 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from engine.bench.stats import percentiles_us
 from engine.control.qp_backends import BACKENDS, QpProblem, solve
 
+if TYPE_CHECKING:
+    from engine.control.wbc.qp import CentroidalQp
+
 WBC_TICKS = (500, 700, 2)  # from, to, every: ticks of the walk whose QPs are kept
 
 
-def record_wbc_qps(robot_name: str = "g1") -> list:
+def record_wbc_qps(robot_name: str = "g1") -> list[CentroidalQp]:
     """CentroidalQp of every 2nd tick from 1.0 s to 1.4 s of the G1 neutral sweep (closed loop)."""
     from engine.control.walking_controller import WalkingController
     from engine.gait.command_schedule import preset
@@ -42,12 +45,13 @@ def record_wbc_qps(robot_name: str = "g1") -> list:
     ctrl = WalkingController(robot, style)
     sim = Simulation(robot, ctrl)
     first, last, every = WBC_TICKS
-    qps = []
+    qps: list[CentroidalQp] = []
     for k in range(last):
         ctrl.set_command(schedule(k * 0.002))
         sim.step()
-        if k >= first and (k - first) % every == 0 and ctrl.wbc.diagnostics.ok:
-            qps.append(ctrl.wbc.qp)
+        diag = ctrl.wbc.diagnostics  # a solved tick carries the QP it solved
+        if k >= first and (k - first) % every == 0 and diag.ok and diag.qp is not None:
+            qps.append(diag.qp)
     return qps
 
 
@@ -56,7 +60,7 @@ def _table(name: str, problems: list[QpProblem], ours: Callable[[int], np.ndarra
     under the same machine conditions); ``with_form_median_us`` adds building the standard form
     (what a controller switched to that backend pays each call)."""
     names = ["hand-written (default)", *BACKENDS]
-    times = {b: [] for b in names}
+    times: dict[str, list[float]] = {b: [] for b in names}
     xs: dict[str, list] = {b: [] for b in names}
     for i, p in enumerate(problems):
         t0 = time.thread_time()
@@ -94,7 +98,9 @@ def bench_wbc_qps() -> list[dict]:
         form_s.append(time.thread_time() - t0)
 
     def ours(i: int) -> np.ndarray:  # in sequence, warm-started from the previous tick
-        qdd, rho = solver.solve(qps[i])
+        solution = solver.solve(qps[i])
+        assert solution is not None, f"the dense solver did not settle on recorded QP {i}"
+        qdd, rho = solution
         return np.concatenate([qdd, rho])
 
     return _table("wbc (G1 walk)", problems, ours, form_s)
@@ -111,7 +117,8 @@ def bench_mpc_qps(n: int = 150) -> list[dict]:
     built, problems, form_s = [], [], []
     for args, _ in calls:
         t_now, com, vel, cop, height, supports = args
-        pb, _ = mpc._build_problem(t_now, supports)
+        pb, message = mpc._build_problem(t_now, supports)
+        assert pb is not None, message
         seg = _Segments.build(pb.times_s, math.sqrt(GRAVITY_MPS2 / height))
         cop = np.asarray(cop, float)
         qp = mpc._condense(pb, seg, cop, np.asarray(com, float) + np.asarray(vel, float) / seg.omega - cop)

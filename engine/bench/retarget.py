@@ -8,6 +8,7 @@ Reads the clips from the shared data folder (env MOTION_STUDIO_SHARED, else <rep
 from __future__ import annotations
 
 import os
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +50,7 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
     shared = shared_dir()
     if shared is None:
         return [{"section": "retarget", "note": "shared data folder absent: set MOTION_STUDIO_SHARED"}]
-    rows = []
+    rows: list[dict[str, Any]] = []
     for robot in robots:
         retarget_detailed(import_source(clip_path(shared, clips[0])), robot, "uvm")  # warm the model cache
     for robot in robots:
@@ -73,7 +74,7 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
     smr_rows = [r for r in rows if r["robot"] in ("go1", "a1", "anymal_c")]
 
     def mean(key: str, digits: int) -> float:
-        vals = [r[key] for r in smr_rows if r[key] != "-"]
+        vals = [float(r[key]) for r in smr_rows if r[key] != "-"]
         return round(float(np.mean(vals)), digits) if vals else float("nan")
 
     if smr_rows:

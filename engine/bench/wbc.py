@@ -14,6 +14,7 @@ from engine.control.wbc import (
     TrackingController,
     WbcDiagnostics,
     WbcReference,
+    WholeBodyController,
 )
 from engine.control.wbc.placo_peer import PlacoWbc
 from engine.robot.model import load_robot
@@ -47,7 +48,7 @@ def benchmark_wbc(robot_name: str = "g1", n: int = 300) -> dict:
     robot = load_robot(robot_name)
     states, ref, rtf = record_standing_states(robot_name, n)
 
-    def interleaved(ctrls: list) -> list[tuple[NDArray, list[WbcDiagnostics]]]:  # noqa: ANN001
+    def interleaved(ctrls: list[WholeBodyController]) -> list[tuple[NDArray, list[WbcDiagnostics]]]:
         """Each recorded state is given to every controller in turn, so all of them run under
         the same machine conditions (and, as in the engine loop, with caches shared with the
         others rather than warm from their own previous tick)."""
@@ -56,8 +57,8 @@ def benchmark_wbc(robot_name: str = "g1", n: int = 300) -> dict:
             for st in states[:20]:  # warm up (allocations, warm start)
                 ctrl.compute(st, ref)
             ctrl.reset(states[0])
-        times = [[] for _ in ctrls]
-        diags = [[] for _ in ctrls]
+        times: list[list[float]] = [[] for _ in ctrls]
+        diags: list[list[WbcDiagnostics]] = [[] for _ in ctrls]
         for st in states:
             for i, ctrl in enumerate(ctrls):
                 t = time.thread_time()  # CPU time: robust on a shared machine

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from engine.control.com_mpc import GRAVITY_MPS2
+from engine.constants import GRAVITY_MPS2
 
 
 @dataclass(frozen=True)
@@ -39,8 +40,8 @@ class GaitFeedbackGains:
 
     @classmethod
     def for_robot(cls, name: str) -> "GaitFeedbackGains":
-        gains = cls(time_kp_per_m=3.0, time_kd_s_per_m=0.9, step_gain=0.7) if name == "talos" else cls()
-        return gains.with_config_overrides(name)
+        """The defaults with the robot's ``[control.gait_feedback]`` table (robots/<name>.toml) applied."""
+        return cls().with_config_overrides(name)
 
     def with_config_overrides(self, name: str) -> "GaitFeedbackGains":
         """These gains with robot ``name``'s ``[control.gait_feedback]`` table applied."""
@@ -50,7 +51,7 @@ class GaitFeedbackGains:
 
         cfg = load_robot_config(name)
         known = {f.name: f for f in fields(self)}
-        values = {}
+        values: dict[str, Any] = {}  # float or (low, high) per field, checked against the field above
         for key, value in cfg.gait_feedback.items():
             if key not in known:
                 raise RobotConfigError(f"{cfg.path.name}: control.gait_feedback.{key}: unknown gain; expected one of "

@@ -2,8 +2,8 @@
 
     min ½ xᵀ H x + fᵀ x   s.t.   lb ≤ x ≤ ub,   A_eq x = b_eq,   c_lo ≤ C x ≤ c_up
 
-The CoM MPC (:mod:`engine.control.com_mpc`) and the whole-body QP
-(:mod:`engine.control.inverse_dynamics`) each keep a hand-written dense active-set solver that
+The CoM MPC (:mod:`engine.control.mpc`) and the whole-body QP
+(:mod:`engine.control.wbc`) each keep a hand-written dense active-set solver that
 exploits their structure (Sherman–Morrison on the MPC's rank-one stiff term; closed-form
 elimination of q̈ in the ID). Both QPs can also be handed to a maintained solver through
 :func:`solve`: ``daqp``, ``proxsuite`` (dense ProxQP), ``quadprog`` (Goldfarb–Idnani), ``osqp``
@@ -46,15 +46,32 @@ class QpProblem:
         ub = np.full(self.n, np.inf) if self.ub is None else self.ub
         return lb, ub
 
+    def equalities(self) -> tuple[FloatArray, FloatArray] | None:
+        """(A_eq, b_eq), or None when the problem has no equality rows."""
+        if self.a_eq is None:
+            return None
+        assert self.b_eq is not None, "a_eq comes with b_eq"
+        return self.a_eq, self.b_eq
+
+    def inequalities(self) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """(C, c_lo, c_up), or None when the problem has no inequality rows."""
+        if self.c is None:
+            return None
+        assert self.c_lo is not None and self.c_up is not None, "c comes with c_lo and c_up"
+        return self.c, self.c_lo, self.c_up
+
     def violation(self, x: FloatArray) -> float:
         """Largest violation of any constraint at ``x``."""
         lb, ub = self.bounds()
         worst = max(float(np.max(lb - x, initial=0.0)), float(np.max(x - ub, initial=0.0)))
-        if self.a_eq is not None:
-            worst = max(worst, float(np.max(np.abs(self.a_eq @ x - self.b_eq), initial=0.0)))
-        if self.c is not None:
-            cx = self.c @ x
-            worst = max(worst, float(np.max(self.c_lo - cx, initial=0.0)), float(np.max(cx - self.c_up, initial=0.0)))
+        eq, ineq = self.equalities(), self.inequalities()
+        if eq is not None:
+            a_eq, b_eq = eq
+            worst = max(worst, float(np.max(np.abs(a_eq @ x - b_eq), initial=0.0)))
+        if ineq is not None:
+            c, c_lo, c_up = ineq
+            cx = c @ x
+            worst = max(worst, float(np.max(c_lo - cx, initial=0.0)), float(np.max(cx - c_up, initial=0.0)))
         return worst
 
     def objective(self, x: FloatArray) -> float:
@@ -76,15 +93,25 @@ def _solve_daqp(p: QpProblem) -> QpResult:
     import daqp
 
     lb, ub = p.bounds()
-    rows_a = [m for m in (p.a_eq, p.c) if m is not None]
+    eq, ineq = p.equalities(), p.inequalities()
+    rows_a: list[FloatArray] = []
+    up_parts, lo_parts = [ub], [lb]
+    if eq is not None:
+        rows_a.append(eq[0])
+        up_parts.append(eq[1])
+        lo_parts.append(eq[1])
+    if ineq is not None:
+        rows_a.append(ineq[0])
+        up_parts.append(ineq[2])
+        lo_parts.append(ineq[1])
     a = np.vstack(rows_a) if rows_a else np.zeros((0, p.n))
-    up = np.concatenate([ub] + ([p.b_eq] if p.a_eq is not None else []) + ([p.c_up] if p.c is not None else []))
-    lo = np.concatenate([lb] + ([p.b_eq] if p.a_eq is not None else []) + ([p.c_lo] if p.c is not None else []))
+    up = np.concatenate(up_parts)
+    lo = np.concatenate(lo_parts)
     sense = np.zeros(up.size, dtype=np.int32)
-    if p.a_eq is not None:
-        sense[p.n:p.n + p.a_eq.shape[0]] = 5  # equality (active, immutable)
+    if eq is not None:
+        sense[p.n:p.n + eq[0].shape[0]] = 5  # equality (active, immutable)
     x, _, flag, _ = daqp.solve(np.ascontiguousarray(p.h), p.f, np.ascontiguousarray(a), _finite(up), _finite(lo), sense)
-    ok = flag in (1, 2) and np.all(np.isfinite(x))
+    ok = flag in (1, 2) and bool(np.all(np.isfinite(x)))
     return QpResult(np.asarray(x) if ok else None, ok, f"daqp exitflag {flag}")
 
 
@@ -92,13 +119,18 @@ def _solve_proxsuite(p: QpProblem) -> QpResult:
     import proxsuite
 
     lb, ub = p.bounds()
-    c_rows = [np.eye(p.n)] + ([p.c] if p.c is not None else [])
+    ineq = p.inequalities()
+    c_rows, lo_parts, up_parts = [np.eye(p.n)], [lb], [ub]
+    if ineq is not None:
+        c_rows.append(ineq[0])
+        lo_parts.append(ineq[1])
+        up_parts.append(ineq[2])
     c = np.vstack(c_rows)
-    lo = np.concatenate([lb] + ([p.c_lo] if p.c is not None else []))
-    up = np.concatenate([ub] + ([p.c_up] if p.c is not None else []))
+    lo = np.concatenate(lo_parts)
+    up = np.concatenate(up_parts)
     res = proxsuite.proxqp.dense.solve(p.h, p.f, p.a_eq, p.b_eq, c, _finite(lo), _finite(up), eps_abs=1e-9, eps_rel=0.0,
                                        max_iter=2000)
-    ok = res.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED and np.all(np.isfinite(res.x))
+    ok = res.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED and bool(np.all(np.isfinite(res.x)))
     return QpResult(np.array(res.x) if ok else None, ok, str(res.info.status))
 
 
@@ -107,20 +139,23 @@ def _solve_quadprog(p: QpProblem) -> QpResult:
 
     # quadprog: min ½xᵀGx − aᵀx  s.t.  Cᵀx ≥ b, the first meq rows equalities.
     lb, ub = p.bounds()
-    cols, rhs = [], []
+    cols: list[FloatArray] = []
+    rhs: list[FloatArray] = []
     meq = 0
-    if p.a_eq is not None:
-        cols.append(p.a_eq)
-        rhs.append(p.b_eq)
-        meq = p.a_eq.shape[0]
+    eq, ineq = p.equalities(), p.inequalities()
+    if eq is not None:
+        cols.append(eq[0])
+        rhs.append(eq[1])
+        meq = eq[0].shape[0]
     fin_lb, fin_ub = np.isfinite(lb), np.isfinite(ub)
     eye = np.eye(p.n)
     cols += [eye[fin_lb], -eye[fin_ub]]
     rhs += [lb[fin_lb], -ub[fin_ub]]
-    if p.c is not None:
-        lo_ok, up_ok = np.isfinite(p.c_lo), np.isfinite(p.c_up)
-        cols += [p.c[lo_ok], -p.c[up_ok]]
-        rhs += [p.c_lo[lo_ok], -p.c_up[up_ok]]
+    if ineq is not None:
+        c, c_lo, c_up = ineq
+        lo_ok, up_ok = np.isfinite(c_lo), np.isfinite(c_up)
+        cols += [c[lo_ok], -c[up_ok]]
+        rhs += [c_lo[lo_ok], -c_up[up_ok]]
     try:
         x = quadprog.solve_qp(p.h, -p.f, np.vstack(cols).T.copy(), np.concatenate(rhs), meq)[0]
     except ValueError as exc:  # "constraints are inconsistent" / "matrix G is not positive definite"
@@ -134,10 +169,12 @@ def _solve_osqp(p: QpProblem) -> QpResult:
 
     lb, ub = p.bounds()
     g = h = None
-    if p.c is not None:  # qpsolvers: G x ≤ h
-        lo_ok, up_ok = np.isfinite(p.c_lo), np.isfinite(p.c_up)
-        g = sp.csc_matrix(np.vstack([p.c[up_ok], -p.c[lo_ok]]))
-        h = np.concatenate([p.c_up[up_ok], -p.c_lo[lo_ok]])
+    ineq = p.inequalities()
+    if ineq is not None:  # qpsolvers: G x ≤ h
+        c, c_lo, c_up = ineq
+        lo_ok, up_ok = np.isfinite(c_lo), np.isfinite(c_up)
+        g = sp.csc_matrix(np.vstack([c[up_ok], -c[lo_ok]]))
+        h = np.concatenate([c_up[up_ok], -c_lo[lo_ok]])
     x = qpsolvers.solve_qp(sp.csc_matrix(p.h), p.f, g, h, None if p.a_eq is None else sp.csc_matrix(p.a_eq), p.b_eq,
                            _finite(lb), _finite(ub), solver="osqp", eps_abs=1e-7, eps_rel=1e-7, max_iter=20000,
                            polishing=False, verbose=False)

@@ -15,45 +15,24 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from engine.control.com_mpc import GRAVITY_MPS2, ComMpc, ComMpcSolution, SupportInterval
+from engine.constants import GRAVITY_MPS2
+from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval
 from engine.control.controller import JointCommand, RobotState
 from engine.control.disturbance_observer import ExternalForceObserver
-from engine.control.estimator import StateEstimator
+from engine.control.estimation import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
-from engine.control.inverse_dynamics import TaskSpaceInverseDynamics, WbcReference
+from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
+from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
 from engine.gait.offline_plan import planner_for
-from engine.gait.planner import PLANNER_RATE_HZ, GaitReference
+from engine.gait.planner import PLANNER_RATE_HZ, GaitReference, PlannerFeedback
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.robot.model import RobotModel
 from engine.sim import CONTROL_PERIOD_S
 
 TICKS_PER_PLAN = int(round(1.0 / (PLANNER_RATE_HZ * CONTROL_PERIOD_S)))  # 4
 PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
-COMMAND_ACCEL_LIMITS = np.array([0.25, 0.3, 1.5])  # joystick rate limits: m/s², m/s², rad/s² (G1 cannot accelerate its gait faster)
-RELATCH_AFTER_PLAN_TICKS = 2  # re-latch a landed foot this many planner ticks (16 ms) after touchdown
-COP_MARGIN_M = 0.01
-COM_Z_FILTER = 0.05
-CAPTURE_TOLERANCE_M = 0.1  # a plan whose final capture point misses the last support by more is re-anchored  # per planner tick (≈ 0.16 s time constant)  # the MPC plans the CoP this far inside the soles (headroom for the whole-body QP)
-PATH_FOLLOWS_FEET = 1.0  # the path frame moves with step adjustments and re-latched footholds
-MAX_STEP_ADJUST_M = 0.35  # a step moves at most this far from its nominal foothold
-LATERAL_XI_MAX_OUT_M = 0.15  # ... and at most this far: with ξ running toward the stance foot, land near it
-LATERAL_XI_INSET_M = 0.03  # a foot lands at least this far outward of ξ at touchdown (it must move ξ back in)
-LATERAL_CAPTURE_MARGIN_M = 0.0  # ξ this far beyond the stance foot's outer edge hurries the gait
-OBSERVER_TIME_CONSTANT_S = 0.08  # push observer: response time ...
-OBSERVER_DEADBAND_N_PER_KG = 0.25  # ... and the force per kg below which model errors hide pushes
-OBSERVER_HOLD_SWING_SHARE = 0.15  # the observer holds over this last share of a swing ...
-OBSERVER_HOLD_AFTER_TOUCHDOWN_PLAN_TICKS = 5  # ... and this many planner ticks (40 ms) after touchdown
-DCM_ERROR_GROWTH_CAP = 2.5  # at most this growth of the measured ξ error is expected by touchdown
-DCM_ERROR_DEADBAND_M = 0.04  # measured ξ errors below this are left to the MPC (a push is larger)
-STEP_REACH_SHARE = 0.8  # share of the CoP's reach a step may rely on (rest: margin for tracking)
-PUSHED_REACH_SHARE = 0.25  # ... while the observer sees a push
-RESTART_WHEN_THROWN = False  # restart the MPC when ξ leaves the double support polygon (off: a 50 N side push while walking at 0.15 m/s fell with it, recorded)
-LANDING_HEIGHT_M = 0.01  # a descending swing foot this low may touch down early ...
-TOUCHDOWN_HEIGHT_M = 0.001  # ... and its corners this close to the floor carry load
-ANKLE_LOAD_FACTOR = 1.15  # vertical load (× m g) a single-support ankle must hold the CoP under
-MPC_STATE_PULL = 0.0  # per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0)
 
 
 @dataclass
@@ -94,30 +73,33 @@ class WalkingController:
     name = "walking"
 
     def __init__(self, robot: RobotModel, style: Style, wbc: str = "paper", state_source: str = "truth",
-                 feedback: bool = True, ctx: StyleContext | None = None):
+                 feedback: bool = True, ctx: StyleContext | None = None, params: WalkingParameters | None = None):
         if robot.kind != "biped":
             raise ValueError(f"{robot.name} is a {robot.kind}: the walking controller needs a biped")
         self.robot = robot
+        self.params = params or WalkingParameters.for_robot(robot.name)
+        self._command_accel_limits = np.array(self.params.command_accel_limits, dtype=float)
         self.ctx = ctx or StyleContext.for_robot(robot.name)
         self.style = style
         self.planner = planner_for(robot, style, self.ctx)
-        self.planner.preview_margin_m = COP_MARGIN_M
-        self.planner.preview_toe_trim_m = toe_trim_m(robot, COP_MARGIN_M)
-        self.planner.path_follows_feet = PATH_FOLLOWS_FEET
-        self.mpc = ComMpc(preview_s=2.0)
+        self.planner.preview_margin_m = self.params.cop_margin_m
+        self.planner.preview_toe_trim_m = toe_trim_m(robot, self.params.cop_margin_m, self.params.ankle_load_factor)
+        self.planner.path_follows_feet = self.params.path_follows_feet
+        self.mpc = ComMpc(preview_s=self.params.mpc_preview_s)
         self.feedback = GaitFeedback(GaitFeedbackGains.for_robot(robot.name), enabled=feedback)
+        self.wbc: WholeBodyController
         if wbc == "paper":
             self.wbc = TaskSpaceInverseDynamics(robot, upper_body_joints=self.ctx.upper_joints)
         elif wbc == "placo":
-            from engine.control.placo_wbc import PlacoWbc
+            from engine.control.wbc.placo_peer import PlacoWbc
 
             self.wbc = PlacoWbc(robot, upper_body_joints=self.ctx.upper_joints)
         else:
             raise ValueError(f"wbc: expected 'paper' or 'placo', got {wbc!r}")
         self.wbc_name = wbc
         self.estimator = StateEstimator(robot, mode="estimated" if state_source == "estimated" else "truth")
-        self.observer = ExternalForceObserver(robot.mass_kg, time_constant_s=OBSERVER_TIME_CONSTANT_S,
-                                              deadband_n_per_kg=OBSERVER_DEADBAND_N_PER_KG)
+        self.observer = ExternalForceObserver(robot.mass_kg, time_constant_s=self.params.observer_time_constant_s,
+                                              deadband_n_per_kg=self.params.observer_deadband_n_per_kg)
         self._mpc_shift = np.zeros(2)  # the MPC plans in a frame shifted by −f_ext/(m ω²)
         self._landing = False  # a foot is landing: the observer holds
         self.state_source = state_source
@@ -128,6 +110,7 @@ class WalkingController:
         self.command = np.zeros(3)
         self.command_filtered = np.zeros(3)
         self.tick = 0
+        self._plan_ticks = 0
         self.replans = 0
         self.ref: GaitReference | None = None
         self.plan: ComMpcSolution | None = None
@@ -145,11 +128,12 @@ class WalkingController:
         self.wbc_contact = np.ones((2, 4), dtype=bool)
         # How far the CoP reaches from the sole centre toward the heel and the (ankle-held) toe,
         # less the share kept for the whole-body controller: the band a landing foot keeps around ξ.
-        half = 0.5 * min(robot.config.soles[s].length_m for s in SIDES) - COP_MARGIN_M
-        self._reach_back_m = STEP_REACH_SHARE * half
-        self._reach_forward_m = STEP_REACH_SHARE * max(half - self.planner.preview_toe_trim_m, 0.0)
+        half = 0.5 * min(robot.config.soles[s].length_m for s in SIDES) - self.params.cop_margin_m
+        self._reach_back_m = self.params.step_reach_share * half
+        self._reach_forward_m = self.params.step_reach_share * max(half - self.planner.preview_toe_trim_m, 0.0)
         self._half_sole_width_m = 0.5 * min(robot.config.soles[s].width_m for s in SIDES)
-        self._reach_side_m = STEP_REACH_SHARE * (0.5 * min(robot.config.soles[s].width_m for s in SIDES) - COP_MARGIN_M)
+        self._reach_side_m = self.params.step_reach_share * (
+            0.5 * min(robot.config.soles[s].width_m for s in SIDES) - self.params.cop_margin_m)
 
     # ------------------------------------------------------------------ inputs
     def set_command(self, v: np.ndarray) -> None:
@@ -179,18 +163,19 @@ class WalkingController:
         self.mpc.reset()
         self.command_filtered = np.zeros(3)
         self.tick = 0
+        self._plan_ticks = 0
         self.ref = None
         self.plan = None
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
         self._landing = False
-        self._com_z = None
+        self._com_z: float | None = None  # the LIP height, low-passed (set on the first MPC tick)
         com = pin.centerOfMass(self.model, data, q, state.v)
         self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
         self.observer.reset(data.vcom[0][:2].copy())
         self._mpc_shift = np.zeros(2)
-        self._ground_force = None
+        self._ground_force: np.ndarray | None = None  # horizontal ground force of the last WBC tick
 
     # ------------------------------------------------------------------ one tick
     def compute(self, state: RobotState) -> JointCommand:
@@ -219,8 +204,7 @@ class WalkingController:
         self.wbc_contact = reference.contact
         reference.external_wrench = self._external_wrench(est)
         cmd = self.wbc.compute(est, reference)
-        forces = self.wbc.diagnostics.contact_forces_n if self.wbc.diagnostics.ok else None
-        self._ground_force = None if forces is None else forces[..., :2].sum(axis=(0, 1))
+        self._ground_force = _horizontal_ground_force(self.wbc.diagnostics)
         self.timings.wbc = time.perf_counter() - t_wbc
         self.tick += 1
         return cmd
@@ -249,30 +233,37 @@ class WalkingController:
             ref_pos, ref_vel = self._init_com[0], self._init_com[1]
         fb = self._feedback(com, com_vel, ref_pos, ref_vel)
         target = np.where(np.isfinite(self.command), self.command, 0.0)
-        step = np.clip(target - self.command_filtered, -COMMAND_ACCEL_LIMITS * PLAN_DT_S, COMMAND_ACCEL_LIMITS * PLAN_DT_S)
+        limit = self._command_accel_limits * PLAN_DT_S
+        step = np.clip(target - self.command_filtered, -limit, limit)
         self.command_filtered = self.command_filtered + step
         command = self.command_filtered.copy()
         command[:2] += fb.velocity_adjust_mps
         goal = target.copy()
         goal[:2] += fb.velocity_adjust_mps
-        planner.command_goal = goal
-        planner.command_rate_limits = COMMAND_ACCEL_LIMITS
         contact_before = self.ref.contact.copy() if self.ref is not None else np.ones(2, dtype=bool)
         fb = self._reachable_steps(fb)
-        ref = planner.step(PLAN_DT_S, command, kappa=fb.kappa, step_adjustment_xy=fb.step_adjust_m)
+        ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
+            time_scaling=fb.kappa, step_adjustment_xy_m=fb.step_adjust_m, command_goal=goal,
+            command_rate_limits=self._command_accel_limits))
         self._feet_feedforward(ref)
         self.ref = ref
         self._relatch_landed_feet(est, contact_before)
         self._landing = any(
-            (not ref.contact[i] and ref.swing_progress[i] > 1.0 - OBSERVER_HOLD_SWING_SHARE)
-            or 0 <= self._since_touchdown[i] < OBSERVER_HOLD_AFTER_TOUCHDOWN_PLAN_TICKS for i in range(2))
+            (not ref.contact[i] and ref.swing_progress[i] > 1.0 - self.params.observer_hold_swing_share)
+            or 0 <= self._since_touchdown[i] < self.params.observer_hold_after_touchdown_plan_ticks for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
+        every = max(self.params.mpc_every_plan_ticks, 1)
+        self._plan_ticks += 1
+        if self.plan is not None and (self._plan_ticks - 1) % every != 0:
+            self._last_com, self._last_fb = com, fb
+            self._telemetry_stale = True
+            return
         # CoM MPC over the planner's contact preview; initial conditions continue the last plan.
         supports = [SupportInterval(p.t_start_s, p.t_end_s, p.polygon) for p in ref.preview]
         # LIP height: the measured CoM height, low-passed (the walking posture differs from standing).
         com_z = float(self.data.com[0][2])
-        self._com_z = com_z if self._com_z is None else self._com_z + COM_Z_FILTER * (com_z - self._com_z)
+        self._com_z = com_z if self._com_z is None else self._com_z + self.params.com_z_filter * (com_z - self._com_z)
         z_com = self._com_z
         # A steady push f shifts the LIP's equilibrium by f/(m ω²): plan in a frame whose supports
         # are shifted by −f/(m ω²) (the CoP the plan returns is then the robot's minus that shift).
@@ -288,19 +279,20 @@ class WalkingController:
             # Continue the last plan (continuity of the reference), pulled a little toward the
             # estimate so the plan never drifts away from the robot.
             com0, vel0, _ = self.plan.com_at(ref.t_s)
-            com0 = com0 + MPC_STATE_PULL * (com - com0)
-            vel0 = vel0 + MPC_STATE_PULL * (com_vel - vel0)
+            com0 = com0 + self.params.mpc_state_pull * (com - com0)
+            vel0 = vel0 + self.params.mpc_state_pull * (com_vel - vel0)
             cop0 = self.plan.cop_at(ref.t_s) + shift_change
         # The only infeasible part of the QP is an initial CoP outside today's support (time
         # scaling and touchdowns move contact switches relative to the last plan): clip it in.
         cop0 = _clip_to_polygon(cop0, supports[0].polygon)
         plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
         goal = supports[-1].polygon.mean(axis=0)
-        lost = plan.ok and np.linalg.norm(plan.final_capture_point_xy_m - goal) > CAPTURE_TOLERANCE_M
+        lost = plan.ok and np.linalg.norm(plan.final_capture_point_xy_m - goal) > self.params.capture_tolerance_m
         # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
         # continued with the CoP ramping off the trailing foot throws it further.
         xi_robot = com + com_vel / math.sqrt(omega2)
-        thrown = RESTART_WHEN_THROWN and bool(ref.contact.all()) and not _inside_polygon(xi_robot, supports[0].polygon)
+        thrown = (self.params.restart_when_thrown and bool(ref.contact.all())
+                  and not _inside_polygon(xi_robot, supports[0].polygon))
         if not plan.ok or lost or thrown:
             # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
             # on its footholds: restart it from the robot's state and keep the more capturable one.
@@ -341,33 +333,33 @@ class WalkingController:
         com, com_vel = self._com_state()
         dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
         err = float(np.linalg.norm(dcm_error))  # ordinary tracking error is the MPC's to handle
-        dcm_error *= max(err - DCM_ERROR_DEADBAND_M, 0.0) / err if err > 0.0 else 0.0
+        dcm_error *= max(err - self.params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
         for side in SIDES:
             t_td = planner.time_to_touchdown_s(side, fb.kappa)
             if t_td is None:
                 continue
             nominal = planner.nominal_target(side)
             pos, vel, _ = plan.com_at(planner.t_s + t_td)
-            growth = min(math.exp(omega * t_td), DCM_ERROR_GROWTH_CAP)
+            growth = min(math.exp(omega * t_td), self.params.dcm_error_growth_cap)
             dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
             rel = np.array([nominal.x, nominal.y]) + adjust - dcm
             ahead = float(rel @ forward)
             # Under a push the CoP must hold ξ against it for the whole step: land with ξ near
             # the sole's middle (margin both ways), not at the edge of the CoP's reach.
-            share = PUSHED_REACH_SHARE if self.observer.force_n.any() else 1.0
+            share = self.params.pushed_reach_share if self.observer.force_n.any() else 1.0
             back, fwd = share * self._reach_back_m, share * self._reach_forward_m
             if ahead > back:
                 adjust -= (ahead - back) * forward
             elif ahead < -fwd:
                 adjust += (-fwd - ahead) * forward
             outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
-            if outward < LATERAL_XI_INSET_M:
-                adjust += (LATERAL_XI_INSET_M - outward) * (left if side == "left" else -left)
-            elif outward > LATERAL_XI_MAX_OUT_M:  # ξ runs toward the other foot: land near it
-                adjust -= (outward - LATERAL_XI_MAX_OUT_M) * (left if side == "left" else -left)
+            if outward < self.params.lateral_xi_inset_m:
+                adjust += (self.params.lateral_xi_inset_m - outward) * (left if side == "left" else -left)
+            elif outward > self.params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
+                adjust -= (outward - self.params.lateral_xi_max_out_m) * (left if side == "left" else -left)
         norm = float(np.linalg.norm(adjust))
-        if norm > MAX_STEP_ADJUST_M:  # within the legs' reach
-            adjust *= MAX_STEP_ADJUST_M / norm
+        if norm > self.params.max_step_adjust_m:  # within the legs' reach
+            adjust *= self.params.max_step_adjust_m / norm
         if np.array_equal(adjust, fb.step_adjust_m):
             return fb
         return dataclasses.replace(fb, step_adjust_m=adjust)
@@ -388,6 +380,7 @@ class WalkingController:
 
     def _relatch_landed_feet(self, est: RobotState, contact_before: np.ndarray) -> None:
         """A few ticks after touchdown, latch the foothold where the foot really is."""
+        assert self.ref is not None, "called after the planner's step"
         for i, side in enumerate(SIDES):
             if not self.ref.contact[i]:
                 self._since_touchdown[i] = -1
@@ -396,7 +389,7 @@ class WalkingController:
                 self._since_touchdown[i] = 0
             elif self._since_touchdown[i] >= 0:
                 self._since_touchdown[i] += 1
-            if self._since_touchdown[i] == RELATCH_AFTER_PLAN_TICKS:
+            if self._since_touchdown[i] == self.params.relatch_after_plan_ticks:
                 pin.framesForwardKinematics(self.model, self.data, est.q)
                 m = self.data.oMf[self.model.getFrameId(f"{side}_foot")]
                 measured = Foothold(float(m.translation[0]), float(m.translation[1]),
@@ -435,7 +428,7 @@ class WalkingController:
         (after the other foot lands) catches it: the gait should hurry, not wait. The external
         push the observer sees moves the reachable CoP (the MPC's shift) and counts too.
         """
-        if not math.isfinite(LATERAL_CAPTURE_MARGIN_M):
+        if not math.isfinite(self.params.lateral_capture_margin_m):
             return fb
         planner = self.planner
         omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
@@ -444,7 +437,7 @@ class WalkingController:
         outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
         foot = planner.latched[outer]
         beyond = float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
-        if beyond <= LATERAL_CAPTURE_MARGIN_M:
+        if beyond <= self.params.lateral_capture_margin_m:
             return fb
         lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double
         return dataclasses.replace(fb, kappa=max(fb.kappa, hi))
@@ -455,7 +448,7 @@ class WalkingController:
         planned touchdown; pretending it is still in the air makes the QP fight the floor)."""
         contact = reference.contact
         landing = [i for i in range(2) if not contact[i].any()
-                   and reference.foot_pos_m[i, 2] < LANDING_HEIGHT_M and reference.foot_lin_vel_mps[i, 2] <= 0.0]
+                   and reference.foot_pos_m[i, 2] < self.params.landing_height_m and reference.foot_lin_vel_mps[i, 2] <= 0.0]
         if not landing:
             return contact
         pin.framesForwardKinematics(self.model, self.data, est.q)
@@ -463,7 +456,7 @@ class WalkingController:
         for i in landing:
             m = self.data.oMf[self._foot_frames[i]]
             heights = m.translation[2] + (m.rotation @ self._corner_offsets[i].T)[2]
-            contact[i] = heights < TOUCHDOWN_HEIGHT_M
+            contact[i] = heights < self.params.touchdown_height_m
         return contact
 
     def _wbc_reference(self, dt_since: float) -> WbcReference:
@@ -505,7 +498,7 @@ class WalkingController:
             tel.mpc_status = plan.status
         tel.support_polygon = ref.preview[0].polygon if ref.preview else np.zeros((0, 2))
         tel.preview_polygons = [p.polygon for p in ref.preview]
-        holds = []
+        holds: list[np.ndarray] = []
         for p in ref.preview:
             for hold in p.footholds.values():
                 row = hold.as_array()
@@ -542,7 +535,7 @@ def ankle_pitch_joint(robot: RobotModel, side: str) -> tuple[str, float]:
     raise ValueError(f"{robot.name}: no ankle pitch joint above {side}_foot")
 
 
-def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = ANKLE_LOAD_FACTOR,
+def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = WalkingParameters.ankle_load_factor,
                torque_fraction: float = 0.9) -> float:
     """How much shorter at the toe the MPC's soles must be for the ankle pitch actuators to hold
     the CoP there: a CoP a distance d ahead of the ankle needs d · load · m g of ankle torque."""
@@ -559,6 +552,18 @@ def toe_trim_m(robot: RobotModel, margin_m: float, load_factor: float = ANKLE_LO
 
 
 _clip_to_polygon = clip_into_polygon  # the initial-CoP clip (engine.geometry.polygon)
+
+
+def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
+    """Σ of the horizontal contact forces of a solved tick (None otherwise): Σ_c B_c ρ_c summed over
+    corners first (the friction basis is per foot), without building every corner's force."""
+    if not diag.ok:
+        return None
+    if diag.basis is None or diag.rho is None:  # a peer without the paper's basis (placo)
+        forces = diag.contact_forces_n
+        return None if forces is None else forces[..., :2].sum(axis=(0, 1))
+    per_foot = diag.rho.reshape(len(SIDES), -1, diag.basis.shape[-1]).sum(axis=1)  # (2, 4): Σ over corners
+    return np.einsum("fkb,fb->k", diag.basis[:, :2, :], per_foot)
 
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:

@@ -19,7 +19,7 @@ SUFFIXES = {"amp-json": (".json", ".txt"), "unitree-csv": (".csv",), "beyondmimi
 
 
 def export_motion(motion: RobotMotion, fmt: str, path: str | Path, amp_full: bool = False,
-                  fps: float | None = None) -> RobotMotion:
+                  amp_leg_order: str = "pybullet", fps: float | None = None) -> RobotMotion:
     """Write ``motion`` (resampled to ``fps`` if given) as ``fmt``; returns the motion written."""
     if fmt not in FORMATS:
         raise ValueError(f"--format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
@@ -30,7 +30,7 @@ def export_motion(motion: RobotMotion, fmt: str, path: str | Path, amp_full: boo
     if fmt == "amp-json":
         from engine.export.amp_json import export_amp_json
 
-        export_amp_json(motion, path, full=amp_full)
+        export_amp_json(motion, path, full=amp_full, leg_order=amp_leg_order)
     elif fmt == "unitree-csv":
         from engine.export.unitree_csv import export_unitree_csv
 

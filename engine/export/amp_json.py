@@ -9,6 +9,10 @@ pybullet leg order FR, FL, RR, RL (the loader reorders pybullet → Isaac), toe 
 toe velocities in the base frame (12) — forward differences, the last frame repeating the one before, as in
 the shipped A1 clips (checked numerically against ``datasets/mocap_motions/pace1.txt``). An extra
 ``JointNames`` key records the joint order used (loaders ignore it; our importer maps by it).
+
+``leg_order="isaac"`` writes the legs FL, FR, RL, RR instead (joints, toes and their velocities): the order
+STMR_RL's copy of the ``AMPLoader`` expects — its ``reorder_from_pybullet_to_isaac`` call is commented out and
+its ``preprocess_FD_motion.py`` writes Isaac order — with the same 61-value slicing.
 """
 
 from __future__ import annotations
@@ -23,26 +27,31 @@ from engine.atomic_io import atomic_write_text
 from engine.retarget.motion import RobotMotion
 
 PYBULLET_LEGS = ("FR", "FL", "RR", "RL")
+ISAAC_LEGS = ("FL", "FR", "RL", "RR")
+LEG_ORDERS = {"pybullet": PYBULLET_LEGS, "isaac": ISAAC_LEGS}
 
 
-def _pybullet_joint_order(motion: RobotMotion):
+def _pybullet_joint_order(motion: RobotMotion, leg_order: str = "pybullet"):
     from engine.retarget.quadruped.kinematics import quadruped_kinematics
 
     kin = quadruped_kinematics(motion.robot)
     names = []
     legs = ("FL", "FR", "RL", "RR")
-    for leg in PYBULLET_LEGS:
+    order = LEG_ORDERS[leg_order]
+    for leg in order:
         e = legs.index(leg)
         names += [kin.model.names[int(j)] for j in kin.joint_ids[e]]
-    return kin, names, [legs.index(leg) for leg in PYBULLET_LEGS]
+    return kin, names, [legs.index(leg) for leg in order]
 
 
-def amp_frames(motion: RobotMotion, full: bool = False) -> tuple[np.ndarray, list[str]]:
+def amp_frames(motion: RobotMotion, full: bool = False, leg_order: str = "pybullet") -> tuple[np.ndarray, list[str]]:
+    if leg_order not in LEG_ORDERS:
+        raise ValueError(f"leg_order: expected one of {', '.join(LEG_ORDERS)}, got {leg_order!r}")
     q = motion.qpos
     root = np.concatenate([q[:, 0:3], q[:, 4:7], q[:, 3:4]], axis=1)
     if not full:
         return np.concatenate([root, q[:, 7:]], axis=1), list(motion.joint_names)
-    kin, names, leg_idx = _pybullet_joint_order(motion)
+    kin, names, leg_idx = _pybullet_joint_order(motion, leg_order)
     col = [motion.joint_names.index(n) for n in names]
     joints = q[:, 7:][:, col]
     dt = 1.0 / motion.fps
@@ -86,8 +95,9 @@ def _mj_qpos(kin, motion: RobotMotion, row: np.ndarray) -> np.ndarray:
     return qpos
 
 
-def export_amp_json(motion: RobotMotion, path: str | Path, full: bool = False, loop_mode: str = "Wrap") -> None:
-    frames, names = amp_frames(motion, full)
+def export_amp_json(motion: RobotMotion, path: str | Path, full: bool = False, loop_mode: str = "Wrap",
+                    leg_order: str = "pybullet") -> None:
+    frames, names = amp_frames(motion, full, leg_order)
     doc = {
         "LoopMode": loop_mode,
         "FrameDuration": round(1.0 / motion.fps, 6),

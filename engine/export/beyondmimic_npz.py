@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
-from typing import Any
 
 import mujoco
 import numpy as np
@@ -132,7 +131,6 @@ def beyondmimic_arrays(motion: RobotMotion) -> dict[str, np.ndarray]:
 
 
 def export_beyondmimic_npz(motion: RobotMotion, path: str | Path) -> None:
-    arrays: dict[str, Any] = beyondmimic_arrays(motion)
     buf = io.BytesIO()
-    np.savez(buf, **arrays)  # np.savez, as csv_to_npz
+    np.savez(buf, **beyondmimic_arrays(motion))  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle; np.savez as csv_to_npz
     atomic_write_bytes(path, buf.getvalue())

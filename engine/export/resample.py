@@ -79,7 +79,7 @@ def resample(motion: RobotMotion, fps: float) -> RobotMotion:
         return None if x is None else lerp(x)
 
     q = motion.qpos
-    qpos = lerp(q)
+    qpos = (1.0 - b[:, None]) * q[i0] + b[:, None] * q[i1]
     qpos[:, 3:7] = slerp(q[i0, 3:7], q[i1, 3:7], b)
     nearest = np.where(b < 0.5, i0, i1)
     return dataclasses.replace(

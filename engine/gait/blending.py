@@ -270,8 +270,8 @@ class StyleBanks:
     def __init__(self, style: Style, layout: ChannelLayout, previous: "StyleBanks | None" = None):
         self.style = style
         self.layout = layout
-        old = previous.banks if previous is not None and previous.layout == layout else {}
-        self.banks = {}
+        old: dict[str, SampleBanks] = previous.banks if previous is not None and previous.layout == layout else {}
+        self.banks: dict[str, SampleBanks] = {}
         for name, sample in style.samples.items():
             prev = old.get(name)
             self.banks[name] = prev if prev is not None and prev.sample is sample else SampleBanks(sample, layout)

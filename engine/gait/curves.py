@@ -259,6 +259,7 @@ class HermiteCurve:
             if k.mode is TangentMode.LINEAR:
                 a = d_prev if d_prev is not None else d_next
                 b = d_next if d_next is not None else d_prev
+                assert a is not None and b is not None  # a curve has ≥ 2 knots or is periodic
                 m_in[i], m_out[i] = float(a), float(b)
             else:  # AUTO_CLAMPED
                 if d_prev is None or d_next is None:
@@ -417,18 +418,18 @@ class HermiteCurve:
             k, s = loc
             _, c0, c1, c2, c3 = self._seg_list[k]
             return c0 + s * (c1 + s * (c2 + s * c3))
-        t = np.asarray(t_s, dtype=float)
-        if t.size <= _SMALL_ARRAY:
-            return self._small(self.evaluate, t)
+        ta = np.asarray(t_s, dtype=float)
+        if ta.size <= _SMALL_ARRAY:
+            return self._small(self.evaluate, ta)
         if self._n_seg == 0:
-            out = np.full(t.shape, float(self._v_first))
-            return out if t.ndim else float(out)
-        k, s, inside = self._locate_array(t)
-        c = self._coef[k]
-        out = c[..., 0] + s * (c[..., 1] + s * (c[..., 2] + s * c[..., 3]))
+            out = np.full(ta.shape, float(self._v_first))
+            return out if ta.ndim else float(out)
+        ka, sa, inside = self._locate_array(ta)
+        c = self._coef[ka]
+        out = c[..., 0] + sa * (c[..., 1] + sa * (c[..., 2] + sa * c[..., 3]))
         if not self._periodic:
-            out = np.where(inside, out, np.where(t < self._t_first, self._v_first, self._v_last))
-        return out if t.ndim else float(out)
+            out = np.where(inside, out, np.where(ta < self._t_first, self._v_first, self._v_last))
+        return out if ta.ndim else float(out)
 
     def derivative(self, t_s: float | np.ndarray) -> float | np.ndarray:
         """First time derivative [value-units / s] at ``t_s``."""
@@ -444,18 +445,18 @@ class HermiteCurve:
             k, s = loc
             _, _, c1, c2, c3 = self._seg_list[k]
             return c1 + s * (2.0 * c2 + 3.0 * s * c3)
-        t = np.asarray(t_s, dtype=float)
-        if t.size <= _SMALL_ARRAY:
-            return self._small(self.derivative, t)
+        ta = np.asarray(t_s, dtype=float)
+        if ta.size <= _SMALL_ARRAY:
+            return self._small(self.derivative, ta)
         if self._n_seg == 0:
-            out = np.zeros(t.shape)
-            return out if t.ndim else float(out)
-        k, s, inside = self._locate_array(t)
-        c = self._coef[k]
-        out = c[..., 1] + s * (2.0 * c[..., 2] + 3.0 * s * c[..., 3])
+            out = np.zeros(ta.shape)
+            return out if ta.ndim else float(out)
+        ka, sa, inside = self._locate_array(ta)
+        c = self._coef[ka]
+        out = c[..., 1] + sa * (2.0 * c[..., 2] + 3.0 * sa * c[..., 3])
         if not self._periodic:
-            out = np.where(inside, out, np.where(t == self._t_last, self._m_in[-1], 0.0))
-        return out if t.ndim else float(out)
+            out = np.where(inside, out, np.where(ta == self._t_last, self._m_in[-1], 0.0))
+        return out if ta.ndim else float(out)
 
     def second_derivative(self, t_s: float | np.ndarray) -> float | np.ndarray:
         """Second time derivative [value-units / s^2] at ``t_s``."""
@@ -472,20 +473,20 @@ class HermiteCurve:
             k, s = loc
             _, _, _, c2, c3 = self._seg_list[k]
             return 2.0 * c2 + 6.0 * c3 * s
-        t = np.asarray(t_s, dtype=float)
-        if t.size <= _SMALL_ARRAY:
-            return self._small(self.second_derivative, t)
+        ta = np.asarray(t_s, dtype=float)
+        if ta.size <= _SMALL_ARRAY:
+            return self._small(self.second_derivative, ta)
         if self._n_seg == 0:
-            out = np.zeros(t.shape)
-            return out if t.ndim else float(out)
-        k, s, inside = self._locate_array(t)
-        c = self._coef[k]
-        out = 2.0 * c[..., 2] + 6.0 * c[..., 3] * s
+            out = np.zeros(ta.shape)
+            return out if ta.ndim else float(out)
+        ka, sa, inside = self._locate_array(ta)
+        c = self._coef[ka]
+        out = 2.0 * c[..., 2] + 6.0 * c[..., 3] * sa
         if not self._periodic:
-            at_end = t == self._t_last
+            at_end = ta == self._t_last
             end_val = 2.0 * self._coef[-1, 2] + 6.0 * self._coef[-1, 3] * self._seg_h[-1]
             out = np.where(inside, out, np.where(at_end, end_val, 0.0))
-        return out if t.ndim else float(out)
+        return out if ta.ndim else float(out)
 
     __call__ = evaluate
 

@@ -6,9 +6,10 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
 
 * reach — least-squares IK of both soles, pelvis height and rotation (the pelvis free to move
   horizontally, pulled gently toward the support-centre CoM plan of the kinematic preview):
-  a residual above ``REACH_TOLERANCE_M`` means no leg posture reaches the foot; the leg
-  joints then at a limit name the reason ("right knee straight: lower the pelvis or shorten
-  the stride", "left knee fully bent: raise the pelvis height");
+  a foot on the ground more than ``REACH_TOLERANCE_M`` from its plan (a swing foot more than
+  ``SWING_REACH_TOLERANCE_M``) means no leg posture reaches it; the leg joints then at a
+  limit name the reason ("right knee straight: lower the pelvis or shorten the stride",
+  "left knee fully bent: raise the pelvis height");
 * joint speed — finite differences of that IK against the model's velocity limits;
 * torque — in single support, the links' gravity plus the robot's weight carried through the
   stance sole's middle, against the torque limit the controller uses (90 % of the effort);
@@ -37,7 +38,12 @@ from engine.robot.model import RobotModel
 
 TICKS_PER_CYCLE = 24
 SETTLE_CYCLES = 2.0  # cycles at the sample's velocity before the checked one
-REACH_TOLERANCE_M = 0.01
+REACH_TOLERANCE_M = 0.01  # a foot on the ground (or the pelvis height) this far out of reach: flagged
+# A swing foot may miss its curve by a little more: walks of ``studio bench styles`` and one-factor
+# variants of G1 neutral (README) show swing misses of 10–15 mm just after liftoff (the ankle at
+# its limit) walk, while a heel pitch of 0.4 rad mid-swing (misses of 19–24 mm, the ankle at its
+# limit for most of the swing) falls, and a foot on the ground 10 mm out of reach falls.
+SWING_REACH_TOLERANCE_M = 0.018
 COM_WEIGHT = 0.3
 LIMIT_MARGIN_RAD = 0.01
 VELOCITY_SHARE = 1.0  # joint speed beyond this share of the velocity limit is flagged
@@ -74,6 +80,8 @@ def _joint_words(name: str) -> tuple[str | None, str]:
 def _hint(kind: str, words: str, bent: bool | None = None) -> str:
     if kind == "joint_limit" and words == "knee":
         return "raise the pelvis height" if bent else "lower the pelvis or shorten the stride"
+    if kind == "joint_limit" and words == "ankle":
+        return "raise the pelvis height, shorten the stride or reduce the heel/toe pitch"
     if kind in ("reach", "joint_limit"):
         return "raise or lower the pelvis height, shorten the stride or narrow the stance"
     if kind == "torque":
@@ -87,7 +95,8 @@ class FeasibilityChecker:
     """Checks samples of styles of one robot (reuses the models between calls)."""
 
     def __init__(self, robot: RobotModel, ctx: StyleContext | None = None):
-        from engine.control.walking_controller import COP_MARGIN_M, toe_trim_m
+        from engine.control.walking_controller import toe_trim_m
+        from engine.control.walking_parameters import WalkingParameters
         from engine.gait.kinematic_preview import FOOT_FRAMES, KinematicPreview
 
         self.robot = robot
@@ -96,10 +105,11 @@ class FeasibilityChecker:
         self.data = self.model.createData()
         self.ik = KinematicPreview(robot, self.ctx.upper_joints)
         self.foot_ids = [self.model.getFrameId(f) for f in FOOT_FRAMES]
-        self.margin_m = COP_MARGIN_M
-        self.toe_trim_m = toe_trim_m(robot, COP_MARGIN_M)
+        self.walking = WalkingParameters.for_robot(robot.name)
+        self.margin_m = self.walking.cop_margin_m
+        self.toe_trim_m = toe_trim_m(robot, self.margin_m, self.walking.ankle_load_factor)
         names = robot.joint_names
-        legs = set()
+        legs: set[int] = set()
         for fid in self.foot_ids:
             legs.update(j for j in self.model.supports[self.model.frames[fid].parentJoint] if j > 1)
         self.leg_joints = sorted(legs)
@@ -124,7 +134,6 @@ class FeasibilityChecker:
         return out
 
     def check_sample(self, style: Style, name: str) -> list[Finding]:
-        from engine.control.walking_controller import COMMAND_ACCEL_LIMITS
         from engine.gait.kinematic_preview import SupportCenterComPlan
         from engine.gait.offline_plan import planner_for
 
@@ -141,30 +150,44 @@ class FeasibilityChecker:
         q_prev = None
         # Like the controller: from standing, the command ramps up at the joystick's rate limits;
         # then two cycles settle at the sample's velocity and one is checked.
-        ramp_s = float(np.max(np.abs(command) / COMMAND_ACCEL_LIMITS))
+        limits = np.array(self.walking.command_accel_limits, dtype=float)
+        ramp_s = float(np.max(np.abs(command) / limits))
         n_settle = int(math.ceil((ramp_s + planner.hold_s) / dt + SETTLE_CYCLES * TICKS_PER_CYCLE))
         n_total = n_settle + TICKS_PER_CYCLE
         apex = {s: 0.0 for s in SIDES}
         swung = {s: False for s in SIDES}
         commanded = np.zeros(3)
         for k in range(n_total):
-            commanded = commanded + np.clip(command - commanded, -COMMAND_ACCEL_LIMITS * dt, COMMAND_ACCEL_LIMITS * dt)
+            commanded = commanded + np.clip(command - commanded, -limits * dt, limits * dt)
             ref = planner.step(dt, commanded, with_preview=False)
             com = com_plan.step(dt, ref)
             if k < n_settle:
                 continue
-            pct = 100.0 * (planner.blend.time_at(ref.phase) % cycle) / cycle
+            blend = planner.blend
+            assert blend is not None  # the planner blends on its first step
+            pct = 100.0 * (blend.time_at(ref.phase) % cycle) / cycle
             if q_prev is None:  # start the IK at the pelvis's pose on the path
                 yaw = float(ref.path_pose[2])
                 q[0:3] = [ref.path_pose[0], ref.path_pose[1], ref.pelvis_z]
                 q[3:7] = [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]  # pinocchio: x, y, z, w
-            q, residual, foot_err = self._reach_ik(ref, q, com)
-            if residual > REACH_TOLERANCE_M:
-                side = SIDES[int(np.argmax(foot_err))]
-                self._add(findings, Finding(name, pct, "reach", side,
-                                            f"the {side} foot is out of the leg's reach ({1000 * residual:.0f} mm short): "
-                                            + _hint("reach", "")))
-                self._limits(findings, name, pct, q)  # which joint stops it
+            q, pelvis_err, foot_err = self._reach_ik(ref, q, com)
+            short = [foot_err[i] - (REACH_TOLERANCE_M if ref.contact[i] else SWING_REACH_TOLERANCE_M) for i in range(2)]
+            if max(short) > 0.0 or pelvis_err > REACH_TOLERANCE_M:
+                at_limit = self._limits(q)  # which joints stop it
+                i = int(np.argmax(short)) if max(short) > 0.0 else int(np.argmax(foot_err))
+                side = SIDES[i]
+                mine = [lim for lim in at_limit if lim[0].startswith(side)] or at_limit
+                why, hint = (f", {mine[0][1]}", mine[0][2]) if mine else ("", _hint("reach", ""))
+                if max(short) <= 0.0:
+                    text = f"the pelvis cannot reach its height ({1000 * pelvis_err:.0f} mm off){why}"
+                elif ref.contact[i]:
+                    text = f"the {side} foot cannot stay where it is planned on the ground{why} ({1000 * foot_err[i]:.0f} mm short)"
+                else:
+                    text = f"the {side} foot's swing is out of the leg's reach{why} ({1000 * foot_err[i]:.0f} mm short)"
+                self._add(findings, Finding(name, pct, "reach", side, f"{text}: {hint}"))
+                for key, phrase, lim_hint in at_limit:
+                    if not mine or key != mine[0][0]:  # (the one named above is not repeated)
+                        self._add(findings, Finding(name, pct, "joint_limit", key, f"{phrase}: {lim_hint}"))
             if q_prev is not None:
                 self._speed(findings, name, pct, pin.difference(self.model, q_prev, q) / dt)
             q_prev = q
@@ -191,9 +214,10 @@ class FeasibilityChecker:
 
     def _reach_ik(self, ref, q0: np.ndarray, com_xy: np.ndarray) -> tuple[np.ndarray, float, list[float]]:
         """Least-squares IK of both soles (6-D each), pelvis height and rotation; the pelvis may
-        move horizontally (the controller places the CoM): the residual is what no posture of
+        move horizontally (the controller places the CoM): the residuals are what no posture of
         the legs reaches. Joints stay within their limits. The CoM is pulled toward the plan's
-        (weight ``COM_WEIGHT``) so the posture is the one the controller would take."""
+        (weight ``COM_WEIGHT``) so the posture is the one the controller would take.
+        Returns (q, pelvis height error, [sole position error per foot])."""
         model, data = self.model, self.data
         q = q0.copy()
         if len(self.ik.upper_q_index):
@@ -233,22 +257,23 @@ class FeasibilityChecker:
         pin.framesForwardKinematics(model, data, q)
         foot_err = [float(np.linalg.norm(data.oMf[f].translation - ref.foot_pos[i])) for i, f in enumerate(self.foot_ids)]
         root = data.oMf[self.ik.root_id]
-        residual = max(max(foot_err), abs(ref.pelvis_z - float(root.translation[2])))
-        return q, residual, foot_err
+        return q, abs(ref.pelvis_z - float(root.translation[2])), foot_err
 
-    def _limits(self, findings: dict, name: str, pct: float, q: np.ndarray) -> None:
+    def _limits(self, q: np.ndarray) -> list[tuple[str, str, str]]:
+        """Leg joints at a limit: [("left:knee", "left knee straight", advice)]."""
         leg = q[self.leg_q]
         near_lo = leg <= self.lower + LIMIT_MARGIN_RAD
         near_hi = leg >= self.upper - LIMIT_MARGIN_RAD
+        out = []
         for j in np.flatnonzero(near_lo | near_hi):
             side, words = _joint_words(self.leg_names[j])
             limit = self.upper[j] if near_hi[j] else self.lower[j]
             other = self.lower[j] if near_hi[j] else self.upper[j]
             straight = abs(limit) < abs(other)  # the knee's limit nearer zero is the straight leg
             what = ("straight" if straight else "fully bent") if words == "knee" else "at its limit"
-            self._add(findings, Finding(name, pct, "joint_limit", f"{side}:{words}",
-                                        f"{side + ' ' if side else ''}{words} {what}: "
-                                        + _hint("joint_limit", words, bent=not straight)))
+            out.append((f"{side}:{words}", f"{side + ' ' if side else ''}{words} {what}",
+                        _hint("joint_limit", words, bent=not straight)))
+        return out
 
     def _speed(self, findings: dict, name: str, pct: float, v: np.ndarray) -> None:
         speed = np.abs(v[self.leg_v])

@@ -34,7 +34,7 @@ class KinematicPreview:
         self.foot_ids = [self.model.getFrameId(f) for f in FOOT_FRAMES]
         self.root_id = self.model.getFrameId(robot.config.root_link, pin.FrameType.BODY)
         # Coordinates the IK moves: the free base and the joints supporting the feet.
-        leg_joints = set()
+        leg_joints: set[int] = set()
         for fid in self.foot_ids:
             leg_joints.update(j for j in self.model.supports[self.model.frames[fid].parentJoint] if j > 1)
         self.leg_v = sorted(self.model.joints[j].idx_v for j in leg_joints)
@@ -134,8 +134,9 @@ class SupportCenterComPlan:
         target = middle + self.sway * (support - middle)
         if self.pos is None:
             self.reset(target)
+        pos = self.pos if self.pos is not None else target
         w = 1.0 / self.tau
-        acc = w * w * (target - self.pos) - 2.0 * w * self.vel
+        acc = w * w * (target - pos) - 2.0 * w * self.vel
         self.vel = self.vel + dt_s * acc
-        self.pos = self.pos + dt_s * self.vel
+        self.pos = pos + dt_s * self.vel
         return self.pos.copy()

@@ -162,17 +162,17 @@ class PhaseMap:
             s = p - p0
             t = c0 + s * (c1 + s * (c2 + s * c3))
             return t + k * self._cycle_s if k else t
-        p = np.asarray(phi, dtype=float)
-        k = np.floor(p)
-        r = p - k
-        wrap = r >= 1.0
-        r = np.where(wrap, 0.0, r)
-        k = np.where(wrap, k + 1.0, k)
-        i = np.clip(np.searchsorted(self._phi_arr, r, side="right") - 1, 0, 3)
-        s = r - self._phi_arr[i]
-        c = self._coef[i]
-        t = c[..., 0] + s * (c[..., 1] + s * (c[..., 2] + s * c[..., 3])) + k * self._cycle_s
-        return t if p.ndim else float(t)
+        pa = np.asarray(phi, dtype=float)
+        ka = np.floor(pa)
+        ra = pa - ka
+        wrap = ra >= 1.0
+        ra = np.where(wrap, 0.0, ra)
+        ka = np.where(wrap, ka + 1.0, ka)
+        ia = np.clip(np.searchsorted(self._phi_arr, ra, side="right") - 1, 0, 3)
+        sa = ra - self._phi_arr[ia]
+        c = self._coef[ia]
+        ta = c[..., 0] + sa * (c[..., 1] + sa * (c[..., 2] + sa * c[..., 3])) + ka * self._cycle_s
+        return ta if pa.ndim else float(ta)
 
     def dtime_dphase(self, phi: float | np.ndarray) -> float | np.ndarray:
         """dΩ/dφ [s per unit phase] (> 0 everywhere, periodic in φ)."""
@@ -184,12 +184,12 @@ class PhaseMap:
             p0, _, c1, c2, c3, _, _ = self._seg[i]
             s = p - p0
             return c1 + s * (2.0 * c2 + 3.0 * s * c3)
-        p = np.mod(np.asarray(phi, dtype=float), 1.0)
-        p = np.where(p >= 1.0, 0.0, p)
-        i = np.clip(np.searchsorted(self._phi_arr, p, side="right") - 1, 0, 3)
-        s = p - self._phi_arr[i]
-        c = self._coef[i]
-        out = c[..., 1] + s * (2.0 * c[..., 2] + 3.0 * s * c[..., 3])
+        pa = np.mod(np.asarray(phi, dtype=float), 1.0)
+        pa = np.where(pa >= 1.0, 0.0, pa)
+        ia = np.clip(np.searchsorted(self._phi_arr, pa, side="right") - 1, 0, 3)
+        sa = pa - self._phi_arr[ia]
+        c = self._coef[ia]
+        out = c[..., 1] + sa * (2.0 * c[..., 2] + 3.0 * sa * c[..., 3])
         return out if np.ndim(out) else float(out)
 
     # ------------------------------------------------------------ inverse map
@@ -307,8 +307,8 @@ class PhaseMap:
             flat = [self.unwrapped_phase(x) for x in t.ravel().tolist()]
             out = np.array(flat, dtype=float).reshape(t.shape)
         else:
-            r, k = self._wrap_array(t)
-            out = k + self._solve_array(r)
+            ra, ka = self._wrap_array(t)
+            out = ka + self._solve_array(ra)
         return out if t.ndim else float(out)
 
     def dphase_dtime(self, t_s: float | np.ndarray) -> float | np.ndarray:

@@ -59,6 +59,23 @@ class ContactPhase:
     polygon: np.ndarray  # (M, 2) counter-clockwise
 
 
+@dataclass(frozen=True)
+class PlannerFeedback:
+    """The controller's input to the planner each tick (paper §7.1, Gait Feedback), passed to
+    :meth:`GaitPlanner.step` rather than written into planner fields.
+
+    ``time_scaling`` is κ (> 1 speeds the gait up); ``step_adjustment_xy_m`` moves the upcoming
+    foothold (world x, y); ``command_goal`` and ``command_rate_limits`` are the command preview:
+    where the joystick is heading and how fast the command may change (m/s², m/s², rad/s²), so
+    footholds ahead are planned along that ramp (None: today's command holds for the preview).
+    """
+
+    time_scaling: float = 1.0
+    step_adjustment_xy_m: np.ndarray | None = None
+    command_goal: np.ndarray | None = None
+    command_rate_limits: np.ndarray | None = None
+
+
 @dataclass
 class GaitReference:
     """The planner output r(t) of Eq. 2 with everything the controller and the studio need."""
@@ -118,6 +135,7 @@ class _Pose:
     rot: np.ndarray
 
 
+_NO_FEEDBACK = PlannerFeedback()
 PATH_TABLE_STEP_S = 0.05
 PATH_TABLE_HORIZON_S = 3.0
 
@@ -138,9 +156,9 @@ class GaitPlanner:
         # re-latching to where it really landed) that moves the path frame with it, so later
         # footholds are planned from the feet the robot stands on rather than a dead-reckoned path.
         self.path_follows_feet = 0.0
-        # Command preview: where the joystick is heading and how fast the command may change
-        # (m/s², m/s², rad/s²). Footholds ahead are then planned along the ramp the command will
-        # follow, not as if today's command held for the whole preview (None: it holds).
+        # Command preview of the last step's PlannerFeedback: where the joystick is heading and how
+        # fast the command may change. Footholds ahead are then planned along the ramp the command
+        # will follow, not as if today's command held for the whole preview (None: it holds).
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -158,7 +176,7 @@ class GaitPlanner:
         self.latched: dict[str, Foothold] = {}
         self.swing_start: dict[str, Foothold] = {}
         self.target: dict[str, Foothold] = {}
-        self.blend: BlendedGait | None = None
+        self.blend: BlendedGait  # set by reset()
         self._blend_stale = True
         self.reset()
 
@@ -187,7 +205,7 @@ class GaitPlanner:
         self.landed = {side: False for side in SIDES}  # no touchdown transition before the first step
         self.hold_s = START_HOLD_S
         self._raw_target: dict[str, Foothold] = {}
-        self._last_pose = None
+        self._last_pose: dict | None = None  # _pose_at of the last evaluate() (backward-difference rates)
 
     def set_style(self, style: Style) -> None:
         """Switch to an edited style; the reference cross-fades to it over STYLE_FADE_S."""
@@ -232,11 +250,15 @@ class GaitPlanner:
         return lo <= f < hi
 
     # ------------------------------------------------------------------ stepping
-    def step(self, dt_s: float, command: np.ndarray, kappa: float = 1.0,
-             step_adjustment_xy: np.ndarray | None = None, with_preview: bool = True) -> GaitReference:
-        """Advance by ``dt_s`` under ``command`` (time-scaled by κ) and return r(t)."""
+    def step(self, dt_s: float, command: np.ndarray, feedback: PlannerFeedback | None = None,
+             with_preview: bool = True) -> GaitReference:
+        """Advance by ``dt_s`` under ``command`` and the controller's ``feedback`` (time scaling κ,
+        step adjustment, command preview) and return r(t)."""
+        fb = feedback or _NO_FEEDBACK
+        kappa, step_adjustment_xy = fb.time_scaling, fb.step_adjustment_xy_m
+        self.command_goal, self.command_rate_limits = fb.command_goal, fb.command_rate_limits
         self.command = self.clamp_command(command)
-        weights = sample_weights(tuple(self.command), self.style.velocities, self.style.blend_eta)
+        weights = sample_weights(self.command, self.style.velocities, self.style.blend_eta)
         fading = self._fade_from is not None
         if fading:
             self._fade_elapsed_s += dt_s
@@ -318,15 +340,17 @@ class GaitPlanner:
 
         The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then
         evaluated at once and chained by cumulative sums (rebuilt every planner tick)."""
+        command_goal, command_rate_limits = self.command_goal, self.command_rate_limits
+        assert command_goal is not None and command_rate_limits is not None, "path_ahead builds it with a goal only"
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
-        goal = self.clamp_command(self.command_goal)
+        goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
         h = PATH_TABLE_STEP_S
         n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
         times = np.arange(n) * PATH_TABLE_STEP_S
         vels = np.empty((n, 3))
         for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
-            g, lim, v = float(goal[j]), abs(float(self.command_rate_limits[j])) * h, float(self.command[j])
+            g, lim, v = float(goal[j]), abs(float(command_rate_limits[j])) * h, float(self.command[j])
             column = vels[:, j]
             for i in range(n):
                 dv = min(max(g - v, -lim), lim)
@@ -429,7 +453,6 @@ class GaitPlanner:
         """r at phase φ for the current state. Rates are backward differences over the last tick
         (the controller interpolates between ticks with them)."""
         blend = self.blend
-        assert blend is not None
         pose = self._pose_at(phi, blend)
         prev, self._last_pose = self._last_pose, pose
         dt = self.t_s - prev["t"] if prev is not None else 0.0
@@ -513,7 +536,6 @@ class GaitPlanner:
     def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
         """Support intervals over the next ``horizon_s``: timings, footholds, polygons."""
         blend = self.blend
-        assert blend is not None
         events = (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
         t_now = blend.time_at(self.phi)
         phases: list[ContactPhase] = []

@@ -254,6 +254,37 @@ class StyleContext:
         )
 
 
+def channel_value_range(channel: str, pelvis_height_m: float | None,
+                        ctx: StyleContext | None) -> tuple[float, float, str] | None:
+    """The values a curve channel may take, ``(lo, hi, what)`` — the one source of truth for the validator
+    and the curve editor (knot drags clamp to it). ``pelvis_height_m`` is the sample's nominal pelvis height
+    (``pelvis.z`` is an offset from it); None for a joint the robot context does not know."""
+    head, tail = channel.split(".", 1)
+    if head in ("left_foot", "right_foot"):
+        if tail == "heel_pitch":
+            return (-math.pi / 2, 0.0, "heel pitch ψ_heel")
+        if tail == "toe_pitch":
+            return (0.0, math.pi / 2, "toe pitch ψ_toe")
+        if tail == "z":
+            return (0.0, ctx.max_swing_height_m if ctx else 1.0, "swing height (no ground penetration)")
+        if tail in ("x", "y"):
+            return (-MAX_FOOT_OFFSET_M, MAX_FOOT_OFFSET_M, "a foot offset")
+        return (-MAX_FOOT_ANGLE_RAD, MAX_FOOT_ANGLE_RAD, "a foot angle")
+    if channel == "pelvis.z":
+        lo, hi = -MAX_PELVIS_Z_OFFSET_M, MAX_PELVIS_Z_OFFSET_M
+        if ctx is None or pelvis_height_m is None:
+            return (lo, hi, "a pelvis height offset")
+        h_lo, h_hi = ctx.pelvis_height_range_m
+        return (max(lo, h_lo - pelvis_height_m), min(hi, h_hi - pelvis_height_m),
+                f"a pelvis height offset (at most {MAX_PELVIS_Z_OFFSET_M} m, pelvis height within {h_lo}..{h_hi} m)")
+    if head == "pelvis":
+        return (-MAX_PELVIS_ANGLE_RAD, MAX_PELVIS_ANGLE_RAD, f"pelvis {tail}")
+    if ctx is not None and tail in ctx.joint_limits:
+        lo, hi = ctx.joint_limits[tail]
+        return (lo, hi, f"{tail} within its joint limits")
+    return None
+
+
 # ----------------------------------------------------------------------------- parsing
 
 
@@ -504,17 +535,9 @@ def validate_sample(sample: GaitSample, path: str, ctx: StyleContext | None) -> 
                 slope = k.out_slope if idx == 0 else k.in_slope
                 _expect(abs(slope) <= 1e-6, f"{p}.knots[{idx}]",
                         f"expected a flat tangent at the swing boundary (the foot is at rest in contact), got slope {slope:.4g}")
-            tail = channel.split(".", 1)[1]
-            if tail == "heel_pitch":
-                _check_range(curve, p, -math.pi / 2, 0.0, "heel pitch ψ_heel")
-            elif tail == "toe_pitch":
-                _check_range(curve, p, 0.0, math.pi / 2, "toe pitch ψ_toe")
-            elif tail == "z":
-                _check_range(curve, p, 0.0, ctx.max_swing_height_m if ctx else 1.0, "swing height (no ground penetration)")
-            elif tail in ("x", "y"):
-                _check_range(curve, p, -MAX_FOOT_OFFSET_M, MAX_FOOT_OFFSET_M, "a foot offset")
-            else:
-                _check_range(curve, p, -MAX_FOOT_ANGLE_RAD, MAX_FOOT_ANGLE_RAD, "a foot angle")
+            value_range = channel_value_range(channel, a.pelvis_height_m, ctx)
+            if value_range is not None:
+                _check_range(curve, p, *value_range)
         heel = sample.curves.get(f"{side}_foot.heel_pitch")
         toe = sample.curves.get(f"{side}_foot.toe_pitch")
         if heel is not None and toe is not None:
@@ -528,18 +551,9 @@ def validate_sample(sample: GaitSample, path: str, ctx: StyleContext | None) -> 
             continue
         p = f"{cp}.{channel}"
         _expect(abs(curve.duration_s - sample.intervals.cycle_s) < 1e-9, p, "expected a curve over the whole cycle")
-        tail = channel.split(".", 1)[1]
-        if channel == "pelvis.z":
-            _check_range(curve, p, -MAX_PELVIS_Z_OFFSET_M, MAX_PELVIS_Z_OFFSET_M, "a pelvis height offset")
-            if ctx is not None:
-                lo, hi = ctx.pelvis_height_range_m
-                _check_range(curve, p, lo - a.pelvis_height_m, hi - a.pelvis_height_m,
-                             f"pelvis height within {lo}..{hi} m (offset from pelvis_height_m)")
-        elif channel.startswith("pelvis."):
-            _check_range(curve, p, -MAX_PELVIS_ANGLE_RAD, MAX_PELVIS_ANGLE_RAD, f"pelvis {tail}")
-        elif ctx is not None and tail in ctx.joint_limits:
-            lo, hi = ctx.joint_limits[tail]
-            _check_range(curve, p, lo, hi, f"{tail} within its joint limits")
+        value_range = channel_value_range(channel, a.pelvis_height_m, ctx)
+        if value_range is not None:
+            _check_range(curve, p, *value_range)
 
 
 def validate_style(style: Style, ctx: StyleContext | None) -> None:

@@ -51,9 +51,9 @@ def quat_from_matrix(m: np.ndarray) -> np.ndarray:
     else:
         s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
         q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q)
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
+    qa = np.array(q)
+    qa /= np.linalg.norm(qa)
+    return qa if qa[0] >= 0 else -qa
 
 
 def matrix_from_quat(q: np.ndarray) -> np.ndarray:

@@ -5,7 +5,11 @@ legs in the engine's order FL, FR, RL, RR (keypoint ``4 * leg + k``), positions 
 
 ``RobotMotion`` — a motion of one robot: ``qpos`` (T, 7 + n) in MuJoCo order (xyz, quaternion w,x,y,z,
 joints in ``joint_names`` order). Nothing here is quadruped-specific, so a biped recording is one too
-(contact then has one column per foot of that robot, named by ``foot_names``).
+(contact then has one column per foot of that robot, named by ``foot_names``). A dynamic motion (TMR, the
+temporal stage) adds ``qvel``, ``ctrl`` (joint torques, ``joint_names`` order) and the fields of
+``DYNAMIC_FIELDS`` in ``extra``: ``pd_targets`` (T, n) with ``pd_kp``/``pd_kd`` (n,) — the PD targets that
+reproduce the torques, τ = K_p (θ* − θ) − K_d θ̇ —, ``alpha`` (S,), ``segment_knots_s`` (S + 1,) in the
+motion's time, and ``contact_sim`` (T, F) the feet touching the floor in the physics replay.
 
 Both are npz files written atomically and read with ``allow_pickle=False``. Validation errors are one line
 naming the file and the field (``MotionFormatError``).
@@ -17,7 +21,7 @@ import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -30,6 +34,7 @@ N_KEYPOINTS = len(KEYPOINT_NAMES)
 FOOT_INDEX = tuple(4 * i + 3 for i in range(4))  # κ(j): keypoint index of foot j
 KEYPOINT_FORMAT = "keypoint-motion/1"
 ROBOT_FORMAT = "robot-motion/1"
+DYNAMIC_FIELDS = ("pd_targets", "pd_kp", "pd_kd", "alpha", "segment_knots_s", "contact_sim")
 
 
 class MotionFormatError(ValueError):
@@ -48,7 +53,7 @@ def _finite(where: str, name: str, arr: np.ndarray) -> None:
 
 def _float_array(where: str, name: str, value: Any, shape: tuple) -> np.ndarray:
     try:
-        arr = np.asarray(value, dtype=float)
+        arr = np.array(value, dtype=float)  # a copy: arrays from Ray or np.load may be read-only
     except (TypeError, ValueError):
         raise _fail(where, name, f"expected numbers of shape {_shape_text(shape)}") from None
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
@@ -78,13 +83,13 @@ def _names(where: str, name: str, value: Any, n: int) -> list[str]:
     return [str(x) for x in arr]
 
 
-def _contact(where: str, value: Any, t: int, k: int) -> np.ndarray:
+def _contact(where: str, value: Any, t: int, k: int, name: str = "contact") -> np.ndarray:
     arr = np.asarray(value)
     if arr.shape != (t, k):
-        raise _fail(where, "contact", f"expected shape ({t}, {k}), got {arr.shape}")
+        raise _fail(where, name, f"expected shape ({t}, {k}), got {arr.shape}")
     if arr.dtype != bool:
         if arr.dtype.kind not in "iuf" or not np.all(np.isin(arr, (0, 1))):
-            raise _fail(where, "contact", "expected booleans (0/1)")
+            raise _fail(where, name, "expected booleans (0/1)")
         arr = arr.astype(bool)
     return arr
 
@@ -196,9 +201,10 @@ class RobotMotion:
     keypoints: np.ndarray | None = None  # (T, K, 3) robot sites (quadrupeds: the 16 keypoints)
     keypoint_names: list[str] | None = None
     qvel: np.ndarray | None = None  # (T, 6+n) MuJoCo qvel (world linear, body angular, joints)
-    ctrl: np.ndarray | None = None  # (T, n) actuator commands (temporal stage)
+    ctrl: np.ndarray | None = None  # (T, n) joint torques in joint_names order (temporal stage)
     source: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # the dynamic fields (DYNAMIC_FIELDS), see the module docstring
 
     def __post_init__(self) -> None:
         self.validate(self.source.get("file", "<robot motion>"))
@@ -249,6 +255,7 @@ class RobotMotion:
             self.qvel = _float_array(where, "qvel", self.qvel, (t, nq - 1))
         if self.ctrl is not None:
             self.ctrl = _float_array(where, "ctrl", self.ctrl, (t, None))
+        self.extra = _dynamic_fields(where, self.extra, t, nq - 7, len(self.foot_names))
 
     def save(self, path: str | Path) -> None:
         arrays = {
@@ -264,6 +271,8 @@ class RobotMotion:
             arrays["qvel"] = self.qvel
         if self.ctrl is not None:
             arrays["ctrl"] = self.ctrl
+        for key, value in self.extra.items():
+            arrays[key] = value
         _write_npz(path, arrays)
 
     @classmethod
@@ -284,7 +293,28 @@ class RobotMotion:
             foot_names=data.get("foot_names", np.array(LEGS)), keypoints=data.get("keypoints"),
             keypoint_names=data.get("keypoint_names"), qvel=data.get("qvel"), ctrl=data.get("ctrl"),
             source=source, metrics=metrics if isinstance(metrics, dict) else {},
+            extra={k: data[k] for k in DYNAMIC_FIELDS if k in data},
         )
+
+
+def _dynamic_fields(where: str, extra: Any, t: int, n: int, feet: int) -> dict:
+    if not isinstance(extra, dict):
+        raise _fail(where, "extra", f"expected a mapping of {', '.join(DYNAMIC_FIELDS)}")
+    unknown = sorted(set(extra) - set(DYNAMIC_FIELDS))
+    if unknown:
+        raise _fail(where, unknown[0], f"expected one of {', '.join(DYNAMIC_FIELDS)}")
+    shapes = {"pd_targets": (t, n), "pd_kp": (n,), "pd_kd": (n,), "alpha": (None,), "segment_knots_s": (None,)}
+    out = {}
+    for key, value in extra.items():
+        if key == "contact_sim":
+            out[key] = _contact(where, value, t, feet, key)
+        else:
+            out[key] = _float_array(where, key, value, shapes[key])
+    if "alpha" in out and "segment_knots_s" in out and len(out["segment_knots_s"]) != len(out["alpha"]) + 1:
+        raise _fail(where, "segment_knots_s", f"expected S + 1 = {len(out['alpha']) + 1} knots")
+    if "alpha" in out and np.any(out["alpha"] <= 0):
+        raise _fail(where, "alpha", "expected positive time scales")
+    return out
 
 
 def load_motion(path: str | Path) -> KeypointMotion | RobotMotion:
@@ -310,13 +340,15 @@ def _source(where: str, data: dict) -> dict:
     return source
 
 
-def _write_npz(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+def _write_npz(path: str | Path, arrays: Mapping[str, np.ndarray | None]) -> None:
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    present = {k: v for k, v in arrays.items() if v is not None}
+    np.savez_compressed(buf, **present)  # type: ignore[arg-type]  # numpy's stub reads **kwds as allow_pickle
     atomic_write_bytes(path, buf.getvalue())
 
 
-def _read_npz(path: str | Path) -> dict[str, np.ndarray]:
+def _read_npz(path: str | Path) -> dict[str, Any]:
+    """The file's arrays, unvalidated (the dataclasses' ``__post_init__`` checks every field)."""
     where = Path(path).name
     try:
         with np.load(path, allow_pickle=False) as f:

@@ -124,6 +124,8 @@ class RobotConfig:
     source_package: str = "example-robot-data"
     # [control.gait_feedback]: per-robot gait feedback gains (engine/control/gait_feedback.py names).
     gait_feedback: dict[str, float | tuple[float, float]] = field(default_factory=dict)
+    # [control.walking]: overrides of engine.control.walking_parameters.WalkingParameters (checked there).
+    walking: dict[str, object] = field(default_factory=dict)
 
     @property
     def simulated(self) -> bool:
@@ -345,7 +347,8 @@ def load_config(path: Path) -> RobotConfig:
             raise r.fail("gait.pelvis_height_m", f"expected within pelvis_height_range_m [{lo}, {hi}]")
 
     control = r.get(data, "control", "", dict, {})
-    r.unknown(control, {"wbc", "gait_feedback"}, "control.")
+    r.unknown(control, {"wbc", "gait_feedback", "walking"}, "control.")
+    walking = dict(r.get(control, "walking", "control.", dict, {}))
     wbc_table = r.get(control, "wbc", "control.", dict, {})
     wbc_gains = {k: r.get(wbc_table, k, "control.wbc.", float) for k in wbc_table}
     feedback_table = r.get(control, "gait_feedback", "control.", dict, {})
@@ -358,12 +361,13 @@ def load_config(path: Path) -> RobotConfig:
                 raise r.fail(where, f"expected [low, high] with 0 < low < high, got {value!r}")
             gait_feedback[key] = (float(value[0]), float(value[1]))
         else:
-            gait_feedback[key] = r.get(feedback_table, key, "control.gait_feedback.", float)
-            if gait_feedback[key] < 0:
+            number = r.get(feedback_table, key, "control.gait_feedback.", float)
+            gait_feedback[key] = number
+            if number < 0:
                 raise r.fail(where, f"expected a non-negative number, got {value!r}")
 
     return RobotConfig(
-        gait=gait, wbc_gains=wbc_gains, source_package=source_package, gait_feedback=gait_feedback,
+        gait=gait, wbc_gains=wbc_gains, source_package=source_package, gait_feedback=gait_feedback, walking=walking,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,

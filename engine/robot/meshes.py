@@ -125,7 +125,8 @@ def convert(src: Path, role: str, target_faces: int, dae_up_axis: str | None, ca
         return out
     mesh = load_mesh(src, dae_up_axis)
     mesh = convex_collision(mesh, target_faces) if role == "collision" else decimate(mesh, target_faces)
-    atomic_write_bytes(out, mesh.export(file_type="stl"))
+    data = mesh.export(file_type="stl")
+    atomic_write_bytes(out, data if isinstance(data, bytes) else str(data).encode())
     return out
 
 
@@ -141,6 +142,7 @@ def face_count(path: Path) -> int:
     import trimesh
 
     try:
-        return len(trimesh.load(str(path), force="mesh", process=False).faces)
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+        return len(getattr(mesh, "faces", ()))
     except Exception:
         return 1000

@@ -315,7 +315,8 @@ def _extract_body_meshes(model: mujoco.MjModel) -> list[BodyMesh]:
             offset += len(verts)
         rgba = max(parts, key=lambda p: p[3])[2]
         out.append(BodyMesh(model.body(bid).name, np.concatenate(verts_all).astype(np.float32),
-                            np.concatenate(faces_all).astype(np.int32), tuple(float(c) for c in rgba)))
+                            np.concatenate(faces_all).astype(np.int32),
+                            (float(rgba[0]), float(rgba[1]), float(rgba[2]), float(rgba[3]))))
     return out
 
 
@@ -330,7 +331,7 @@ def _save_body_meshes(path: Path, body_meshes: list[BodyMesh]) -> None:
     import io
 
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as the allow_pickle flag
     atomic_write_bytes(path, buf.getvalue())
 
 

@@ -9,6 +9,7 @@ Commands are sent at most 20 times a second.
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from typing import TYPE_CHECKING, Callable
@@ -124,11 +125,11 @@ class DrivePanel:
         self._sent = np.full(3, np.nan)
         for button, axis, sign in ((self.fwd, 0, 1.0), (self.back, 0, -1.0), (self.left, 1, 1.0), (self.right, 1, -1.0),
                                    (self.turn_left, 2, 1.0), (self.turn_right, 2, -1.0)):
-            button.on_hold(lambda _, a=axis, s=sign: self.hold(a, s), callback_hz=20.0)
-            button.on_click(lambda _, a=axis, s=sign: self.release(a, s))  # the click arrives on release
+            button.on_hold(functools.partial(self._on_hold, axis, sign), callback_hz=20.0)
+            button.on_click(functools.partial(self._on_release, axis, sign))  # the click arrives on release
         self.stop.on_click(lambda _: self.stop_now())
         self.mode.on_click(lambda e: self.set_mode(e.target.value.lower()))
-        self.speed.on_update(lambda _: studio.link.send(msg.SetPlaybackSpeed(float(self.speed.value))))
+        self.speed.on_update(self._on_speed)
         self.follow.on_update(lambda _: self._on_follow_toggled())
         self.show_ghost.on_update(lambda _: studio.set_ghost_visible(self.show_ghost.value))
         self.ghost_offset.on_update(lambda _: studio.set_ghost_offset(self.ghost_offset.value))
@@ -144,6 +145,15 @@ class DrivePanel:
         self.studio.set_mode(mode)
 
     # ------------------------------------------------------------------ joystick
+    def _on_hold(self, axis: int, sign: float, _event: object) -> None:
+        self.hold(axis, sign)
+
+    def _on_release(self, axis: int, sign: float, _event: object) -> None:
+        self.release(axis, sign)
+
+    def _on_speed(self, _event: object) -> None:
+        self.studio.link.send(msg.SetPlaybackSpeed(float(self.speed.value)))
+
     def hold(self, axis: int, sign: float) -> None:
         self.joystick.hold(axis, sign)
 

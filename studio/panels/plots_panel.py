@@ -7,12 +7,13 @@ from collections import deque
 
 import numpy as np
 import viser
+from viser.uplot import Scale
 
 from engine.gait.velocity_sampler import SAMPLE_DISPLAY_NAMES
 
 WINDOW_S = 10.0
 MAX_POINTS = 120  # per series sent to the browser
-SCALES = {"x": {"time": False, "auto": True}, "y": {"auto": True}}
+SCALES: dict[str, Scale] = {"x": {"time": False, "auto": True}, "y": {"auto": True}}
 
 
 def time_window_scales(t_now_s: float) -> dict:

@@ -146,8 +146,8 @@ class RetargetPanel:
 
         self.refresh.on_click(lambda _: self.refresh_lists())
         self.import_button.on_click(lambda _: self.start_import())
-        self.import_path.on_update(lambda _: self._check_import_path())
-        self.import_root.on_update(lambda _: self._check_import_path())
+        self.import_path.on_update(self._on_import_path_edited)
+        self.import_root.on_update(self._on_import_path_edited)
         self.run.on_click(lambda _: self.start_retarget())
         self.cancel.on_click(lambda _: self.cancel_job())
         self.view_button.on_click(lambda _: self.view_result(self.results.value))
@@ -173,7 +173,7 @@ class RetargetPanel:
         """The studio's robot changed: a quadruped becomes the retarget target and this workspace is its home."""
         if kind != "quadruped" or robot not in QUADRUPEDS:
             return
-        self.robot.value = robot
+        self.robot.value = robot  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
         if self._robots_seen:
             self.studio._notify("info", f"{robot} is a quadruped: retarget motions onto it in the Retarget tab.")
         self._robots_seen += 1
@@ -191,10 +191,10 @@ class RetargetPanel:
     def refresh_lists(self, select_source: str | None = None, select_result: str | None = None) -> None:
         self.source.options = self._source_options()
         if select_source in self.source.options:
-            self.source.value = select_source
+            self.source.value = select_source  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
         self.results.options = self._result_options()
         if select_result in self.results.options:
-            self.results.value = select_result
+            self.results.value = select_result  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
 
     # ------------------------------------------------------------------ jobs
     def _start(self, job: str, params: dict) -> str:
@@ -208,6 +208,9 @@ class RetargetPanel:
             shared = shared_root()
             return shared / "motions-src" if shared is not None else None
         return self.root
+
+    def _on_import_path_edited(self, _event: object) -> None:
+        self._check_import_path()  # shows its verdict under the field
 
     def _check_import_path(self) -> bool:
         """Say at once whether the typed path can be imported (inside the chosen folder, a file)."""
@@ -248,7 +251,7 @@ class RetargetPanel:
         self._source_of_job = source
         self.run.disabled = True
         self.cancel.disabled = False
-        self.progress.value = 0.0
+        self.progress.value = 0.0  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
         self.progress.animated = True
         self._set_status(f"Retarget running: {method.upper()} `{source}` → {self.robot.value} (0 %)")
 
@@ -298,7 +301,7 @@ class RetargetPanel:
             return
         if event.result is None:
             if event.job_id == self.job_id:
-                self.progress.value = float(np.clip(100.0 * event.fraction, 0.0, 100.0))
+                self.progress.value = float(np.clip(100.0 * event.fraction, 0.0, 100.0))  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
                 self._set_status(f"Retarget running: {event.message} ({100 * event.fraction:.0f} %)")
             return
         self._pending.pop(event.job_id, None)
@@ -309,15 +312,15 @@ class RetargetPanel:
             self.cancel.disabled = True
             self.progress.animated = False
             if result.get("ok"):
-                self.progress.value = 100.0
+                self.progress.value = 100.0  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
                 self._set_status(f"Result: `{result['path']}` written")
                 self.refresh_lists(select_result=result["path"])
                 self._show(result["path"], result["playback"], result.get("metrics", {}))
             elif result.get("cancelled"):
-                self.progress.value = 0.0
+                self.progress.value = 0.0  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
                 self._set_status("Retarget cancelled: nothing written")
             else:
-                self.progress.value = 0.0
+                self.progress.value = 0.0  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
                 self._set_status(f"Retarget failed: `{result.get('error')}`")
         elif kind == "poses":
             if result.get("ok"):
@@ -431,7 +434,7 @@ class RetargetPanel:
         if move_slider:
             self._setting_slider = True
             try:
-                self.timeline.value = frame
+                self.timeline.value = frame  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
             finally:
                 self._setting_slider = False
 

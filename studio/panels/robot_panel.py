@@ -38,7 +38,10 @@ class RobotPanel:
             self.status = server.gui.add_markdown("Engine: starting…")
 
         self.robot.on_update(lambda _: studio.switch_robot(self.robot.value))
-        self.reset.on_click(lambda _: studio.link.send(msg.Reset()))
+        def reset(_event: object) -> None:
+            studio.link.send(msg.Reset())
+
+        self.reset.on_click(reset)
         self.pause.on_click(lambda _: self.toggle_pause())
         self.push.on_click(lambda _: self.apply_push())
 

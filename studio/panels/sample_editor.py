@@ -13,6 +13,7 @@ what to change when the robot could not walk it, before Test is pressed.
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from dataclasses import replace
@@ -20,7 +21,7 @@ from typing import TYPE_CHECKING, Callable
 
 import viser
 
-from engine.gait.style import ATTRIBUTE_NAMES, Intervals
+from engine.gait.style import ATTRIBUTE_NAMES, GaitSample, Intervals, Style
 from engine.gait.velocity_sampler import SAMPLE_DISPLAY_NAMES, SAMPLE_NAMES
 
 if TYPE_CHECKING:
@@ -106,14 +107,23 @@ class SampleEditor:
         self.dropdown.on_update(lambda _: self.select(self.dropdown.value))
         self.timeline.on_update(lambda _: self._guard(self.set_events, tuple(self.timeline.value)))
         for name, slider in self.attributes.items():
-            slider.on_update(lambda _, n=name: self._guard(self.set_attribute, n, self.attributes[n].value))
+            slider.on_update(functools.partial(self._on_attribute_slider, name))
         self.copy_button.on_click(lambda _: self._guard(self.copy_to, self.copy_target.value))
         session.subscribe(lambda style, reason: self.refresh())
         self.refresh()
 
     # ------------------------------------------------------------------ edits
-    def _sample(self):
-        return self.session.style.samples[self.sample_name]
+    def _style(self) -> Style:
+        style = self.session.style
+        if style is None:
+            raise ValueError("no style open")
+        return style
+
+    def _sample(self) -> GaitSample:
+        return self._style().samples[self.sample_name]
+
+    def _on_attribute_slider(self, name: str, _event: object) -> None:
+        self._guard(self.set_attribute, name, self.attributes[name].value)
 
     def _guard(self, fn, *args) -> None:
         if self._syncing:
@@ -136,21 +146,21 @@ class SampleEditor:
         t_ltd, t_rlo, t_rtd, cycle = (float(e) for e in events)
         sample = self._sample()
         new = sample.with_intervals(Intervals(cycle, (0.0, t_ltd), (t_rlo, t_rtd)))
-        result = self.session.apply(self.session.style.with_sample(self.sample_name, new),
+        result = self.session.apply(self._style().with_sample(self.sample_name, new),
                                     f"{self.sample_name} intervals")
         return self._result(result)
 
     def set_attribute(self, name: str, value: float) -> bool:
         sample = self._sample()
         new = replace(sample, attributes=replace(sample.attributes, **{name: float(value)}))
-        result = self.session.apply(self.session.style.with_sample(self.sample_name, new), f"{self.sample_name} {name}")
+        result = self.session.apply(self._style().with_sample(self.sample_name, new), f"{self.sample_name} {name}")
         return self._result(result)
 
     def copy_to(self, target: str) -> bool:
         """Duplicate the current sample onto another one (its curves and intervals)."""
         if target == self.sample_name:
             return False
-        result = self.session.apply(self.session.style.with_sample(target, self._sample()),
+        result = self.session.apply(self._style().with_sample(target, self._sample()),
                                     f"copy {self.sample_name} → {target}")
         return self._result(result)
 
@@ -181,13 +191,13 @@ class SampleEditor:
             self.phase_bar.content = phase_bar_html(sample.intervals, float(self.timeline.max))
             events = tuple(round(e, 4) for e in sample.intervals.events_s)
             if tuple(self.timeline.value) != events:
-                self.timeline.value = events
+                self.timeline.value = events  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
             for name, slider in self.attributes.items():
                 value = min(max(getattr(sample.attributes, name), slider.min), slider.max)
                 if abs(slider.value - value) > 1e-9:
-                    slider.value = value
+                    slider.value = value  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
             if self.dropdown.value != self.sample_name:
-                self.dropdown.value = self.sample_name
+                self.dropdown.value = self.sample_name  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
         finally:
             self._syncing = False
         self._request_check()
@@ -225,7 +235,7 @@ class SampleEditor:
 def feasibility_markdown(sample: str, findings: list, limit: int = 3) -> str:
     """The check's findings for one sample as the panel shows them."""
     if not findings:
-        return f"✅ **{sample}**: nothing in the way of walking it"
+        return f"✓ **{sample}**: nothing in the way of walking it"
     lines = [f"⚠️ **{f.sample}**, around {f.phase_pct:.0f} % of the cycle: {f.message}" for f in findings[:limit]]
     more = len(findings) - limit
     if more > 0:

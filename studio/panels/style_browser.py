@@ -27,14 +27,31 @@ class StyleBrowser:
                                                                           "letters, digits, - and _")
         self.save_as_button = server.gui.add_button("Save as", icon=viser.Icon.COPY)
         self.new_button = server.gui.add_button("New from neutral", icon=viser.Icon.FILE_PLUS)
-        self.open_button.on_click(lambda _: self.open(self.dropdown.value))
-        self.recover_button.on_click(lambda _: self.recover())
-        self.save_button.on_click(lambda _: self.save())
-        self.save_as_button.on_click(lambda _: self.save_as(self.name.value.strip()))
-        self.new_button.on_click(lambda _: self.new(self.name.value.strip()))
+        self.open_button.on_click(self._on_open)
+        self.recover_button.on_click(self._on_recover)
+        self.save_button.on_click(self._on_save)
+        self.save_as_button.on_click(self._on_save_as)
+        self.new_button.on_click(self._on_new)
         self.dropdown.on_update(lambda _: self._offer_recovery())
         session.subscribe(lambda style, reason: self.refresh())
         self.refresh()
+
+
+    # button callbacks (viser wants callbacks returning None; the actions return whether they acted)
+    def _on_open(self, _event: object) -> None:
+        self.open(self.dropdown.value)
+
+    def _on_recover(self, _event: object) -> None:
+        self.recover()
+
+    def _on_save(self, _event: object) -> None:
+        self.save()
+
+    def _on_save_as(self, _event: object) -> None:
+        self.save_as(self.name.value.strip())
+
+    def _on_new(self, _event: object) -> None:
+        self.new(self.name.value.strip())
 
     def _report(self, result) -> bool:
         self.notify("info" if result.ok else "error", result.message)
@@ -68,7 +85,7 @@ class StyleBrowser:
     def _refresh_names(self, current: str) -> None:
         names = self.session.style_names()
         self.dropdown.options = tuple(names)
-        self.dropdown.value = current
+        self.dropdown.value = current  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
 
     def _offer_recovery(self) -> None:
         self.recover_button.visible = self.session.recovery_available(self.dropdown.value)

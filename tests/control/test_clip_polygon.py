@@ -7,7 +7,7 @@ import numpy as np
 
 def test_clip_to_polygon_equals_the_bisection_it_replaced() -> None:
     """The closed-form clip returns exactly the point a 30-step bisection on the segment found."""
-    from engine.control.com_mpc import polygon_centroid, polygon_halfplanes
+    from engine.control.mpc import polygon_centroid, polygon_halfplanes
     from engine.control.walking_controller import _clip_to_polygon
 
     def bisection(p, polygon):  # the implementation before the speed-up

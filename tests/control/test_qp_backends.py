@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from engine.bench.mpc_problems import closed_loop_like_problems
-from engine.control.com_mpc import ComMpc
+from engine.control.mpc import ComMpc
 from engine.control.qp_backends import QpProblem, solve
 
 
@@ -40,7 +40,7 @@ def test_mpc_backends_match_the_active_set(backend: str) -> None:
 def test_wbc_daqp_backend_matches_the_dense_solver() -> None:
     from tests.test_stack_golden import GOLDEN  # the recorded whole-body QP inputs
     from engine.control.controller import RobotState
-    from engine.control.inverse_dynamics import TaskSpaceInverseDynamics
+    from engine.control.wbc import TaskSpaceInverseDynamics
     from engine.robot.model import load_robot
 
     robot = load_robot("g1")

@@ -60,3 +60,58 @@ def test_a_foot_that_never_lifts_is_flagged():
     findings = check_style(load_robot("g1"), style, samples=("in_place",))
     assert {f.side for f in findings if f.kind == "clearance"} == {"left", "right"}
     assert "raise its swing height" in findings[0].message or any("raise its swing height" in f.message for f in findings)
+
+
+def _swing_curve(duration_s, start, mid, end):
+    from engine.gait.curves import HermiteCurve, Knot, TangentMode
+
+    return HermiteCurve([Knot(0.0, start, mode=TangentMode.FLAT), Knot(0.5 * duration_s, mid),
+                         Knot(duration_s, end, mode=TangentMode.FLAT)], duration_s)
+
+
+def test_the_issues_low_and_wide_style_is_flagged():
+    """Issue 13's example (pelvis 4 cm lower, stance 3 cm wider than neutral: valid, falls in the
+    sweep's reverse leg) is flagged: in reverse_fast the stance ankle is at its limit, raise the
+    pelvis (README: that finding does not by itself explain the fall at −0.2 m/s)."""
+    ctx, neutral = _neutral()
+    style = _every_sample(neutral, lambda s: dataclasses.replace(s, attributes=dataclasses.replace(
+        s.attributes, pelvis_height_m=s.attributes.pelvis_height_m - 0.04,
+        stance_width_m=s.attributes.stance_width_m + 0.03)))
+    validate_style(style, ctx)
+    findings = check_style(load_robot("g1"), style, samples=("reverse_fast",))
+    assert findings, "the check passed a style that falls"
+    first = findings[0]
+    assert first.kind == "reach" and "on the ground" in first.message and "ankle at its limit" in first.message
+    assert "raise the pelvis height" in first.message and 0.0 <= first.phase_pct <= 100.0
+
+
+def test_a_heel_pitched_up_through_the_swing_is_flagged():
+    """Heel pitch −0.4 rad mid-swing (flat at liftoff and touchdown): valid, falls at 3 s of the
+    sweep; the swing ankle is at its limit for most of the swing."""
+    ctx, neutral = _neutral()
+
+    def pitched(s):
+        curves = dict(s.curves)
+        for side in ("left", "right"):
+            curves[f"{side}_foot.heel_pitch"] = _swing_curve(s.intervals.swing_duration_s(side), 0.0, -0.4, 0.0)
+        return dataclasses.replace(s, curves=curves)
+
+    style = _every_sample(neutral, pitched)
+    validate_style(style, ctx)
+    findings = check_style(load_robot("g1"), style, samples=("in_place",))
+    assert any(f.kind == "reach" and "swing" in f.message and "ankle at its limit" in f.message for f in findings), \
+        [f.text() for f in findings]
+
+
+def test_random_styles_near_neutral_that_walk_are_not_flagged():
+    """No crying wolf: the generator's styles at extent 0 (neutral's timings and attributes, fresh
+    swing curves) walk the 20 s sweep (studio bench styles --extent 0 --seed 1 --n 2); the check
+    passes them."""
+    import numpy as np
+
+    from engine.gait.style_space import random_style
+
+    ctx, neutral = _neutral()
+    rng = np.random.default_rng(1)
+    style = random_style(rng, ctx, neutral, 0.0)
+    assert check_style(load_robot("g1"), style) == []

@@ -67,3 +67,19 @@ def test_capsules_are_conservative_against_mujoco(g1_capsules):
     report = mujoco_agreement(g1_capsules, n_poses=60, seed=5)
     assert report["mujoco_only"] == 0, report
     assert report["both_collide"] > 0
+
+
+@pytest.mark.parametrize("robot", ["g1", "talos"])
+def test_coal_distances_equal_the_numpy_segment_test(robot, g1_capsules):
+    """The run-time path (coal capsules through pinocchio) gives the reference numbers, penetrations included."""
+    cm = g1_capsules if robot == "g1" else CapsuleModel(UpperBody(robot))
+    rng = np.random.default_rng(7)
+    negatives = 0
+    for _ in range(60):
+        x = rng.uniform(cm.ub.lower, cm.ub.upper)
+        fast, ref = cm.signed_distances(x), cm.signed_distances_numpy(x)
+        np.testing.assert_allclose(fast, ref, atol=1e-10)
+        assert cm.min_signed_distance(x) == pytest.approx(ref.min(), abs=1e-10)
+        assert cm.is_free(x) == bool(np.all(ref >= 0))
+        negatives += int(np.sum(ref < 0))
+    assert negatives > 0  # penetrating pairs were compared too

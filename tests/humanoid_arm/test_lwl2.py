@@ -119,3 +119,32 @@ def test_transition_graph_edges_respect_step_and_collisions():
     assert g.path(np.array([0.0]), np.array([0.5])) is not None
     assert g.path(np.array([0.0]), np.array([1.0])) is None
     assert g.components() == 2
+
+
+def test_cancelled_training_resumes_to_the_same_weights(tmp_path):
+    """A run cancelled mid-way and resumed from its checkpoint ends with exactly the weights of a run that
+    was never interrupted (saved optimiser and random states); a checkpoint of another config is refused."""
+    import pytest
+    import torch
+
+    rng = np.random.default_rng(0)
+    data = {"a": DomainData(rng.uniform(0, 1, (300, 3))), "b": DomainData(rng.uniform(0, 1, (300, 2)))}
+    glue = {"a": data["a"].data[:40], "b": data["b"].data[:40]}
+    cfg = TrainConfig(iterations=30, batch_size=16, seed=3)
+
+    def fresh():
+        return SharedLatentWAE({"a": 3, "b": 2}, latent_dim=2, hidden=8, seed=3)
+
+    straight = fresh()
+    train_wae(straight, data, glue, cfg)
+    ckpt = tmp_path / "wae.pt"
+    calls = iter(range(1000))
+    with pytest.raises(KeyboardInterrupt):
+        train_wae(fresh(), data, glue, cfg, should_stop=lambda: next(calls) >= 17, checkpoint=ckpt, checkpoint_every=5)
+    assert ckpt.is_file()
+    resumed = fresh()
+    train_wae(resumed, data, glue, cfg, checkpoint=ckpt, checkpoint_every=5)
+    for k, v in straight.state_dict().items():
+        assert torch.equal(v, resumed.state_dict()[k]), k
+    with pytest.raises(ValueError, match="another training configuration"):
+        train_wae(fresh(), data, glue, TrainConfig(iterations=30, batch_size=16, seed=4), checkpoint=ckpt)

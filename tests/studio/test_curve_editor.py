@@ -13,7 +13,10 @@ import viser
 
 from engine.gait.curves import TangentMode
 from engine.gait.style import StyleContext, validate_style
-from studio.panels import curve_editor as ce
+from engine.gait import curve_editing as rules
+from studio.panels.curve_editor import appearance as look
+from studio.panels.curve_editor import interaction, widgets
+from studio.panels.curve_editor.interaction import SerialWorker
 from studio.panels.curve_editor import CurveEditor, KnotRef
 from studio.style_session import StyleSession
 from tests.conftest import REPO, free_port
@@ -49,8 +52,8 @@ def session(g1_ctx, tmp_path) -> StyleSession:
 
 @pytest.fixture
 def editor(server, session, monkeypatch):
-    monkeypatch.setattr(ce, "PREVIEW_PERIOD_S", 0.0)  # every drag update also applies a preview
-    monkeypatch.setattr(ce, "TYPING_PAUSE_S", 0.0)  # typed values apply at once
+    monkeypatch.setattr(interaction, "PREVIEW_PERIOD_S", 0.0)  # every drag update also applies a preview
+    monkeypatch.setattr(widgets, "TYPING_PAUSE_S", 0.0)  # typed values apply at once
     ed = CurveEditor(server, session)
     yield ed
     ed.close()
@@ -135,8 +138,8 @@ def test_channel_list_checkboxes_show_colours_and_frame_all_covers_every_visible
 def test_cyclic_view_draws_neighbour_periods_faint_and_knots_only_in_the_main_period(editor, session):
     editor.set_active_channel(SHOULDER)
     colors = editor._curves.colors.reshape(-1, 3)
-    main = tuple(ce._linear_u8(editor.color_of(SHOULDER)[0]))
-    faint = tuple(ce._linear_u8(ce._blend(editor.color_of(SHOULDER)[0], ce.INTERVAL_BG, 0.65)))
+    main = tuple(look._linear_u8(editor.color_of(SHOULDER)[0]))
+    faint = tuple(look._linear_u8(look._blend(editor.color_of(SHOULDER)[0], look.INTERVAL_BG, 0.65)))
     found = {tuple(c) for c in colors}
     assert main in found and faint in found
     pts = editor._curves.points.reshape(-1, 3)
@@ -344,8 +347,8 @@ def test_box_select_and_group_move(editor, session):
     y = -up / np.linalg.norm(up)
     wxyz = viser.transforms.SO3.from_matrix(np.stack([np.cross(y, z), y, z], axis=1)).wxyz
     camera = SimpleNamespace(position=position, wxyz=wxyz, fov=0.9, aspect=1.6)
-    uv0 = ce.project_to_screen(editor.knot_world_position(KnotRef(SHOULDER, 0)), position, wxyz, 0.9, 1.6)
-    uv1 = ce.project_to_screen(editor.knot_world_position(KnotRef(SHOULDER, 1)), position, wxyz, 0.9, 1.6)
+    uv0 = look.project_to_screen(editor.knot_world_position(KnotRef(SHOULDER, 0)), position, wxyz, 0.9, 1.6)
+    uv1 = look.project_to_screen(editor.knot_world_position(KnotRef(SHOULDER, 1)), position, wxyz, 0.9, 1.6)
     # a rectangle around the first two knots (t = 0.105, 0.28) of both channels
     picked = editor.select_in_screen_rect(camera, (uv0[0] - 0.01, 0.0), (uv1[0] + 0.01, 1.0))
     assert set(picked) == {KnotRef(SHOULDER, 0), KnotRef(SHOULDER, 1), KnotRef(ELBOW, 0), KnotRef(ELBOW, 1)}
@@ -453,7 +456,7 @@ def test_callbacks_are_guarded(editor, session):
 
 
 def test_serial_worker_keeps_order_and_coalesces_updates():
-    worker = ce._SerialWorker("test")
+    worker = SerialWorker("test")
     seen: list[str] = []
     gate = __import__("threading").Event()
     worker.post(lambda: (gate.wait(2), seen.append("start")))
@@ -495,7 +498,7 @@ def test_camera_pose_sees_the_graph_head_on(editor):
 
 
 def test_works_for_talos(server, tmp_path, monkeypatch):
-    monkeypatch.setattr(ce, "PREVIEW_PERIOD_S", 0.0)
+    monkeypatch.setattr(interaction, "PREVIEW_PERIOD_S", 0.0)
     session = _session("talos", StyleContext.for_robot("talos"), tmp_path)
     ed = CurveEditor(server, session)
     try:
@@ -503,7 +506,7 @@ def test_works_for_talos(server, tmp_path, monkeypatch):
         assert curve(session, SWING).knots[1].value == pytest.approx(0.05, abs=1e-6)
         arm = "joints.arm_left_1_joint"
         ed.set_active_channel(arm)
-        assert ce.opposite_channel(arm) == "joints.arm_right_1_joint"
+        assert rules.opposite_channel(arm) == "joints.arm_right_1_joint"
         ed.copy()
         assert ed.paste(to_other_side=True).ok
         validate_style(session.style, session.ctx)
@@ -512,11 +515,11 @@ def test_works_for_talos(server, tmp_path, monkeypatch):
 
 
 def test_pure_helpers():
-    ticks, dec = ce.nice_ticks(-0.014, 0.294, 8)
+    ticks, dec = look.nice_ticks(-0.014, 0.294, 8)
     assert ticks == pytest.approx([0.0, 0.05, 0.1, 0.15, 0.2, 0.25]) and dec == 2
-    assert ce.opposite_channel("pelvis.yaw") is None and ce.opposite_channel("joints.waist_yaw_joint") is None
-    assert ce.mirror_sign("left_foot.y") == -1.0 and ce.mirror_sign("left_foot.z") == 1.0
-    assert ce.project_to_screen((0, 0, 1), (0, 0, 0), (1, 0, 0, 0), 1.0, 1.0) == pytest.approx((0.5, 0.5))
+    assert rules.opposite_channel("pelvis.yaw") is None and rules.opposite_channel("joints.waist_yaw_joint") is None
+    assert rules.mirror_sign("left_foot.y") == -1.0 and rules.mirror_sign("left_foot.z") == 1.0
+    assert look.project_to_screen((0, 0, 1), (0, 0, 0), (1, 0, 0, 0), 1.0, 1.0) == pytest.approx((0.5, 0.5))
 
 
 def test_a_drag_goes_on_past_the_view_and_keeps_to_one_axis(editor, session):
@@ -525,7 +528,7 @@ def test_a_drag_goes_on_past_the_view_and_keeps_to_one_axis(editor, session):
     ref = KnotRef(SWING, 1)
     k0 = curve(session, SWING).knots[1]
     v_top = editor.view[3]
-    hi = ce.channel_limits(SWING, session.style.sample("forward_fast"), session.ctx)[1]
+    hi = rules.channel_limits(SWING, session.style.sample("forward_fast"), session.ctx)[1]
     target = min(k0.value + 2.5 * (v_top - k0.value), hi - 1e-3)  # far above the top of the view
     assert target > v_top + 0.01
     drag_knot(editor, ref, k0.t_s + 0.002, target, steps=4)  # up, with a slight sideways wobble
@@ -547,7 +550,7 @@ def test_switching_to_an_empty_channel_clears_the_knot_fields(editor, session):
 
 
 def test_typed_values_apply_once_when_the_keys_pause(server, session, monkeypatch):
-    monkeypatch.setattr(ce, "TYPING_PAUSE_S", 0.3)
+    monkeypatch.setattr(widgets, "TYPING_PAUSE_S", 0.3)
     ed = CurveEditor(server, session)
     try:
         ed.handle_knot_click(KnotRef(SWING, 1))

@@ -67,7 +67,7 @@ class ImuEkf:
     def __init__(self, params: ImuEkfParams | None = None, gravity_mps2: float = 9.81):
         self.params = params or ImuEkfParams()
         self.gravity_mps2 = float(gravity_mps2)
-        self.quat_xyzw: Quat = (0.0, 0.0, 0.0, 1.0)
+        self.quat_wxyz: Quat = (1.0, 0.0, 0.0, 0.0)
         self._bias = [0.0, 0.0, 0.0]  # gyro bias, rad/s
         self.cov: FloatArray = np.eye(6)
         self.initialized = False
@@ -75,7 +75,7 @@ class ImuEkf:
         self.gravity_skipped = 0
         self.gravity_downweighted = 0
         self._f = np.eye(6)
-        self._q_cov: Quat = self.quat_xyzw  # nominal attitude when the covariance was last propagated
+        self._q_cov: Quat = self.quat_wxyz  # nominal attitude when the covariance was last propagated
         self._pending_dt = 0.0  # time the covariance lags the nominal state
         self._q_dt = -1.0
         self._q_diag = np.zeros((6, 6))
@@ -102,16 +102,16 @@ class ImuEkf:
 
     def set_rotation(self, rot: FloatArray) -> None:
         q = rotation_to_quat(rot)
-        self.quat_xyzw = self._q_cov = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        self.quat_wxyz = self._q_cov = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
         self._pending_dt = 0.0
 
     @property
     def rotation(self) -> FloatArray:
         """World ← base rotation matrix."""
-        return quat_to_rotation(self.quat_xyzw)
+        return quat_to_rotation(self.quat_wxyz)
 
     def rotation_rows(self) -> Rows:
-        return _rot_rows(self.quat_xyzw)
+        return _rot_rows(self.quat_wxyz)
 
     @property
     def gyro_bias_radps(self) -> FloatArray:
@@ -133,7 +133,7 @@ class ImuEkf:
     def propagate_nominal(self, gyro_radps, dt_s: float) -> None:
         """q ← q ⊗ Exp((ω_m − b̂) dt). The covariance catches up in :meth:`propagate_covariance`."""
         bx, by, bz = self._bias
-        self.quat_xyzw = _quat_step(self.quat_xyzw, (gyro_radps[0] - bx) * dt_s, (gyro_radps[1] - by) * dt_s,
+        self.quat_wxyz = _quat_step(self.quat_wxyz, (gyro_radps[0] - bx) * dt_s, (gyro_radps[1] - by) * dt_s,
                                     (gyro_radps[2] - bz) * dt_s)
         self._pending_dt += dt_s
 
@@ -153,15 +153,15 @@ class ImuEkf:
             f[0, 3] = f[1, 4] = f[2, 5] = -t
             self._q_diag = np.diag([p.gyro_noise_density_radps_rthz ** 2 * t] * 3
                                    + [p.gyro_bias_walk_radps2_rthz ** 2 * t] * 3)
-        x0, y0, z0, w0 = self._q_cov
-        dq = _quat_mul((-x0, -y0, -z0, w0), self.quat_xyzw)
+        w0, x0, y0, z0 = self._q_cov
+        dq = _quat_mul((w0, -x0, -y0, -z0), self.quat_wxyz)
         f[:3, :3] = quat_to_rotation(dq).T
         self.cov = f.dot(self.cov).dot(f.T) + self._q_diag
-        self._q_cov = self.quat_xyzw
+        self._q_cov = self.quat_wxyz
         self._pending_dt = 0.0
 
     def _inject(self, dx: list[float]) -> None:
-        self.quat_xyzw = self._q_cov = _quat_step(self.quat_xyzw, dx[0], dx[1], dx[2])
+        self.quat_wxyz = self._q_cov = _quat_step(self.quat_wxyz, dx[0], dx[1], dx[2])
         b = self._bias
         self._bias = [b[0] + dx[3], b[1] + dx[4], b[2] + dx[5]]
 
@@ -192,7 +192,7 @@ class ImuEkf:
             self._sigma2_base = (p.accel_noise_density_mps2_rthz ** 2 / dt_s + p.accel_dynamic_std_mps2 ** 2) / (g * g)
             k_max = min(1.0, dt_s / p.tilt_min_time_constant_s) if p.tilt_min_time_constant_s > 0.0 else 1.0
             self._gain_cap = (1.0 - k_max) / k_max
-        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = _rot_rows(self.quat_xyzw)
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = _rot_rows(self.quat_wxyz)
         rows: list[list[float]] = []
         innov: list[float] = []
         noise: list[float] = []

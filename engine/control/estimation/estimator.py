@@ -75,7 +75,7 @@ from engine.imu import ImuSample
 from engine.control.estimation.ekf import ImuEkf, ImuEkfParams
 from engine.control.estimation.leg_kinematics import FootKinematics, Vec3
 from engine.control.estimation.odometry import LegKinematicsOdometry, LegOdometryParams
-from engine.control.estimation.quaternion import _yaw_of, quat_to_rotation
+from engine.control.estimation.quaternion import _yaw_of, quat_to_rotation, wxyz_from_xyzw, xyzw_from_wxyz
 
 
 # ----------------------------------------------------------------------------- combined
@@ -166,7 +166,7 @@ class StateEstimator:
             self._init_yaw_rad, init_rot = 0.0, np.eye(3)
             self.odometry.reset(None)
         else:
-            init_rot = quat_to_rotation(state.q[3:7])
+            init_rot = quat_to_rotation(wxyz_from_xyzw(state.q[3:7]))  # pinocchio q: x, y, z, w
             self._init_yaw_rad = _yaw_of(init_rot)
             self.odometry.reset(np.array(state.q[:3], dtype=float), init_rot.dot(np.asarray(state.v[:3], dtype=float)))
         self.ekf.set_rotation(init_rot)  # until the first usable accelerometer sample
@@ -245,7 +245,7 @@ class StateEstimator:
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = ekf.rotation_rows()
         vx, vy, vz = odo._vel
         q = np.empty(7 + self.n_joints)
-        q[:7] = (*odo._pos, *ekf.quat_xyzw)
+        q[:7] = (*odo._pos, *xyzw_from_wxyz(ekf.quat_wxyz))  # pinocchio order at the state's edge
         q[7:] = jq
         v = np.empty(6 + self.n_joints)
         v[:6] = (r00 * vx + r10 * vy + r20 * vz, r01 * vx + r11 * vy + r21 * vz, r02 * vx + r12 * vy + r22 * vz, *omega_b)
@@ -261,7 +261,7 @@ class StateEstimator:
         ekf, odo = self.ekf, self.odometry
         bias = ekf._bias
         omega_b = (gyro[0] - bias[0], gyro[1] - bias[1], gyro[2] - bias[2]) if self._has_gyro else (0.0, 0.0, 0.0)
-        feet = odo.kinematics.compute(jq, jqd, ekf.quat_xyzw, omega_b)
+        feet = odo.kinematics.compute(jq, jqd, ekf.quat_wxyz, omega_b)
         odo.correct(feet, flags)
         self._spin = self._stance_spin(feet, flags) if self.params.stance_yaw_rate else (None, None)
 

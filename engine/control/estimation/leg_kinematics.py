@@ -19,6 +19,10 @@ BoolArray = NDArray[np.bool_]
 Vec3 = tuple[float, float, float]
 
 
+def _vec3(x: FloatArray) -> Vec3:
+    return (float(x[0]), float(x[1]), float(x[2]))
+
+
 class FootKinematics:
     """Per foot, from the encoders and the base attitude: vectors in world axes, base origin held still.
 
@@ -89,16 +93,16 @@ class LegKinematics:
             normal = np.cross(half_len, half_wid)
             self.foot_names.append(side)
             self.joint_ids.append(int(frames[0].parentJoint))
-            self.soles_joint.append(tuple(tuple(map(float, x)) for x in
-                                          (centre, half_len, half_wid, normal / np.linalg.norm(normal))))
-            self.points_joint.append(tuple(map(float, centre)))
+            self.soles_joint.append((_vec3(centre), _vec3(half_len), _vec3(half_wid),
+                                     _vec3(normal / np.linalg.norm(normal))))
+            self.points_joint.append(_vec3(centre))
             ground.append(0.0)  # the sole plane is the bottom of the corner spheres
         for foot in cfg.feet:
             frame = self.model.frames[robot.frame_id(f"foot_{foot.name}")]
             self.foot_names.append(foot.name)
             self.joint_ids.append(int(frame.parentJoint))
             self.soles_joint.append(None)
-            self.points_joint.append(tuple(map(float, frame.placement.translation)))
+            self.points_joint.append(_vec3(frame.placement.translation))
             ground.append(float(foot.radius_m))
         if not self.foot_names:
             raise ValueError(f"{robot.name}: no feet in the contact model, nothing to estimate from")
@@ -112,16 +116,21 @@ class LegKinematics:
     def reset(self) -> None:
         self._prev_offset = [None] * self.n_feet
 
-    def compute(self, joint_q: FloatArray, joint_qd: FloatArray, quat_xyzw=(0.0, 0.0, 0.0, 1.0),
+    def compute(self, joint_q: FloatArray, joint_qd: FloatArray, quat_wxyz=(1.0, 0.0, 0.0, 0.0),
                 omega_b_radps=(0.0, 0.0, 0.0)) -> FootKinematics:
-        """Contact points for measured joints, base attitude ``quat_xyzw`` and base rate ``omega_b_radps``."""
+        """Contact points for measured joints, base attitude ``quat_wxyz`` (w, x, y, z) and base rate ``omega_b_radps``."""
         q, v = self._q, self._v
-        q[3:7] = quat_xyzw
+        q[3:7] = (quat_wxyz[1], quat_wxyz[2], quat_wxyz[3], quat_wxyz[0])  # pinocchio: x, y, z, w
         q[7:] = joint_q
         v[3:6] = omega_b_radps
         v[6:] = joint_qd
         pin.forwardKinematics(self.model, self.data, q, v)
-        point, vel, up_cos, rots, angs, deltas = [], [], [], [], [], []
+        point: list[Vec3] = []
+        vel: list[Vec3] = []
+        up_cos: list[float] = []
+        rots: list[tuple[float, ...]] = []
+        angs: list[Vec3] = []
+        deltas: list[Vec3 | None] = []
         tanh, k = math.tanh, self.inv_softmin
         oMi, v_joint = self.data.oMi, self.data.v
         for i in range(self.n_feet):

@@ -1,5 +1,6 @@
-"""Quaternion helpers of the estimator's filter state: Hamilton, stored x, y, z, w (pinocchio's order, as
-the state q[3:7] it estimates); MuJoCo's w, x, y, z is converted where the IMU is read."""
+"""Quaternion helpers of the estimator's filter state: Hamilton, stored w, x, y, z (the project's
+convention, MuJoCo's order). Pinocchio's x, y, z, w appears only where the estimate is written into
+a pinocchio configuration q[3:7] (:func:`wxyz_from_xyzw` / :func:`xyzw_from_wxyz` at that edge)."""
 
 from __future__ import annotations
 
@@ -16,16 +17,26 @@ BoolArray = NDArray[np.bool_]
 
 # ----------------------------------------------------------------------------- rotations
 
-Quat = tuple[float, float, float, float]  # x, y, z, w (pinocchio order), Hamilton
+Quat = tuple[float, float, float, float]  # w, x, y, z, Hamilton
+
+
+def wxyz_from_xyzw(q_xyzw) -> Quat:
+    """Pinocchio's x, y, z, w → the project's w, x, y, z."""
+    return (float(q_xyzw[3]), float(q_xyzw[0]), float(q_xyzw[1]), float(q_xyzw[2]))
+
+
+def xyzw_from_wxyz(q_wxyz) -> tuple[float, float, float, float]:
+    """The project's w, x, y, z → pinocchio's x, y, z, w (a configuration's q[3:7])."""
+    return (float(q_wxyz[1]), float(q_wxyz[2]), float(q_wxyz[3]), float(q_wxyz[0]))
 
 
 def _quat_mul(a: Quat, b: Quat) -> Quat:
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by,
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
             aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz)
+            aw * bz + ax * by - ay * bx + az * bw)
 
 
 def _quat_step(q: Quat, rx: float, ry: float, rz: float) -> Quat:
@@ -37,18 +48,18 @@ def _quat_step(q: Quat, rx: float, ry: float, rz: float) -> Quat:
         angle = math.sqrt(angle2)
         k = math.sin(0.5 * angle) / angle
         bx, by, bz, bw = rx * k, ry * k, rz * k, math.cos(0.5 * angle)
-    ax, ay, az, aw = q
+    aw, ax, ay, az = q
     x = aw * bx + ax * bw + ay * bz - az * by
     y = aw * by - ax * bz + ay * bw + az * bx
     z = aw * bz + ax * by - ay * bx + az * bw
     w = aw * bw - ax * bx - ay * by - az * bz
     n = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)
-    return (x * n, y * n, z * n, w * n)
+    return (w * n, x * n, y * n, z * n)
 
 
-def quat_to_rotation(q_xyzw) -> FloatArray:
-    """Unit xyzw quaternion → 3×3 rotation matrix."""
-    x, y, z, w = (float(c) for c in q_xyzw)
+def quat_to_rotation(q_wxyz) -> FloatArray:
+    """Unit w, x, y, z quaternion → 3×3 rotation matrix."""
+    w, x, y, z = (float(c) for c in q_wxyz)
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
     wx, wy, wz = w * x, w * y, w * z
@@ -61,8 +72,8 @@ Rows = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float
 
 
 def _rot_rows(q: Quat) -> Rows:
-    """Rows of the rotation matrix of a unit quaternion, as python floats."""
-    x, y, z, w = q
+    """Rows of the rotation matrix of a unit w, x, y, z quaternion, as python floats."""
+    w, x, y, z = q
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
     wx, wy, wz = w * x, w * y, w * z
@@ -72,9 +83,10 @@ def _rot_rows(q: Quat) -> Rows:
 
 
 def rotation_to_quat(rot: FloatArray) -> FloatArray:
-    """3×3 rotation matrix → unit xyzw quaternion with w ≥ 0."""
-    q = np.array(pin.Quaternion(np.asarray(rot, dtype=float)).coeffs(), dtype=float)
-    return -q if q[3] < 0.0 else q
+    """3×3 rotation matrix → unit w, x, y, z quaternion with w ≥ 0."""
+    x, y, z, w = pin.Quaternion(np.asarray(rot, dtype=float)).coeffs()
+    q = np.array([w, x, y, z], dtype=float)
+    return -q if q[0] < 0.0 else q
 
 
 def _yaw_of(rot: FloatArray) -> float:

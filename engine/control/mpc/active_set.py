@@ -29,7 +29,7 @@ def _inverse(mat: FloatArray) -> FloatArray:
         inv, info = _dgetri(lu, piv)
         if info == 0:
             return inv
-    return np.linalg.inv(mat)
+    return np.asarray(np.linalg.inv(mat), dtype=np.float64)
 
 
 def _chol(mat: FloatArray) -> FloatArray | None:

@@ -223,7 +223,7 @@ class ComMpc:
             wps, iterations, outcome, message = self._solve_osqp(problem, qp, deadline)
         elif self.solver != "active_set":  # a maintained backend on the standard form
             result = qp_backends.solve(qp.standard_form(), self.solver)
-            wps = result.x.reshape(-1, 2) if result.ok else qp.p_free
+            wps = result.x.reshape(-1, 2) if result.ok and result.x is not None else qp.p_free
             iterations, outcome, message = 0, (_AS_OPTIMAL if result.ok else _AS_INFEASIBLE), result.status
         else:
             wps, iterations, outcome, message = self._solve_active_set(problem, qp, deadline)
@@ -668,12 +668,12 @@ class ComMpc:
         points = [cop]
         for k, region in enumerate(regions):
             mid = region.centroid if region.valid else points[-1]
-            end = mid
+            end_wp = mid
             nxt = regions[k + 1] if k + 1 < len(regions) else None
             if region.valid and nxt is not None and nxt.valid:
                 inter = clip_convex_polygons(region.hull, nxt.hull)
-                end = polygon_centroid(inter) if len(inter) else mid
-            points += [mid, end]
+                end_wp = polygon_centroid(inter) if len(inter) else mid
+            points += [mid, end_wp]
         wps = np.array(points)
         t_arr = np.array(times)
         pos, vel_wp = propagate_lip(t_arr, wps - com, np.zeros(2), vel, math.sqrt(GRAVITY_MPS2 / height))

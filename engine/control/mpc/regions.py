@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,7 +61,7 @@ class _SupportGeometry:
     centroids: NDArray[np.complex128]
 
 
-def _support_geometry(polygons: list[object]) -> _SupportGeometry | None:
+def _support_geometry(polygons: Sequence[object]) -> _SupportGeometry | None:
     """Geometry of all polygons at once; None if one is empty or degenerate.
 
     Convex polygons (either orientation, collinear vertices allowed) are processed

@@ -23,8 +23,6 @@ CONSTRAINT_TOL_M = 1e-4
 #: Upper bound on the stability weight W_s (the default W_T exp(2 omega T) overflows for tiny heights).
 MAX_STABILITY_WEIGHT = 1e12
 
-FloatArray = NDArray[np.float64]
-
 
 # --------------------------------------------------------------------------- data
 

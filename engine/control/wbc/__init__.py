@@ -11,8 +11,9 @@ one concept a module:
 """
 
 from engine.control.wbc.controller import TaskSpaceInverseDynamics
-from engine.control.wbc.reference import WbcDiagnostics, WbcGains, WbcReference, friction_basis
+from engine.control.wbc.reference import (WbcDiagnostics, WbcGains, WbcReference, WholeBodyController,
+                                          friction_basis)
 from engine.control.wbc.tracking import TrackingController
 
 __all__ = ["TaskSpaceInverseDynamics", "TrackingController", "WbcDiagnostics", "WbcGains", "WbcReference",
-           "friction_basis"]
+           "WholeBodyController", "friction_basis"]

@@ -9,7 +9,7 @@ One quadratic program per 500 Hz control tick (Eqs. 20–25)::
 
 with ``τ̄ = −Σ_c J_c,jᵀ f_c`` (actuated rows) and ``f_c = B_c ρ_c`` (Eq. 17): four unit
 basis vectors per sole corner spanning a pyramid inscribed in the friction cone of
-coefficient ``μ``. Tasks (:mod:`engine.control.tasks`): both feet (6-D pose; damping only
+coefficient ``μ``. Tasks (:mod:`engine.control.wbc.tasks`): both feet (6-D pose; damping only
 when flat on the ground), pelvis height and orientation, horizontal CoM (PD on the CoM MPC's
 reference plus its acceleration), upper-body joints, angular-momentum damping.
 
@@ -111,6 +111,21 @@ class TaskSpaceInverseDynamics:
         self._jac_filled = False
         self._rhs = np.zeros(self.n_rows)
         self._w = np.zeros(self.n_rows)
+        # The feet's targets, gains and weights live in (2, 6) arrays (the tasks hold row views), so
+        # both feet's rows are computed at once; every task's weights are views of the stacked ``_w``.
+        n_feet = len(SIDES)
+        self._foot_kp, self._foot_kd = np.zeros((n_feet, 6)), np.zeros((n_feet, 6))
+        self._foot_vel, self._foot_acc = np.zeros((n_feet, 6)), np.zeros((n_feet, 6))
+        self._foot_w = self._w[:6 * n_feet].reshape(n_feet, 6)
+        for i, foot in enumerate(self.foot_tasks):
+            foot.kp, foot.kd, foot.velocity, foot.acceleration = (
+                self._foot_kp[i], self._foot_kd[i], self._foot_vel[i], self._foot_acc[i])
+        r = 0
+        for task in self.tasks:
+            self._w[r:r + task.dim] = task.weight
+            task.weight = self._w[r:r + task.dim]
+            r += task.dim
+        self._foot_rows = 6 * n_feet
         self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
         self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()
         mu_n = g.friction_mu / math.sqrt(1.0 + g.friction_mu**2)
@@ -200,7 +215,7 @@ class TaskSpaceInverseDynamics:
         elif self.qp_backend != "osqp":
             result = qp_backends.solve(qp.standard_form(), self.qp_backend)
             message = result.status
-            if result.ok:
+            if result.ok and result.x is not None:
                 solution = (result.x[:self.nv].copy(), np.clip(result.x[self.nv:], 0.0, qp.rho_up))
         if solution is None:
             backend = "osqp"
@@ -252,20 +267,25 @@ class TaskSpaceInverseDynamics:
     def _build_qp(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> CentroidalQp:
         g = self.gains
         nv = self.nv
-        # ---- tasks: stacked weighted least squares on q̈ (Eq. 20)
-        r = 0
-        for task in self.tasks:
+        # ---- tasks: stacked weighted least squares on q̈ (Eq. 20); both feet at once (rows 0..11)
+        jac, rhs, nf = self._jac, self._rhs, self._foot_rows
+        jac[:nf] = snap.frame_jacobian.reshape(nf, nv)
+        acc = self._foot_acc + self._foot_kd * (self._foot_vel - snap.frame_velocity)
+        for i, foot in enumerate(self.foot_tasks):
+            if foot.kp.any():  # swing or heel/toe: PD on the pose (a flat contact foot is damped only)
+                acc[i] += foot.kp * foot.compute_error(snap)
+        np.subtract(acc, snap.frame_drift, out=rhs[:nf].reshape(acc.shape))
+        r = nf
+        for task in self.tasks[len(self.foot_tasks):]:
             d = task.dim
-            if not task.constant_jacobian or not self._jac_filled:
-                self._jac[r:r + d] = task.compute_jacobian(snap)
-            np.subtract(task.compute_desired_acceleration(snap), task.compute_drift(snap), out=self._rhs[r:r + d])
-            self._w[r:r + d] = task.weight
+            task.write_rows(snap, jac[r:r + d] if not task.constant_jacobian or not self._jac_filled else None,
+                            rhs[r:r + d])
             r += d
         self._jac_filled = True
-        wj = self._jac * self._w[:, None]
-        p_qq = self._jac.T @ wj
+        wj = jac * self._w[:, None]
+        p_qq = jac.T @ wj
         p_qq.flat[::nv + 1] += g.lambda_qdd
-        c_q = -(wj.T @ self._rhs)
+        c_q = -(wj.T @ rhs)
 
         # ---- contact model (Eq. 17): corners, friction pyramids (world z normal, foot-yaw tangents)
         rot = snap.frame_rotation  # (2, 3, 3)
@@ -344,6 +364,7 @@ class TaskSpaceInverseDynamics:
         return tau
 
     def _setpoints(self, state: RobotState, qdd: FloatArray, tau: FloatArray) -> JointCommand:
+        assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
         self.q_des, self.qd_des = integrate_setpoints(self.q_des, self.qd_des, qdd[6:], state, self.gains, self.dt_s)
         return JointCommand(self.q_des.copy(), self.qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
 

@@ -1,6 +1,6 @@
 """placo's DynamicsSolver behind the whole-body controller interface (peer and fallback).
 
-Same reference (:class:`~engine.control.inverse_dynamics.WbcReference`), same tracked
+Same reference (:class:`~engine.control.wbc.WbcReference`), same tracked
 quantities and gains as our task-space ID, same joint set-point integration, so the two
 can be swapped and measured against each other:
 
@@ -185,6 +185,7 @@ class PlacoWbc:
         qdd = np.asarray(result.qdd).copy()
         if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(qdd))):
             return self._fallback(state, "fallback_solver", "placo: non-finite solution", t0)
+        assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
         self.q_des, self.qd_des = integrate_setpoints(self.q_des, self.qd_des, qdd[6:], state, g, self.dt_s)
         self.last_tau = tau
         self.diagnostics = WbcDiagnostics(status="solved", backend="placo", qdd=qdd, tau_nm=tau,

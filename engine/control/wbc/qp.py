@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import osqp
@@ -15,6 +16,16 @@ from scipy.linalg.lapack import dposv as _dposv
 from engine.control.qp_backends import QpProblem
 
 FloatArray = NDArray[np.float64]
+
+
+class TorqueRows(NamedTuple):
+    """The joint-torque rows τ = M_j q̈ + T ρ + h_j and their limits τ_lo ≤ τ ≤ τ_up."""
+
+    qdd: FloatArray  # (n_joints, nv) M_j
+    rho: FloatArray  # (n_joints, 32) T
+    bias: FloatArray  # (n_joints,) h_j
+    lo: FloatArray  # (n_joints,)
+    up: FloatArray  # (n_joints,)
 
 
 # ----------------------------------------------------------------------------- the solver
@@ -47,10 +58,19 @@ class CentroidalQp:
     tau_lo: FloatArray | None = None  # (n_joints,)
     tau_up: FloatArray | None = None  # (n_joints,)
 
-    def torques(self, qdd: FloatArray, rho: FloatArray) -> FloatArray | None:
+    def torque_rows(self) -> TorqueRows | None:
+        """The five tau_* fields together, or None when the QP has no torque rows."""
         if self.tau_qdd is None:
             return None
-        return self.tau_qdd @ qdd + self.tau_rho @ rho + self.tau_bias
+        assert (self.tau_rho is not None and self.tau_bias is not None and self.tau_lo is not None
+                and self.tau_up is not None), "the tau_* fields are set together"
+        return TorqueRows(self.tau_qdd, self.tau_rho, self.tau_bias, self.tau_lo, self.tau_up)
+
+    def torques(self, qdd: FloatArray, rho: FloatArray) -> FloatArray | None:
+        torque = self.torque_rows()
+        if torque is None:
+            return None
+        return torque.qdd @ qdd + torque.rho @ rho + torque.bias
 
     def objective(self, qdd: FloatArray, rho: FloatArray) -> float:
         """½ q̈ᵀPq̈ + cᵀq̈ + ½ ρᵀRρ (Eq. 20 up to a constant)."""
@@ -69,9 +89,10 @@ class CentroidalQp:
         ub = np.concatenate([np.full(6, np.inf), self.qdd_joint_up, self.rho_up])
         problem = QpProblem(h, np.concatenate([self.c_q, np.zeros(n_rho)]), lb, ub,
                             np.hstack([self.a_h, -self.g_rho]), self.b.copy())
-        if self.tau_qdd is not None:
-            problem.c = np.hstack([self.tau_qdd, self.tau_rho])
-            problem.c_lo, problem.c_up = self.tau_lo - self.tau_bias, self.tau_up - self.tau_bias
+        torque = self.torque_rows()
+        if torque is not None:
+            problem.c = np.hstack([torque.qdd, torque.rho])
+            problem.c_lo, problem.c_up = torque.lo - torque.bias, torque.up - torque.bias
         return problem
 
 
@@ -110,13 +131,14 @@ class DenseQpSolver:
             g_act, r_act, u_act = qp.g_rho, qp.r_rr, qp.rho_up
         else:
             g_act, r_act, u_act = qp.g_rho[:, active], qp.r_rr[np.ix_(active, active)], qp.rho_up[active]
-        has_tau = qp.tau_qdd is not None
-        if has_tau:
-            n_tau = qp.tau_qdd.shape[0]
+        torque = qp.torque_rows()
+        has_tau = torque is not None
+        if torque is not None:
+            n_tau = torque.qdd.shape[0]
             if self.tau_fixed_lo.size != n_tau:
                 self.tau_fixed_lo = np.zeros(n_tau, dtype=bool)
                 self.tau_fixed_up = np.zeros(n_tau, dtype=bool)
-            tau_rho_act = qp.tau_rho if active.all() else qp.tau_rho[:, active]
+            tau_rho_act = torque.rho if active.all() else torque.rho[:, active]
             tau_lo, tau_up = self.tau_fixed_lo.copy(), self.tau_fixed_up.copy()
         else:
             tau_lo = tau_up = np.zeros(0, dtype=bool)
@@ -129,10 +151,11 @@ class DenseQpSolver:
             # (M_j q̈ + T_j ρ = τ_lim − h_j, i.e. rows of A q̈ − G ρ = b with G_j = −T_j).
             tau_rows = np.flatnonzero(tau_lo | tau_up)
             if tau_rows.size:
-                lim = np.where(tau_up[tau_rows], qp.tau_up[tau_rows], qp.tau_lo[tau_rows])
-                a_full = np.vstack([qp.a_h, qp.tau_qdd[tau_rows]])
+                assert torque is not None, "torque rows enter the working set only when the QP has them"
+                lim = np.where(tau_up[tau_rows], torque.up[tau_rows], torque.lo[tau_rows])
+                a_full = np.vstack([qp.a_h, torque.qdd[tau_rows]])
                 g_full = np.vstack([g_act, -tau_rho_act[tau_rows]])
-                b_full = np.concatenate([qp.b, lim - qp.tau_bias[tau_rows]])
+                b_full = np.concatenate([qp.b, lim - torque.bias[tau_rows]])
             else:
                 a_full, g_full, b_full = qp.a_h, g_act, qp.b
             n_eq = a_full.shape[0]
@@ -183,10 +206,10 @@ class DenseQpSolver:
             else:
                 release = fixed
             tau_changed = False
-            if has_tau:
-                tau = qp.tau_qdd @ qdd + tau_rho_act @ rho_act + qp.tau_bias
-                t_viol_lo = ~(tau_lo | tau_up) & (tau < qp.tau_lo - 1e-6)
-                t_viol_up = ~(tau_lo | tau_up) & (tau > qp.tau_up + 1e-6)
+            if torque is not None:
+                tau = torque.qdd @ qdd + tau_rho_act @ rho_act + torque.bias
+                t_viol_lo = ~(tau_lo | tau_up) & (tau < torque.lo - 1e-6)
+                t_viol_up = ~(tau_lo | tau_up) & (tau > torque.up + 1e-6)
                 lam = np.zeros(tau_lo.size)
                 lam[tau_rows] = mult[6:]
                 # An upper limit holds with λ ≤ 0, a lower one with λ ≥ 0 (∇f = Aᵀλ).
@@ -194,7 +217,7 @@ class DenseQpSolver:
                 if t_viol_lo.any() or t_viol_up.any() or t_release.any():
                     tau_changed = True
                     # Add the worst violation only (each changes the others); releases all at once.
-                    over = np.maximum(qp.tau_lo - tau, tau - qp.tau_up)
+                    over = np.maximum(torque.lo - tau, tau - torque.up)
                     over[~(t_viol_lo | t_viol_up)] = -np.inf
                     tau_lo, tau_up = tau_lo & ~t_release, tau_up & ~t_release
                     if np.isfinite(over.max()):
@@ -336,11 +359,12 @@ class OsqpQpSolver:
         px = np.concatenate([qp.p_qq.ravel()[self._p_idx_q], qp.r_rr.ravel()[self._p_idx_r]])
         self._a_vals[:nv, :6] = qp.a_h.T
         self._a_vals[nv:, :6] = -qp.g_rho.T
-        if qp.tau_qdd is not None:
-            self._a_vals[:nv, 6:nd] = qp.tau_qdd.T
-            self._a_vals[nv:, 6:nd] = qp.tau_rho.T
-            self._lo[6:nd] = qp.tau_lo - qp.tau_bias
-            self._up[6:nd] = qp.tau_up - qp.tau_bias
+        torque = qp.torque_rows()
+        if torque is not None:
+            self._a_vals[:nv, 6:nd] = torque.qdd.T
+            self._a_vals[nv:, 6:nd] = torque.rho.T
+            self._lo[6:nd] = torque.lo - torque.bias
+            self._up[6:nd] = torque.up - torque.bias
         else:
             self._a_vals[:, 6:nd] = 0.0
         self._q[:nv] = qp.c_q
@@ -395,11 +419,12 @@ class DaqpQpSolver:
         lo[6:nv], up[6:nv] = qp.qdd_joint_lo, qp.qdd_joint_up
         lo[nv:n], up[nv:n] = 0.0, qp.rho_up
         lo[n:n + 6] = up[n:n + 6] = qp.b
-        if qp.tau_qdd is not None:
-            a[6:, :nv] = qp.tau_qdd
-            a[6:, nv:] = qp.tau_rho
-            np.subtract(qp.tau_lo, qp.tau_bias, out=lo[n + 6:])
-            np.subtract(qp.tau_up, qp.tau_bias, out=up[n + 6:])
+        torque = qp.torque_rows()
+        if torque is not None:
+            a[6:, :nv] = torque.qdd
+            a[6:, nv:] = torque.rho
+            np.subtract(torque.lo, torque.bias, out=lo[n + 6:])
+            np.subtract(torque.up, torque.bias, out=up[n + 6:])
         else:
             a[6:] = 0.0
             lo[n + 6:], up[n + 6:] = -1e20, 1e20

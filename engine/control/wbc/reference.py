@@ -15,9 +15,10 @@ from numpy.typing import NDArray
 from engine.constants import SIDES
 from engine.robot.config import RobotConfigError
 from engine.robot.model import RobotModel
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
+    from engine.control.controller import JointCommand, RobotState
     from engine.control.wbc.qp import CentroidalQp
 
 FloatArray = NDArray[np.float64]
@@ -183,6 +184,17 @@ class WbcDiagnostics:
         if self.qp is None or self.qdd is None or self.rho is None:
             return math.nan
         return self.qp.equality_residual(self.qdd, self.rho)
+
+
+class WholeBodyController(Protocol):
+    """What the walking controller needs of a whole-body controller: the paper's
+    :class:`~engine.control.wbc.TaskSpaceInverseDynamics` and placo's peer both provide it."""
+
+    diagnostics: WbcDiagnostics
+
+    def reset(self, state: RobotState) -> None: ...
+
+    def compute(self, state: RobotState, ref: WbcReference) -> JointCommand: ...
 
 
 def friction_basis(normal: FloatArray, tangent: FloatArray, mu: float) -> FloatArray:

@@ -46,6 +46,8 @@ class ArmIK:
         s = ub.spec
         self._f = {"pelvis": fid[s.pelvis_frame], "shoulder": [fid[f] for f in s.shoulder_frames],
                    "elbow": [fid[f] for f in s.elbow_frames], "hand": [fid[f] for f in s.hand_frames]}
+        self._neutral = ub.neutral()
+        self._eye = np.eye(ub.n)
 
     def _residual(self, x: np.ndarray, pose15: np.ndarray, with_jacobian: bool):
         ub = self.ub
@@ -55,7 +57,7 @@ class ArmIK:
             ub.forward(x)
         d = ub.data
         pos = lambda f: d.oMf[f].translation  # noqa: E731
-        jac = lambda f: ub.point_jacobian(f, d.oMf[f].translation)  # noqa: E731
+        jac = ub.frame_origin_jacobian
         v = pose15.reshape(5, 3)
         lt = ub.lengths_m["torso"]
         sh = np.stack([pos(f) for f in self._f["shoulder"]])
@@ -75,15 +77,17 @@ class ArmIK:
             rows.append(jac(self._f["hand"][k]) - js[k])
         return r, np.vstack(rows)
 
-    def solve(self, pose15: np.ndarray, x0: np.ndarray | None = None, fix: bool = True) -> tuple[np.ndarray, bool]:
-        """Joint angles for one 15-d pose; (x, collision_free)."""
+    def solve(self, pose15: np.ndarray, x0: np.ndarray | None = None, fix: bool = True,
+              iters: int | None = None) -> tuple[np.ndarray, bool]:
+        """Joint angles for one 15-d pose; (x, collision_free). ``iters`` overrides the iteration cap (LWL2's
+        refinement runs a few from the LWR pose)."""
         ub = self.ub
         x = ub.clip(ub.neutral() if x0 is None else np.asarray(x0, dtype=float).copy())
-        xn = ub.neutral()
-        n = ub.n
-        for _ in range(self.iters):
+        xn = self._neutral
+        eye = self._eye
+        for _ in range(self.iters if iters is None else iters):
             r, jm = self._residual(x, pose15, True)
-            h = jm.T @ jm + (self.damping + self.reg) * np.eye(n)
+            h = jm.T @ jm + (self.damping + self.reg) * eye
             g = jm.T @ r + self.reg * (x - xn)
             dx = -np.linalg.solve(h, g)
             x = ub.clip(x + dx)

@@ -6,9 +6,17 @@ collision-free upper-body joint targets with collision-free transitions.
     step.targets                            # {joint name: angle (rad)} for the whole-body controller
     arms.reset()                            # forget the current pose (a new clip)
 
-Per call: encode (mocap WAE encoder) → LWR with k = 3 → 1 (:mod:`lwr`) → if the straight interpolation
-from the previous output to the new pose collides, one step along the BFS path of the transition graph
-(:mod:`graph`), or hold the previous pose when the graph offers nothing collision-free.
+Per call: encode (mocap WAE encoder) → LWR with k = 3 → 1 (:mod:`lwr`) → refinement (below) → if the
+straight interpolation from the previous output to the new pose collides, one step along the BFS path of
+the transition graph (:mod:`graph`), or hold the previous pose when the graph offers nothing collision-free.
+
+Refinement (``refine_iters``, default :data:`REFINE_ITERS`; 0 = the paper's LWL2 unchanged): a few damped
+Gauss–Newton steps of the optimisation-based objective (:class:`ik.ArmIK`: bone directions and hand
+positions) started from the LWR pose, then the capsule fixer (§III). The LWR table is only as dense as its
+~20 k poses in a 10–11-D joint space: its best entry is ~80 mm from a held-out target (the paper reports
+79–140 mm), so the learned map gives the basin and the local steps the last centimetres. When the fixer
+cannot free the refined pose, the LWR pose (feasible by construction, k = 1 at worst) is used, so every
+output stays collision-free.
 """
 
 from __future__ import annotations
@@ -21,18 +29,23 @@ import numpy as np
 
 from engine.retarget.humanoid_arm.capsules import CapsuleModel
 from engine.retarget.humanoid_arm.graph import TransitionGraph
+from engine.retarget.humanoid_arm.ik import ArmIK
 from engine.retarget.humanoid_arm.lwr import LatentLWR
 from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
 from engine.retarget.humanoid_arm.pose15 import check_pose15
 from engine.retarget.humanoid_arm.upper_body import UpperBody
 
+REFINE_ITERS = 5
+
+
 @dataclass
 class RetargetStep:
     x: np.ndarray  # driven joint angles (rad), collision-free
     k: int  # LWR's feasible k (3..1)
-    lwr_x: np.ndarray  # the LWR pose (the target before the transition logic)
+    lwr_x: np.ndarray  # the LWR pose (before refinement and the transition logic)
     transition: str  # "direct", "graph" (one BFS step) or "hold"
     inference_s: float
+    refined: bool = False  # the refinement's pose was used (else the LWR pose)
     joint_names: list[str] = field(default_factory=list)
 
     @property
@@ -42,10 +55,18 @@ class RetargetStep:
 
 class ArmRetargeter:
     def __init__(self, ub: UpperBody, capsules: CapsuleModel, model, robot_poses: np.ndarray,
-                 graph: TransitionGraph | None, meta: dict, k_max: int = 3, feed_forward=None):
+                 graph: TransitionGraph | None, meta: dict, k_max: int = 3, feed_forward=None,
+                 refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0):
         self.ub, self.capsules, self.model, self.meta = ub, capsules, model, meta
         self.robot_poses = robot_poses
-        self.lwr = LatentLWR(model.encode("robot", robot_poses), robot_poses, capsules.is_free, k_max)
+        # clearance_m > 0 (live puppeteering): blended and refined poses keep this distance between capsules, so
+        # the physical arm's tracking lag does not turn a grazing target into a contact (k = 1 stays a look-up)
+        self.clearance_m = float(clearance_m)
+        self.lwr = LatentLWR(model.encode("robot", robot_poses), robot_poses,
+                             lambda x: capsules.is_free(x, self.clearance_m), k_max)
+        self.encode_mocap = model.numpy_encoder("mocap")  # run-time path: numpy, no torch call per frame
+        self.refine_iters = int(refine_iters)
+        self.ik = ArmIK(ub, capsules)
         self.graph = graph
         self.feed_forward = feed_forward
         self.current: np.ndarray | None = None
@@ -54,7 +75,7 @@ class ArmRetargeter:
         # warm up torch and the k-d tree so the first live frame is not the slowest
         from engine.retarget.humanoid_arm.pose15 import pose15_from_robot
 
-        self.lwr.query(self.model.encode("mocap", pose15_from_robot(ub, ub.neutral()))[0])
+        self.lwr.query(self.encode_mocap(pose15_from_robot(ub, ub.neutral()))[0])
 
     @property
     def robot(self) -> str:
@@ -65,7 +86,8 @@ class ArmRetargeter:
         return self.ub.joint_names
 
     @classmethod
-    def load(cls, robot: str, path: Path | None = None, capsules: CapsuleModel | None = None) -> "ArmRetargeter":
+    def load(cls, robot: str, path: Path | None = None, capsules: CapsuleModel | None = None,
+             refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0) -> "ArmRetargeter":
         """Load trained weights for ``robot``; ValueError (one line) when missing or for another robot."""
         path = Path(path) if path is not None else weights_path(robot)
         if path.suffix in (".json", ".safetensors"):
@@ -88,7 +110,8 @@ class ArmRetargeter:
             from engine.retarget.humanoid_arm.feed_forward import load_feed_forward
 
             ff = load_feed_forward(path)
-        return cls(ub, capsules, model, poses, graph, meta, feed_forward=ff)
+        return cls(ub, capsules, model, poses, graph, meta, feed_forward=ff, refine_iters=refine_iters,
+                   clearance_m=clearance_m)
 
     def reset(self, x: np.ndarray | None = None) -> None:
         self.current = None if x is None else np.asarray(x, dtype=float).copy()
@@ -97,15 +120,22 @@ class ArmRetargeter:
         """One control period: collision-free joint targets for a 15-d pose (ValueError on a bad pose)."""
         t0 = time.perf_counter()
         p = check_pose15(np.asarray(pose15, dtype=float).ravel(), "pose15")
-        res = self.lwr.query(self.model.encode("mocap", p)[0])
+        res = self.lwr.query(self.encode_mocap(p)[0])
         target = res.x
+        refined = False
+        if self.refine_iters > 0:
+            y, free = self.ik.solve(p, target, fix=False, iters=self.refine_iters)
+            y, free = self.capsules.fix(y, clearance_m=self.clearance_m)
+            if free:
+                target, refined = y, True
         transition = "direct"
         if self.current is None or self.capsules.interpolation_free(self.current, target):
             out = target
         else:
             out, transition = self._graph_step(target)
         self.current = out
-        return RetargetStep(out.copy(), res.k, target, transition, time.perf_counter() - t0, self.joint_names)
+        return RetargetStep(out.copy(), res.k, res.x, transition, time.perf_counter() - t0,
+                            refined=refined and transition == "direct", joint_names=self.joint_names)
 
     def _graph_step(self, target: np.ndarray) -> tuple[np.ndarray, str]:
         assert self.current is not None
@@ -130,4 +160,4 @@ class ArmRetargeter:
         return self.ub.clip(self.feed_forward(np.atleast_2d(pose15))[0])
 
 
-__all__ = ["ArmRetargeter", "RetargetStep", "check_metadata", "weights_path"]
+__all__ = ["ArmRetargeter", "RetargetStep", "REFINE_ITERS", "check_metadata", "weights_path"]

@@ -7,6 +7,7 @@ positions and orientations; our wrists are fixed) and mocap poses by their 15-d 
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -41,7 +42,12 @@ class ArmTrainingPlan:
     ff_iterations: int = 2000
 
     @classmethod
-    def full(cls) -> "ArmTrainingPlan":
+    def full(cls, robot: str = "g1") -> "ArmTrainingPlan":
+        """The plan of the shipped weights (``studio train-arms --robot R`` reproduces them). TALOS: smaller
+        sets and fewer iterations (its slower joints make a sparser graph: more nodes instead)."""
+        if robot == "talos":
+            return cls(DatasetSizes(glue_clip_stride=4, glue_synthetic=200, robot=10_000),
+                       TrainConfig(iterations=1500, la_dpp_chunk=1024), graph_nodes=5000)
         return cls(DatasetSizes(), TrainConfig(iterations=3000, la_dpp_chunk=2048))
 
     @classmethod
@@ -70,34 +76,93 @@ def build_transition_graph(cm: CapsuleModel, poses: np.ndarray, feats: np.ndarra
     return node_idx, graph
 
 
+DATASETS_FORMAT = "lwl2-datasets/1"
+
+
+def save_datasets(path: Path, ds: ArmDatasets, plan: ArmTrainingPlan) -> None:
+    """The built training sets (plain arrays, no pickle), keyed by the plan's sizes and seed."""
+    import io
+
+    from engine.atomic_io import atomic_write_bytes
+
+    buf = io.BytesIO()
+    np.savez(buf, glue_mocap=ds.glue_mocap, glue_robot=ds.glue_robot, robot=ds.robot, mocap=ds.mocap,
+             info=np.array(json.dumps(ds.info)), key=np.array(_datasets_key(plan)))
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def load_datasets(path: Path, plan: ArmTrainingPlan) -> ArmDatasets | None:
+    """The saved training sets when they were built with this plan's sizes and seed, else None."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if str(f["key"]) != _datasets_key(plan):
+                return None
+            return ArmDatasets(f["glue_mocap"], f["glue_robot"], f["robot"], f["mocap"], json.loads(str(f["info"])))
+    except (OSError, KeyError, ValueError):
+        return None
+
+
+def _datasets_key(plan: ArmTrainingPlan) -> str:
+    return json.dumps({"format": DATASETS_FORMAT, "sizes": asdict(plan.sizes), "seed": plan.train.seed}, sort_keys=True)
+
+
+def default_checkpoint_dir(out: Path) -> Path:
+    """Where a run writing ``out`` keeps its resumable state (outside the repository)."""
+    import hashlib
+    import os
+
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "motion-studio" / "train-arms"
+    tag = hashlib.sha1(str(Path(out).resolve()).encode()).hexdigest()[:10]
+    return cache / f"{Path(out).name}-{tag}"
+
+
 def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progress: Progress | None = None,
-               should_stop: Callable[[], bool] | None = None, datasets: ArmDatasets | None = None) -> dict:
-    """Train and save; returns a summary. KeyboardInterrupt (cancel) leaves no partial file behind."""
+               should_stop: Callable[[], bool] | None = None, datasets: ArmDatasets | None = None,
+               checkpoint_dir: Path | None = None, resume: bool = False) -> dict:
+    """Train and save; returns a summary. KeyboardInterrupt (cancel) leaves no partial weights behind.
+
+    With ``checkpoint_dir`` the built datasets and the WAE's state (every 100 iterations and on cancel) are
+    kept there; ``resume`` continues from them (same plan and seed: same weights as an uninterrupted run),
+    otherwise they are discarded first. They are deleted once the weights are written."""
     t0 = time.perf_counter()
     say = (lambda stage, i, n, extra="": progress(stage, i, n, extra)) if progress else (lambda *a, **k: None)
+    out = out or weights_path(robot)
+    ds_file = ckpt_file = None
+    if checkpoint_dir is not None:
+        checkpoint_dir = Path(checkpoint_dir)
+        checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        ds_file, ckpt_file = checkpoint_dir / f"{robot}_datasets.npz", checkpoint_dir / f"{robot}_wae_checkpoint.pt"
+        if not resume:
+            for f in (ds_file, ckpt_file):
+                f.unlink(missing_ok=True)
     ub = UpperBody(robot)
     cm = CapsuleModel(ub)
     say("capsules", 1, 1, f"{len(cm.capsules)} capsules, {len(cm.pairs)} pairs")
+    if datasets is None and ds_file is not None and ds_file.is_file():
+        datasets = load_datasets(ds_file, plan)
+        if datasets is not None:
+            say("datasets (resumed)", 1, 1, f"{ds_file}")
     ds = datasets or build_datasets(robot, plan.sizes, plan.train.seed, lambda s, i, n: say(s, i, n), cm)
+    if ds_file is not None and not ds_file.is_file():
+        save_datasets(ds_file, ds, plan)
     t_data = time.perf_counter() - t0
     rng = np.random.default_rng(plan.train.seed)
     feats = robot_features(ub, ds.robot)
-    model = SharedLatentWAE({"mocap": 15, "robot": ub.n}, plan.latent_dim, plan.hidden)
+    model = SharedLatentWAE({"mocap": 15, "robot": ub.n}, plan.latent_dim, plan.hidden, seed=plan.train.seed)
     train_wae(model, {"mocap": DomainData(ds.mocap), "robot": DomainData(ds.robot, feats)},
               {"mocap": ds.glue_mocap, "robot": ds.glue_robot}, plan.train,
               progress=lambda i, n, losses: say("WAE", i, n, f"rec {losses['rec']:.3f} lat {losses['latent']:.3f} "
                                                                f"cro {losses['cross']:.3f}"),
-              should_stop=should_stop)
+              should_stop=should_stop, checkpoint=ckpt_file)
     t_train = time.perf_counter() - t0 - t_data
     ff = train_feed_forward(ds.glue_mocap, ds.glue_robot, plan.ff_iterations, plan.hidden, plan.train.seed)
     node_idx, graph = build_transition_graph(cm, ds.robot, feats, plan, rng, lambda i, n: say("graph", i, n))
     if should_stop is not None and should_stop():
         raise KeyboardInterrupt
-    out = out or weights_path(robot)
     meta = {
         "format": "lwl2-arms/1", "robot": robot, "joint_names": ub.joint_names,
-        "normalisation": {"mocap": {"mean": model.mean_mocap.tolist(), "std": model.std_mocap.tolist()},
-                          "robot": {"mean": model.mean_robot.tolist(), "std": model.std_robot.tolist()}},
+        "normalisation": {k: dict(zip(("mean", "std"), (a.tolist() for a in model.normalisation_of(k))))
+                          for k in ("mocap", "robot")},
         "dataset_sizes": ds.sizes(), "datasets": ds.info, "licence_of_training_data": ds.info["licence"],
         "plan": {"sizes": asdict(plan.sizes), "train": asdict(plan.train), "latent_dim": plan.latent_dim,
                  "hidden": plan.hidden, "graph_nodes": int(len(node_idx)), "graph_neighbours": plan.graph_neighbours,
@@ -113,7 +178,12 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
                               "graph_indptr": graph.indptr.astype(np.int64), "graph_indices": graph.indices.astype(np.int32)},
                  meta)
     save_feed_forward(ff, out)
+    for leftover in (ds_file, ckpt_file):
+        if leftover is not None:
+            leftover.unlink(missing_ok=True)
+    if checkpoint_dir is not None and not any(checkpoint_dir.iterdir()):
+        checkpoint_dir.rmdir()
     return {"weights": str(out.with_suffix(".safetensors")), **{k: meta[k] for k in ("dataset_sizes", "graph", "timing_s")}}
 
 
-__all__ = ["ArmTrainingPlan", "train_arms", "robot_features", "build_transition_graph"]
+__all__ = ["ArmTrainingPlan", "train_arms", "default_checkpoint_dir", "save_datasets", "load_datasets", "robot_features", "build_transition_graph"]

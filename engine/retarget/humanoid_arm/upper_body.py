@@ -163,8 +163,14 @@ class UpperBody:
         (call after :meth:`forward` and ``computeJointJacobians``)."""
         j6 = pin.getFrameJacobian(self.pin_model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         r = point_world - self.data.oMf[frame_id].translation
-        jv = j6[:3] + np.cross(j6[3:].T, r).T  # v_p = v_o + ω × r
+        w = j6[3:]
+        jv = j6[:3] + np.stack([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]])  # v_p = v_o + ω × r
         return jv[:, self.v_index]
+
+    def frame_origin_jacobian(self, frame_id: int) -> np.ndarray:
+        """(3, n) Jacobian of a frame's origin w.r.t. the driven joints (after :meth:`jacobians`)."""
+        j6 = pin.getFrameJacobian(self.pin_model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        return j6[:3, self.v_index]
 
     def jacobians(self, x: np.ndarray) -> None:
         pin.computeJointJacobians(self.pin_model, self.data, self.full_q(x))

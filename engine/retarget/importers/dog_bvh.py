@@ -96,7 +96,7 @@ def parse_bvh(path: Path) -> Bvh:
             raise ImportFormatError(f"{name}: line {i}: unexpected {key!r} in HIERARCHY")
     if not nodes or stack:
         raise ImportFormatError(f"{name}: HIERARCHY: expected a complete joint tree")
-    header = {}
+    header: dict[str, str] = {}
     while i < len(tokens_by_line) and len(header) < 2:
         tok = tokens_by_line[i]
         i += 1

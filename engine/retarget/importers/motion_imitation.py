@@ -102,7 +102,7 @@ def import_frames(path: Path) -> KeypointMotion:
     kin = quadruped_kinematics("a1")
     if frames.shape[1] == 61:
         errors = {order: _toe_error(kin, frames, order) for order in (PYBULLET_ORDER, ENGINE_ORDER)}
-        order = min(errors, key=errors.get)
+        order = min(errors, key=lambda o: errors[o])
         how = f"measured from the toe positions (residual {errors[order] * 1000:.1f} mm)"
     else:
         order = FILE_LEG_ORDER.get(path.stem, PYBULLET_ORDER)

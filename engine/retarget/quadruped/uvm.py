@@ -43,6 +43,7 @@ def uvm_keypoints(source: KeypointMotion, kin: QuadrupedKinematics) -> tuple[np.
     """Eq. 1: target keypoints (T, 16, 3), IK weights (16,), base positions and rotations of the target."""
     pos, rot = source_base(source)
     src = source.keypoints.reshape(-1, 4, 4, 3)
+    assert source.known is not None  # KeypointMotion.__post_init__ fills it
     known = source.known.reshape(4, 4)
     t_n = len(src)
     trg = np.empty_like(src)

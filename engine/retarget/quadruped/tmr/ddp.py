@@ -26,6 +26,7 @@ import numpy as np
 from engine.retarget.quadruped.tmr.keypoints import KeypointSet
 
 DEFAULT_TIMESTEP_S = 0.01  # control interval of the tracker (physics runs at the model's own step inside)
+FALL_HEIGHT_FRACTION = 0.5  # base below this share of the standing height: fallen (targets crouch to ≥ 0.7)
 
 
 class Cancelled(Exception):
@@ -42,12 +43,15 @@ class MjDynamics:
     MuJoCo's convention for ``mjd_transitionFD``.
     """
 
-    def __init__(self, model: mujoco.MjModel, substeps: int = 1, fd_eps: float = 1e-6):
+    def __init__(self, model: mujoco.MjModel, substeps: int = 1, fd_eps: float = 1e-6, fd_centered: bool = False):
         if substeps < 1:
             raise ValueError("substeps must be ≥ 1")
         self.model = model
         self.substeps = int(substeps)
         self.fd_eps = fd_eps
+        # forward differences (as MuJoCo MPC's iLQG uses): half the cost of centred ones, which the solver's
+        # line search does not need (the linearisation was ~60 % of a tracking solve's time)
+        self.fd_centered = bool(fd_centered)
         self.nx = 2 * model.nv + model.na
         self.nu = model.nu
         self.dt_s = float(model.opt.timestep) * self.substeps
@@ -89,7 +93,7 @@ class MjDynamics:
         Aj = np.zeros((self.nx, self.nx))
         Bj = np.zeros((self.nx, self.nu))
         for j in range(self.substeps):
-            mujoco.mjd_transitionFD(m, d, self.fd_eps, True, Aj, Bj, None, None)
+            mujoco.mjd_transitionFD(m, d, self.fd_eps, self.fd_centered, Aj, Bj, None, None)
             A = Aj @ A
             B = Aj @ B + Bj
             if j + 1 < self.substeps:
@@ -151,6 +155,7 @@ def rollout(dyn: MjDynamics, cost: StageCost, x0: tuple, U: np.ndarray, data: mu
         mujoco.mj_forward(m, data)
         u = U[k].copy()
         if nominal is not None:
+            assert k_ff is not None and K is not None  # a closed-loop pass has its gains
             dx = dyn.state_difference(nominal[k], states[k])
             u = u + step_size * k_ff[k] + K[k] @ dx
         u = np.clip(u, dyn.u_lower, dyn.u_upper)
@@ -245,12 +250,13 @@ def ilqr(dyn: MjDynamics, cost: StageCost, x0: tuple, U0: np.ndarray, settings: 
         for k in range(len(U) + 1):
             dyn.restore(data, states[k])
             mujoco.mj_forward(dyn.model, data)
+            A: np.ndarray | None = None  # the terminal step has no dynamics
+            B: np.ndarray | None = None
             if k < len(U):
                 l, lx, lu, lxx, luu, lux = cost.expand(k, data, U[k])
                 A, B = dyn.derivatives(states[k], U[k])
             else:
                 l, lx, lu, lxx, luu, lux = cost.expand(k, data, None)
-                A = B = None
             derivs.append((l, lx, lu, lxx, luu, lux, A, B))
             if cancel is not None and k % 20 == 0 and cancel():
                 raise Cancelled()
@@ -306,10 +312,13 @@ class _WindowCost:
 
 def receding_horizon(dyn: MjDynamics, cost: StageCost, x0: tuple, U0: np.ndarray, window: int, replan_every: int,
                      settings: ILQRSettings, cancel: Callable[[], bool] | None = None,
-                     progress: Callable[[int, float], None] | None = None) -> ILQRResult:
+                     progress: Callable[[int, float], None] | None = None,
+                     stop: Callable[[tuple], bool] | None = None) -> ILQRResult:
     """Model-predictive tracking as MuJoCo MPC runs iLQG: solve a ``window``-step problem from the current state,
     apply the first ``replan_every`` controls, shift, warm-start with the rest. The applied controls replay
-    open-loop to exactly the executed trajectory (every rollout starts from the same MjData snapshot)."""
+    open-loop to exactly the executed trajectory (every rollout starts from the same MjData snapshot).
+    ``stop(x)`` true after a chunk (the robot fell): the rest of the horizon keeps the warm-start controls
+    unsolved — a fallen evaluation is scored as fallen, there is nothing left to track."""
     t_start = time.perf_counter()
     H = len(U0)
     U_guess = np.clip(np.asarray(U0, dtype=float).copy(), dyn.u_lower, dyn.u_upper)
@@ -333,6 +342,9 @@ def receding_horizon(dyn: MjDynamics, cost: StageCost, x0: tuple, U0: np.ndarray
         start += n
         if progress is not None:
             progress(start, res.cost)
+        if stop is not None and start < H and stop(x):
+            U_exec[start:] = U_guess[start:]
+            break
     # the executed trajectory's total cost (open-loop replay of the applied controls)
     data = mujoco.MjData(dyn.model)
     J, states, U_exec = rollout(dyn, cost, x0, U_exec, data)
@@ -433,7 +445,7 @@ class TrackingCost:
                 wts.append(np.array([w.foot_clearance_in_swing]))
                 if with_jac:
                     J = np.zeros((1, nx))
-                    if gap < 0.0:
+                    if gap < 0.0 and Jkp is not None:
                         J[0, :nv] = Jkp[fi, 2]
                     jac.append(J)
         r = np.concatenate(res)
@@ -481,9 +493,10 @@ class TrackResult:
     ctrl: np.ndarray  # (H, nu) joint torques, actuator order
     contact: np.ndarray  # (H + 1, 4) bool: feet touching the floor in the rollout
     keypoints: np.ndarray  # (H + 1, 16, 3)
-    fell: bool  # the trunk, a hip or a thigh touched the floor
+    fell: bool  # the trunk, a hip or a thigh touched the floor, or the base sank below half its standing height
     cost: float
     cost_history: list[float] = field(default_factory=list)
+    fall_fraction: float = 1.0  # share of the horizon done before the first fall (1: did not fall)
     iterations: int = 0
     wall_time_s: float = 0.0
     derivative_time_s: float = 0.0
@@ -501,7 +514,8 @@ class MotionTracker:
     def __init__(self, robot, timestep_s: float = DEFAULT_TIMESTEP_S, physics_step_s: float | None = None,  # noqa: ANN001
                  weights: TrackingWeights | None = None, settings: ILQRSettings | None = None,
                  torque_limit_scale: float = 1.0, mode: str = "receding", window_s: float = 0.3,
-                 replan_s: float = 0.03, window_iterations: int = 3, polish_iterations: int = 0):
+                 replan_s: float = 0.03, window_iterations: int = 3, polish_iterations: int = 0,
+                 stop_on_fall: bool = True):
         if mode not in ("receding", "full"):
             raise ValueError(f"mode: expected 'receding' or 'full', got {mode!r}")
         self.mode = mode
@@ -522,11 +536,14 @@ class MotionTracker:
         self.replan = max(1, int(round(replan_s / self.dt_s)))
         self.window_settings = ILQRSettings(max_iterations=window_iterations, tolerance=1e-3)
         self.polish_iterations = int(polish_iterations)  # full-horizon iLQR after the receding pass
+        self.stop_on_fall = bool(stop_on_fall)  # receding: stop solving once the trunk touches the floor
         self.joint_dof = np.asarray(robot.mj_dof_index)
         self.joint_qpos = np.asarray(robot.mj_qpos_index)
         self.actuator = np.asarray(robot.mj_actuator_index)
         self.foot_radius = np.array([model.geom_size[g][0] if g >= 0 else 0.0 for g in self.keypoints.foot_geoms])
         self._fall_geoms = self._trunk_geoms()
+        # a base this low is lying on the floor even when no trunk contact registers (resting contacts at margin 0)
+        self.fall_height_m = FALL_HEIGHT_FRACTION * float(robot.mj_standing_qpos()[2])
 
     # ------------------------------------------------------------------ set-up
     def _trunk_geoms(self) -> set[int]:
@@ -615,8 +632,8 @@ class MotionTracker:
         x0 = self.initial_state(target.qpos[0], target.qvel[0])
         if self.mode == "receding":
             res = receding_horizon(self.dyn, cost, x0, U0, self.window, self.replan, self.window_settings,
-                                   cancel=cancel, progress=progress)
-            if self.polish_iterations > 0:
+                                   cancel=cancel, progress=progress, stop=self.fallen if self.stop_on_fall else None)
+            if self.polish_iterations > 0 and not self.fallen(res.states[-1]):
                 t_receding, t_deriv = res.wall_time_s, res.derivative_time_s
                 res = ilqr(self.dyn, cost, x0, res.U, ILQRSettings(max_iterations=self.polish_iterations),
                            cancel=cancel)
@@ -640,24 +657,36 @@ class MotionTracker:
         contact = np.zeros((H + 1, 4), dtype=bool)
         kps = np.zeros((H + 1, 16, 3))
         fell = False
+        fall_k = H
         for k in range(H + 1):
             mujoco.mj_forward(m, d)
             qpos[k], qvel[k] = d.qpos, d.qvel
             kps[k] = self.keypoints.positions(d)
             c, f = self._contacts(d)
             contact[k] = c
+            if f and not fell:
+                fall_k = k
             fell = fell or f
             if k < H:
                 dyn.step(d, U[k])
                 if not np.all(np.isfinite(d.qpos)):
                     qpos[k + 1:], qvel[k + 1:], kps[k + 1:] = qpos[k], 0.0, kps[k]
+                    fall_k = k if not fell else fall_k
                     fell = True
                     break
-        return TrackResult(self.dt_s, qpos, qvel, np.asarray(U).copy(), contact, kps, fell, cost=float("nan"))
+        return TrackResult(self.dt_s, qpos, qvel, np.asarray(U).copy(), contact, kps, fell, cost=float("nan"),
+                           fall_fraction=(fall_k / H if fell and H else 1.0))
+
+    def fallen(self, snap: tuple) -> bool:
+        """The trunk, a hip or a thigh touches the floor in state ``snap``."""
+        d = mujoco.MjData(self.model)
+        MjDynamics.restore(d, snap)
+        mujoco.mj_forward(self.model, d)
+        return self._contacts(d)[1]
 
     def _contacts(self, d: mujoco.MjData) -> tuple[np.ndarray, bool]:
         feet = np.zeros(4, dtype=bool)
-        fell = False
+        fell = bool(d.qpos[2] < self.fall_height_m)
         geoms = self.keypoints.foot_geoms
         for c in d.contact[: d.ncon]:
             pair = (int(c.geom1), int(c.geom2))

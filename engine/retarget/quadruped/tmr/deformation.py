@@ -3,6 +3,13 @@
 The source motion (duration T_s) is split into S equal segments; segment i lasts α_i · T_s / S seconds of
 control time (α_i > 1 slows it down, α_i < 1 speeds it up). ``s_α`` maps control time to source time,
 piecewise linearly; the bounds are on log2 α (default [−1, 1]: at most twice as fast or as slow).
+
+Re-timing a flight phase changes how long the body is in the air, so the kinematic base arc (ballistic at the
+source's timing, from SMR's flight stage) is no longer one gravity can make: a 1 s flight has a 1.2 m apex,
+the same arc flown in 0.5 s would need 4 g. ``ballistic_flights`` re-makes the base position of every
+flight of the deformed target (no foot in contact between a take-off and a landing) as the ballistic arc
+between the take-off and landing positions in the deformed time — the kinematic analogue of what α does to
+a real jump (apex height ∝ flight time²).
 """
 
 from __future__ import annotations
@@ -124,6 +131,43 @@ def sample_contact(contact: np.ndarray, fps: float, t_source_s: np.ndarray) -> n
     contact = np.asarray(contact, dtype=bool)
     idx = np.clip(np.rint(np.asarray(t_source_s) * fps).astype(int), 0, contact.shape[0] - 1)
     return contact[idx]
+
+
+GRAVITY_MPS2 = 9.81
+
+
+def flight_intervals(contact: np.ndarray) -> list[tuple[int, int]]:
+    """(take-off, landing) sample pairs around every run of samples with no foot in contact; the take-off is the
+    last sample with contact before the run, the landing the first after it (runs at either end are skipped)."""
+    air = np.asarray(~np.asarray(contact, dtype=bool).any(axis=1))
+    out = []
+    k = 0
+    n = len(air)
+    while k < n:
+        if not air[k]:
+            k += 1
+            continue
+        k1 = k
+        while k1 < n and air[k1]:
+            k1 += 1
+        if k > 0 and k1 < n:
+            out.append((k - 1, k1))
+        k = k1
+    return out
+
+
+def ballistic_flights(qpos: np.ndarray, contact: np.ndarray, dt_s: float, gravity_mps2: float = GRAVITY_MPS2) -> np.ndarray:
+    """The base position of each flight replaced by the ballistic arc from take-off to landing in ``dt_s``-spaced
+    samples: x, y at constant velocity, z(τ) = z_a + v τ − g τ²/2 with v such that z reaches z_b at landing."""
+    q = np.array(qpos, dtype=float)
+    for a, b in flight_intervals(contact):
+        T = (b - a) * dt_s
+        tau = (np.arange(a, b + 1) - a) * dt_s
+        p0, p1 = q[a, 0:3], q[b, 0:3]
+        q[a: b + 1, 0:2] = p0[0:2] + np.outer(tau / T, p1[0:2] - p0[0:2])
+        vz = (p1[2] - p0[2]) / T + 0.5 * gravity_mps2 * T
+        q[a: b + 1, 2] = p0[2] + vz * tau - 0.5 * gravity_mps2 * tau**2
+    return q
 
 
 def finite_difference_qvel(model: mujoco.MjModel, qpos: np.ndarray, dt_s: float) -> np.ndarray:

@@ -35,7 +35,7 @@ class KeypointSet:
             fb = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, foot.link)
             if fb < 0:
                 raise ValueError(f"{robot.name}: foot link {foot.link!r} is not a MuJoCo body")
-            chain = []  # hinge joints from the foot up: knee, thigh, hip
+            chain: list[tuple[int, int]] = []  # (body, joint)  # hinge joints from the foot up: knee, thigh, hip
             b = fb
             while b > 0 and len(chain) < 3:
                 for j in range(int(m.body_jntadr[b]), int(m.body_jntadr[b] + m.body_jntnum[b])):

@@ -8,12 +8,16 @@ with a ballistic flight phase, and the keyframed BackFlip of ``tools/make_backfl
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from engine.retarget.quadruped.tmr.keypoints import KeypointSet, keypoint_trajectory
-from engine.retarget.quadruped.tmr.motion_io import RobotMotion
+from engine.retarget.motion import RobotMotion
+
+if TYPE_CHECKING:
+    from engine.robot.model import RobotModel
 
 GRAVITY_MPS2 = 9.81
 
@@ -29,7 +33,7 @@ def quat_from_pitch_yaw(pitch_rad: float, yaw_rad: float = 0.0) -> np.ndarray:
 class LegIK:
     """Per-leg damped least-squares IK on the foot points of a MuJoCo quadruped."""
 
-    robot: object
+    robot: RobotModel
 
     def __post_init__(self) -> None:
         r = self.robot
@@ -226,7 +230,7 @@ def keyframed(robot, keyframes: list[dict], fps: float = 50.0, name: str = "keyf
     # contact per frame: a keyframe's flags hold until the next keyframe
     idx = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
     contact = cont_kf[idx]
-    airborne = ~contact.any(axis=1)
+    airborne = np.asarray(~contact.any(axis=1))
     # ballistic base through every flight interval (take-off state from the interpolants)
     k = 0
     while k < T:

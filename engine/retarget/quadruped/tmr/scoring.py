@@ -3,7 +3,9 @@
 C(α) = −d_b − d_E + w_c · IoU − w_α · mean(log2 α)² − fall penalty, where d_b is the mean L1 distance of the
 base position (m), d_E the mean L1 distance of the base Euler angles (rad, wrapped), IoU the contact IoU of the
 rollout against the deformed schedule; the α term is the paper's "regularise extreme values of the temporal
-parameters" (§VI) — it makes a motion that every α tracks equally well keep its timing.
+parameters" (§VI) — it makes a motion that every α tracks equally well keep its timing. The fall penalty (ours:
+the paper's score has none) is 1 + the share of the motion left when the replay first fell, so among α that
+all fall the search still climbs towards the one that gets furthest.
 
 ``dtw_keypoint_l1_pct``: the keypoint trajectories aligned by dynamic time warping (so a re-timed motion is not
 penalised for its timing), the mean per-keypoint L1 distance along the warping path as a percentage of the mean
@@ -47,13 +49,17 @@ def tracking_error_mm(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float
 
 
 def tmr_score(qpos: np.ndarray, contact: np.ndarray, qpos_ref: np.ndarray, contact_ref: np.ndarray,
-              log2_alpha: np.ndarray, fell: bool, w_contact: float = 0.2, w_alpha: float = 0.05) -> dict:
+              log2_alpha: np.ndarray, fell: bool, w_contact: float = 0.2, w_alpha: float = 0.05,
+              fall_fraction: float = 0.0) -> dict:
+    """``fall_fraction``: share of the motion done before the first fall (only used when ``fell``)."""
     d_b = base_position_l1_m(qpos, qpos_ref)
     d_e = base_euler_l1_rad(qpos, qpos_ref)
     iou = contact_iou(contact, contact_ref)
     reg = float(np.mean(np.square(log2_alpha)))
-    score = -d_b - d_e + w_contact * iou - w_alpha * reg - (FALL_PENALTY if fell else 0.0)
-    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "contact_iou": iou, "alpha_penalty": w_alpha * reg}
+    fall = FALL_PENALTY * (1.0 + (1.0 - float(np.clip(fall_fraction, 0.0, 1.0)))) if fell else 0.0
+    score = -d_b - d_e + w_contact * iou - w_alpha * reg - fall
+    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "contact_iou": iou, "alpha_penalty": w_alpha * reg,
+            "fall_penalty": fall}
 
 
 def dtw_keypoint_l1_pct(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:

@@ -22,6 +22,7 @@ from engine.retarget.quadruped.tmr.ddp import Cancelled, ILQRSettings, MotionTra
 from engine.retarget.quadruped.tmr.deformation import (
     DEFAULT_LOG2_BOUND,
     TemporalDeformation,
+    ballistic_flights,
     check_log2_bound,
     check_segments,
     finite_difference_qvel,
@@ -29,7 +30,7 @@ from engine.retarget.quadruped.tmr.deformation import (
     sample_contact,
 )
 from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
-from engine.retarget.quadruped.tmr.motion_io import RobotMotion
+from engine.retarget.motion import RobotMotion
 from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor
 from engine.retarget.quadruped.tmr.scoring import dtw_keypoint_l1_pct, tmr_score, tracking_error_mm
 
@@ -85,8 +86,9 @@ def deformed_target(robot, qpos: np.ndarray, contact: np.ndarray, fps: float, de
     t_control = t_control[: int(np.floor(deformation.duration_s / tracker.dt_s + 1e-9)) + 1]
     src = deformation(t_control)
     q = interpolate_qpos(qpos, fps, src)
-    v = finite_difference_qvel(tracker.model, q, tracker.dt_s)
     c = sample_contact(contact, fps, src)
+    q = ballistic_flights(q, c, tracker.dt_s, float(-tracker.model.opt.gravity[2]))
+    v = finite_difference_qvel(tracker.model, q, tracker.dt_s)
     return TrackingTarget(tracker.dt_s, q, v, c, keypoint_trajectory(robot, q, tracker.keypoints))
 
 
@@ -109,7 +111,8 @@ def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: 
     target = deformed_target(robot, qpos, contact, fps, deformation, tracker)
     result = tracker.track(target, cancel=cancel)
     score = tmr_score(result.qpos, result.contact, target.qpos, target.contact, np.asarray(log2_alpha), result.fell,
-                      settings.w_contact, settings.w_alpha)
+                      settings.w_contact, settings.w_alpha, result.fall_fraction)
+    score["fell_at_s"] = round(result.fall_fraction * target.horizon * tracker.dt_s, 3) if result.fell else None
     return Evaluation(np.asarray(log2_alpha, float), score, result.fell,
                       tracking_error_mm(result.keypoints, target.keypoints), target.horizon * tracker.dt_s,
                       result.qpos, result.qvel, result.ctrl, result.contact, target.contact, result.keypoints,
@@ -148,21 +151,25 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
                         BOSettings(budget=settings.budget, init_points=settings.init_points, parallel=settings.parallel,
                                    seed=settings.seed), progress=progress, cancel=cancel, abort=executor.cancel)
     best: Evaluation = bo.best_payload
-    kin_keypoints = keypoint_trajectory(robot, qpos)
-    dtw = dtw_keypoint_l1_pct(best.keypoints, kin_keypoints)
+    # DTW keypoint L1 of the replay against the kinematic input at its own frames — measured as track_motion
+    # measures UVM's and SMR's replays, so the methods compare — and against the re-timed (re-arced) target
+    dtw = dtw_keypoint_l1_pct(best.keypoints, keypoint_trajectory(robot, qpos))
+    dtw_target = dtw_keypoint_l1_pct(best.keypoints, best.keypoints_target)
     out = dynamic_motion(robot, motion, best, settings)
     alpha = (2.0 ** best.log2_alpha).tolist()
     summary = {
         "robot": motion.robot, "segments": settings.segments, "alpha": [round(a, 4) for a in alpha],
         "duration_s": {"before": round((len(qpos) - 1) / fps, 4), "after": round(best.duration_s, 4)},
         "bo_evaluations": bo.evaluations, "bo_converged": bo.converged, "score": round(best.score["score"], 5),
-        "replay_fell": bool(best.fell), "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
+        "replay_fell": bool(best.fell), "replay_fell_at_s": best.score["fell_at_s"], "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
+        "dtw_vs_target_pct": None if not np.isfinite(dtw_target) else round(dtw_target, 3),
         "tracking_error_mm": round(best.tracking_error_mm, 2), "contact_iou": round(best.score["contact_iou"], 4),
         "base_l1_m": round(best.score["d_b_m"], 5), "euler_l1_rad": round(best.score["d_E_rad"], 5),
         "wall_time_s": round(time.perf_counter() - t0, 2),
     }
     out.metrics = {**summary}
     evaluations = [{"alpha": [round(2.0 ** float(v), 4) for v in x], "score": round(s, 5), "replay_fell": bool(ev.fell),
+                    "fell_at_s": ev.score["fell_at_s"],
                     "tracking_error_mm": round(ev.tracking_error_mm, 2), "duration_s": round(ev.duration_s, 3),
                     "wall_time_s": round(ev.wall_time_s, 1)}
                    for (x, s), ev in zip(bo.history, bo.payloads)]

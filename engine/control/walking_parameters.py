@@ -1,0 +1,104 @@
+"""The walking controller's tuning: one typed parameter set per robot (as placo's HumanoidParameters).
+
+Defaults are G1's; ``robots/<name>.toml`` overrides fields in ``[control.walking]`` (names are
+checked: an unknown one is a config error naming the file and field).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+from dataclasses import dataclass
+
+from engine.robot.config import RobotConfig, RobotConfigError, load_robot_config
+
+
+@dataclass(frozen=True)
+class WalkingParameters:
+    """Every number of :class:`engine.control.walking_controller.WalkingController` that is tuned."""
+
+    # Joystick rate limits (m/s², m/s², rad/s²): G1 cannot accelerate its gait faster.
+    command_accel_limits: tuple[float, float, float] = (0.25, 0.3, 1.5)
+    # Re-latch a landed foot this many planner ticks (16 ms) after touchdown.
+    relatch_after_plan_ticks: int = 2
+    # The MPC plans the CoP this far inside the soles (headroom for the whole-body QP).
+    cop_margin_m: float = 0.01
+    # LIP height: low-pass of the measured CoM height per planner tick (≈ 0.16 s time constant).
+    com_z_filter: float = 0.05
+    # A plan whose final capture point misses the last support by more is re-anchored.
+    capture_tolerance_m: float = 0.1
+    # The path frame moves with step adjustments and re-latched footholds (share 0..1).
+    path_follows_feet: float = 1.0
+    # A step moves at most this far from its nominal foothold.
+    max_step_adjust_m: float = 0.35
+    # ... sideways at most this far outward of ξ (with ξ running toward the stance foot, land near it)
+    lateral_xi_max_out_m: float = 0.15
+    # ... and at least this far outward of ξ at touchdown (it must move ξ back in).
+    lateral_xi_inset_m: float = 0.03
+    # ξ this far beyond the stance foot's outer edge hurries the gait (inf: never).
+    lateral_capture_margin_m: float = 0.0
+    # Push observer: response time and the force per kg below which model errors hide pushes.
+    observer_time_constant_s: float = 0.08
+    observer_deadband_n_per_kg: float = 0.25
+    # The observer holds over this last share of a swing and this many planner ticks after touchdown.
+    observer_hold_swing_share: float = 0.15
+    observer_hold_after_touchdown_plan_ticks: int = 5
+    # At most this growth of the measured ξ error is expected by touchdown; errors below the
+    # deadband are left to the MPC (a push is larger).
+    dcm_error_growth_cap: float = 2.5
+    dcm_error_deadband_m: float = 0.04
+    # Share of the CoP's reach a step may rely on (rest: margin for tracking), and while pushed.
+    step_reach_share: float = 0.8
+    pushed_reach_share: float = 0.25
+    # Restart the MPC when ξ leaves the double support polygon (off: a 50 N side push while
+    # walking at 0.15 m/s fell with it, recorded).
+    restart_when_thrown: bool = False
+    # A descending swing foot this low may touch down early, and its corners this close to the floor carry load.
+    landing_height_m: float = 0.01
+    touchdown_height_m: float = 0.001
+    # Vertical load (× m g) a single-support ankle must hold the CoP under (the MPC's toe trim).
+    ankle_load_factor: float = 1.15
+    # Per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0).
+    mpc_state_pull: float = 0.0
+    # The CoM MPC's preview (paper: 2 s).
+    mpc_preview_s: float = 2.0
+    # The CoM MPC is solved every this many planner ticks (paper: 1, at the planner's 125 Hz);
+    # between solves the whole-body controller follows the last plan, a function of time.
+    mpc_every_plan_ticks: int = 1
+
+    @classmethod
+    def for_robot(cls, name: str) -> WalkingParameters:
+        """The defaults with robot ``name``'s ``[control.walking]`` table applied."""
+        return cls.from_config(load_robot_config(name))
+
+    @classmethod
+    def from_config(cls, cfg: RobotConfig) -> WalkingParameters:
+        """The defaults with ``cfg.walking`` (the ``[control.walking]`` table) applied."""
+        overrides = dict(cfg.walking)
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        values: dict[str, object] = {}
+        for key, value in overrides.items():
+            if key not in known:
+                close = difflib.get_close_matches(key, sorted(known), n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise RobotConfigError(f"{cfg.path.name}: control.walking.{key}: unknown WalkingParameters field{hint}")
+            default = getattr(cls, key)
+            if isinstance(default, tuple):
+                if not isinstance(value, (list, tuple)) or len(value) != len(default):
+                    raise RobotConfigError(f"{cfg.path.name}: control.walking.{key}: expected a list of "
+                                           f"{len(default)} numbers, got {value!r}")
+                values[key] = tuple(float(v) for v in value)
+            elif isinstance(default, bool):
+                if not isinstance(value, bool):
+                    raise RobotConfigError(f"{cfg.path.name}: control.walking.{key}: expected true or false, got {value!r}")
+                values[key] = value
+            elif isinstance(default, int):
+                if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                    raise RobotConfigError(f"{cfg.path.name}: control.walking.{key}: expected a non-negative integer, "
+                                           f"got {value!r}")
+                values[key] = value
+            else:
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise RobotConfigError(f"{cfg.path.name}: control.walking.{key}: expected a number, got {value!r}")
+                values[key] = float(value)
+        return cls(**values)  # type: ignore[arg-type]

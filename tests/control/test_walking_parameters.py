@@ -1,0 +1,59 @@
+"""The walking controller's tuning is one typed parameter set per robot ([control.walking])."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from engine.control.gait_feedback import GaitFeedbackGains
+from engine.control.walking_parameters import WalkingParameters
+from engine.robot.config import RobotConfigError, load_robot_config
+
+
+def test_defaults_and_overrides() -> None:
+    cfg = load_robot_config("g1")
+    assert WalkingParameters.from_config(cfg) == WalkingParameters()
+    custom = replace(cfg, walking={"cop_margin_m": 0.02, "command_accel_limits": [0.5, 0.5, 2.0],
+                                   "relatch_after_plan_ticks": 3, "restart_when_thrown": True})
+    params = WalkingParameters.from_config(custom)
+    assert params.cop_margin_m == 0.02 and params.command_accel_limits == (0.5, 0.5, 2.0)
+    assert params.relatch_after_plan_ticks == 3 and params.restart_when_thrown is True
+
+
+@pytest.mark.parametrize(("table", "message"), [
+    ({"cop_margin": 0.02}, r"g1.toml: control.walking.cop_margin: unknown WalkingParameters field; did you mean 'cop_margin_m'"),
+    ({"cop_margin_m": "wide"}, r"control.walking.cop_margin_m: expected a number"),
+    ({"command_accel_limits": [1.0]}, r"control.walking.command_accel_limits: expected a list of 3 numbers"),
+    ({"relatch_after_plan_ticks": 1.5}, r"control.walking.relatch_after_plan_ticks: expected a non-negative integer"),
+    ({"restart_when_thrown": 1}, r"control.walking.restart_when_thrown: expected true or false"),
+])
+def test_bad_field_is_a_config_error_naming_it(table: dict, message: str) -> None:
+    cfg = replace(load_robot_config("g1"), walking=table)
+    with pytest.raises(RobotConfigError, match=message):
+        WalkingParameters.from_config(cfg)
+
+
+def test_talos_gait_feedback_comes_from_its_config() -> None:
+    gains = GaitFeedbackGains.for_robot("talos")
+    assert (gains.time_kp_per_m, gains.time_kd_s_per_m, gains.step_gain) == (3.0, 0.9, 0.7)
+    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
+
+
+def test_mpc_rate_parameter_solves_every_other_planner_tick() -> None:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.sim import Simulation
+
+    robot = load_robot("g1")
+    params = replace(WalkingParameters.for_robot("g1"), mpc_every_plan_ticks=2)
+    ctrl = WalkingController(robot, load_style(styles_dir("g1") / "neutral.json"), params=params)
+    solves = []
+    solve = ctrl.mpc.solve
+    ctrl.mpc.solve = lambda *a, **k: solves.append(ctrl.tick) or solve(*a, **k)
+    sim = Simulation(robot, ctrl)
+    for _ in range(40):  # 10 planner ticks
+        sim.step()
+    assert solves == [0, 8, 16, 24, 32]  # the first plan at once, then every second planner tick (8 ms apart)
+    assert ctrl.plan is not None and ctrl.plan.ok

@@ -1,0 +1,45 @@
+"""An edit the robot could not walk is flagged in the Sample panel (sample, phase, advice)
+before Test is pressed; undo and the warning goes."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from tests.e2e.browser import open_page, wait_for_text
+
+pytestmark = pytest.mark.e2e
+
+
+def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
+    from studio.app import Studio
+    from tests.conftest import REPO, free_port
+
+    styles = tmp_path / "styles"
+    (styles / "g1").mkdir(parents=True)
+    for p in (REPO / "styles" / "g1").glob("*.json"):
+        shutil.copy(p, styles / "g1" / p.name)
+    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
+    try:
+        assert studio.loaded.wait(240)  # a loaded machine builds the models slowly
+        with open_page(studio.url, 1000, 720) as page:
+            wait_for_text(page, "Engine running", timeout_ms=240_000)
+            page.get_by_role("tab", name="Sample").click(force=True)
+            editor = studio.sample_editor
+            editor.select("forward_fast")
+            wait_for_text(page, "nothing in the way of walking it", timeout_ms=120_000)
+            # The pelvis slider to the top of its range: the knees cannot reach the feet straight.
+            assert editor.set_attribute("pelvis_height_m", studio.session.ctx.pelvis_height_range_m[1])
+            wait_for_text(page, "knee straight", timeout_ms=120_000)
+            text = page.inner_text("body")
+            assert "forward_fast" in text and "% of the cycle" in text and "lower the pelvis" in text
+            page.screenshot(path=str(artifacts / "studio_sample_feasibility_warning.png"))
+            page.get_by_role("tab", name="Style").click(force=True)
+            page.get_by_role("button", name="Undo").click()
+            page.get_by_role("tab", name="Sample").click(force=True)
+            wait_for_text(page, "nothing in the way of walking it", timeout_ms=120_000)
+            assert "knee straight" not in page.inner_text("body")
+            page.screenshot(path=str(artifacts / "studio_sample_feasibility_cleared.png"))
+    finally:
+        studio.stop()
