@@ -102,7 +102,8 @@ def test_gait_feedback_gains_come_from_the_config(tmp_path, monkeypatch):
     assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
     dino = GaitFeedbackGains.for_robot("dino")
     assert dino.velocity_cutoff_hz == load_robot_config("dino").gait_feedback["velocity_cutoff_hz"] == 0.5
-    assert dino.step_max_m == GaitFeedbackGains().step_max_m  # what the table leaves out keeps its default
+    assert dino.step_max_m == load_robot_config("dino").gait_feedback["step_max_m"] == 0.2
+    assert dino.time_kp_per_m == GaitFeedbackGains().time_kp_per_m  # what the table leaves out keeps its default
     text = (robots_dir() / "dino.toml").read_text()
     _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = 0.8\nkappa_single = [0.7, 1.5]"))
     monkeypatch.setenv("MOTION_STUDIO_ROBOTS", str(tmp_path))

@@ -35,7 +35,7 @@ THIGH_M = 0.18
 SHANK_M = 0.18
 ANKLE_TO_SOLE_M = 0.04
 SOLE_LENGTH_M = 0.15
-SOLE_WIDTH_M = 0.075
+SOLE_WIDTH_M = 0.1
 SOLE_X_M = 0.025  # sole centre ahead of the ankle
 SOLE_THICKNESS_M = 0.02
 

@@ -71,18 +71,19 @@ def resample(motion: RobotMotion, fps: float) -> RobotMotion:
     times = sample_times(motion.frames, motion.fps, fps)
     i0, i1, b = frame_blend(times, motion.frames, motion.fps)
 
-    def lerp(x: np.ndarray | None) -> np.ndarray | None:
-        if x is None:
-            return None
+    def lerp(x: np.ndarray) -> np.ndarray:
         bb = b.reshape((-1,) + (1,) * (x.ndim - 1))
         return (1.0 - bb) * x[i0] + bb * x[i1]
+
+    def lerp_optional(x: np.ndarray | None) -> np.ndarray | None:
+        return None if x is None else lerp(x)
 
     q = motion.qpos
     qpos = (1.0 - b[:, None]) * q[i0] + b[:, None] * q[i1]
     qpos[:, 3:7] = slerp(q[i0, 3:7], q[i1, 3:7], b)
     nearest = np.where(b < 0.5, i0, i1)
     return dataclasses.replace(
-        motion, fps=fps, qpos=qpos, contact=motion.contact[nearest], keypoints=lerp(motion.keypoints),
-        qvel=lerp(motion.qvel), ctrl=lerp(motion.ctrl),
+        motion, fps=fps, qpos=qpos, contact=motion.contact[nearest], keypoints=lerp_optional(motion.keypoints),
+        qvel=lerp_optional(motion.qvel), ctrl=lerp_optional(motion.ctrl),
         source={**motion.source, "resampled_from_fps": motion.fps},
     )

@@ -25,7 +25,9 @@ def test_dino_sweep_full_minute(style_name):
     assert not summary["fell"], summary
     assert summary["cop_inside_fraction"] >= 0.995, summary
     if summary["max_stance_slip_mm"] >= 2.0:
-        # Measured 10.2 mm (neutral) and 10.6 mm (strut): not yet the stack's 2 mm goal (issue 15).
+        # Measured 7.8 mm (neutral) and 4.4 mm (strut) with the 10 cm soles and the dino's swing/contact
+        # gains (10.2 / 10.6 mm before): a strafing foot still lands ~5–10 mm above the floor after its
+        # planned touchdown. Not yet the stack's 2 mm goal (issue 15).
         pytest.xfail(f"stance slip {summary['max_stance_slip_mm']} mm ≥ 2 mm")
 
 
@@ -39,6 +41,22 @@ def test_dino_survives_the_papers_push_while_walking_slowly():
     assert not summary["fell"], summary
     t = rec["t"]
     during = (t > 4.0) & (t < 5.5)
-    assert rec["kappa"][during].max() > 1.2
-    assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.05
-    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.02
+    # Each mechanism leaves its rest value (κ 1, no adjustment). Measured with the 10 cm soles: κ up to
+    # 1.13, step adjustment 4.7 cm, velocity adjustment 0.020 m/s (the 7.5 cm soles needed 1.2+, 5+ cm, 0.02+).
+    assert rec["kappa"][during].max() > 1.08
+    assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.03
+    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.01
+
+
+@pytest.mark.parametrize("fy_n", [25.0, -25.0], ids=["from-the-right", "from-the-left"])
+def test_dino_survives_a_side_push_while_walking_slowly(fy_n):
+    """§8.1's 25 N for 1 s, sideways (1.5 N/kg, G1's 50 N equivalent): the 10 cm soles and the larger
+    step adjustment catch it (with 7.5 cm soles and G1's step gains it fell at 5.2 s)."""
+    robot = load_robot("dino")
+    style = load_style(REPO / "styles/dino/neutral.json")
+    schedule = parse_command("0.15,0,0", style.velocities)
+    summary, rec = run_walk(robot, style, schedule, 8.0, pushes=[PushSpec(4.0, (0.0, fy_n, 0.0), 1.0)], record=True)
+    assert not summary["fell"], summary
+    assert summary["cop_inside_fraction"] >= 0.99, summary
+    during = (rec["t"] > 4.0) & (rec["t"] < 5.5)
+    assert np.abs(rec["step_adjust"][during][:, 1]).max() > 0.03  # it stepped sideways to catch the push
