@@ -550,7 +550,8 @@ def test_switching_to_an_empty_channel_clears_the_knot_fields(editor, session):
 
 
 def test_typed_values_apply_once_when_the_keys_pause(server, session, monkeypatch):
-    monkeypatch.setattr(widgets, "TYPING_PAUSE_S", 0.3)
+    # a pause long enough that three assignments in a row never span it, even on a loaded machine
+    monkeypatch.setattr(widgets, "TYPING_PAUSE_S", 1.5)
     ed = CurveEditor(server, session)
     try:
         ed.handle_knot_click(KnotRef(SWING, 1))
