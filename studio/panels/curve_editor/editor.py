@@ -31,12 +31,7 @@ from engine.gait.curve_editing import (
     opposite_channel,
     paste_knots,
 )
-from engine.gait.curves import (
-    MIN_KNOT_GAP_S,
-    HermiteCurve,
-    Knot,
-    TangentMode,
-)
+from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.style import GaitSample, Style
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from studio.style_session import EditResult, StyleSession
@@ -534,20 +529,6 @@ class CurveEditor(GraphView, DragInteraction, EditorWidgets):
                 self._redraw()
         except Exception:
             log.exception("curve editor: redraw after %s", reason)
-
-    def _merge_knots(self, channel: str, target: HermiteCurve | None, pasted: list[Knot], d: float) -> HermiteCurve:
-        periodic = channel_interval(channel) == "cycle"
-        if target is None:
-            base = [] if periodic else [Knot(0.0, 0.0, mode=TangentMode.FLAT), Knot(d, 0.0, mode=TangentMode.FLAT)]
-        else:
-            base = list(target.knots)
-        lo, hi = pasted[0].t_s, pasted[-1].t_s
-        n = len(base)
-        kept = [k for i, k in enumerate(base)
-                if not (lo - 1e-9 <= k.t_s <= hi + 1e-9) or (is_pinned(channel, i, n)
-                                                            and all(abs(p.t_s - k.t_s) > 1e-9 for p in pasted))]
-        merged = kept + [p for p in pasted if all(abs(p.t_s - k.t_s) >= MIN_KNOT_GAP_S for k in kept)]
-        return HermiteCurve(sorted(merged, key=lambda k: k.t_s), d, periodic)
 
     def _guarded(self, fn: Callable[..., Any], *args: Any) -> Any:
         """Run a callback; an exception is logged, shown, and leaves a consistent editor."""
