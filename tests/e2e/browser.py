@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,18 @@ ARGS = [
     "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
     "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic",
 ]
+
+
+def copy_styles(tmp_path: Path, robot: str = "g1") -> Path:
+    """A styles folder under ``tmp_path`` holding copies of the shipped styles of ``robot`` (tests edit and
+    save there, never in the repository)."""
+    from tests.conftest import REPO
+
+    styles = tmp_path / "styles"
+    (styles / robot).mkdir(parents=True)
+    for p in (REPO / "styles" / robot).glob("*.json"):
+        shutil.copy(p, styles / robot / p.name)
+    return styles
 
 
 @contextlib.contextmanager

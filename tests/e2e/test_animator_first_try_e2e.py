@@ -10,14 +10,13 @@ and neither the camera nor the graph moves under the pointer.
 from __future__ import annotations
 
 import re
-import shutil
 import time
 
 import numpy as np
 import pytest
 
-from tests.conftest import REPO, free_port
-from tests.e2e.browser import open_page, wait_for_text
+from tests.conftest import free_port
+from tests.e2e.browser import copy_styles, open_page, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -68,10 +67,7 @@ def test_an_animators_first_try(tmp_path, artifacts):
     from studio.app import Studio
     from studio.panels.curve_editor import KnotRef, project_to_screen
 
-    styles = tmp_path / "styles"
-    (styles / "g1").mkdir(parents=True)
-    for p in (REPO / "styles" / "g1").glob("*.json"):
-        shutil.copy(p, styles / "g1" / p.name)
+    styles = copy_styles(tmp_path)
     studio = Studio("g1", port=free_port(), styles_folder=styles).start()
     try:
         assert studio.loaded.wait(120)

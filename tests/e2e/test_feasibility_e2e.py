@@ -3,23 +3,19 @@ before Test is pressed; undo and the warning goes."""
 
 from __future__ import annotations
 
-import shutil
 
 import pytest
 
-from tests.e2e.browser import open_page, wait_for_text
+from tests.e2e.browser import copy_styles, open_page, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
 
 def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
     from studio.app import Studio
-    from tests.conftest import REPO, free_port
+    from tests.conftest import free_port
 
-    styles = tmp_path / "styles"
-    (styles / "g1").mkdir(parents=True)
-    for p in (REPO / "styles" / "g1").glob("*.json"):
-        shutil.copy(p, styles / "g1" / p.name)
+    styles = copy_styles(tmp_path)
     studio = Studio("g1", port=free_port(), styles_folder=styles).start()
     try:
         assert studio.loaded.wait(240)  # a loaded machine builds the models slowly

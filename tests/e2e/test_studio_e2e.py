@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from tests.e2e.browser import open_page, wait_for_text
+from tests.e2e.browser import copy_styles, open_page, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -86,20 +86,16 @@ def test_joystick_drives_the_robot(served_studio, artifacts):
 def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path, artifacts):
     """Edit mode, Curves: drag the swing-height knot up in the browser; the style changes and the
     simulated robot lifts its foot higher."""
-    import shutil
     import threading
 
     import numpy as np
 
     from studio.app import Studio
     from studio.panels.curve_editor import KnotRef, project_to_screen
-    from tests.conftest import REPO, free_port
+    from tests.conftest import free_port
     from tests.e2e.browser import wait_until
 
-    styles = tmp_path / "styles"
-    (styles / "g1").mkdir(parents=True)
-    for p in (REPO / "styles" / "g1").glob("*.json"):
-        shutil.copy(p, styles / "g1" / p.name)
+    styles = copy_styles(tmp_path)
     studio = Studio("g1", port=free_port(), styles_folder=styles).start()
     heights: list[tuple[float, float]] = []
     lock = threading.Lock()
