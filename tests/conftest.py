@@ -31,6 +31,36 @@ def wait_for_port(port: int, timeout_s: float = 60.0) -> None:
     raise TimeoutError(f"nothing listens on port {port}")
 
 
+def make_disk_full(monkeypatch, partial_write: bool = False) -> None:
+    """Every file written through engine.atomic_io fails with ENOSPC (after writing half of the
+    first chunk when ``partial_write``): a full disk, simulated. ``monkeypatch.undo()`` frees it."""
+    import errno
+
+    import engine.atomic_io as atomic_io
+
+    real_fdopen = os.fdopen
+
+    class FullFile:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, data):
+            if partial_write:
+                self.f.write(data[: len(data) // 2])  # part of it lands, then the disk is full
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    monkeypatch.setattr(atomic_io.os, "fdopen", lambda fd, mode="r", *a, **k: FullFile(real_fdopen(fd, mode, *a, **k)))
+
+
 @pytest.fixture(scope="session")
 def artifacts() -> Path:
     ARTIFACTS.mkdir(exist_ok=True)

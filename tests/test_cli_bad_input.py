@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import run_studio
+from tests.conftest import make_disk_full, run_studio
 
 
 @pytest.mark.parametrize("name, content, expected", [
@@ -38,34 +38,15 @@ def test_out_in_a_missing_folder_is_refused_before_the_run():
 
 
 def test_a_full_disk_while_writing_the_recording_is_one_line_and_nothing_is_left(tmp_path, monkeypatch, capsys):
-    import errno
-    import os
-
     import numpy as np
 
-    import engine.atomic_io as atomic_io
     import engine.gait.offline_plan as offline_plan
     from studio import cli
 
     monkeypatch.setattr(offline_plan, "run_plan", lambda *a: {"t": np.zeros(3), "command": np.zeros((3, 3)),
                                                               "command_requested": np.zeros((3, 3))})
 
-    real_fdopen = os.fdopen
-
-    class Full:
-        def __init__(self, f):
-            self.f = f
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.f.close()
-
-        def write(self, data):
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    monkeypatch.setattr(atomic_io.os, "fdopen", lambda fd, mode="r", *a, **k: Full(real_fdopen(fd, mode, *a, **k)))
+    make_disk_full(monkeypatch)
     out = tmp_path / "plan.npz"
     assert cli.main(["plan", "--out", str(out), "--duration", "1"]) == 2
     err = capsys.readouterr().err.strip()

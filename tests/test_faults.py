@@ -20,7 +20,7 @@ import pytest
 
 from engine.gait.style import StyleContext, load_style
 from studio.style_session import StyleSession
-from tests.conftest import REPO
+from tests.conftest import REPO, make_disk_full
 
 NEUTRAL = REPO / "styles" / "g1" / "neutral.json"
 
@@ -184,28 +184,7 @@ def test_full_disk_simulated(tmp_path, g1_ctx, monkeypatch):
     session = _session(g1_ctx, folder)
     warnings: list[str] = []
     session.warn = warnings.append
-    import engine.atomic_io as atomic_io
-
-    real_fdopen = os.fdopen
-
-    class FullFile:
-        def __init__(self, f):
-            self.f = f
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.f.close()
-
-        def write(self, data):
-            self.f.write(data[: len(data) // 2])  # part of it lands, then the disk is full
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-        def __getattr__(self, name):
-            return getattr(self.f, name)
-
-    monkeypatch.setattr(atomic_io.os, "fdopen", lambda fd, mode="r", *a, **k: FullFile(real_fdopen(fd, mode, *a, **k)))
+    make_disk_full(monkeypatch, partial_write=True)
     _check_full_disk_behaviour(session, folder, g1_ctx, warnings)
     monkeypatch.undo()
     assert session.save().ok and not session.dirty  # space again: the edits were never lost
