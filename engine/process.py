@@ -82,7 +82,9 @@ def engine_main(conn: Connection, robot: str) -> None:
                     ticks += 1
                     if i % COMMAND_POLL_TICKS == COMMAND_POLL_TICKS - 1:
                         read_commands()
-                        if publish_now:
+                        # An edit, or a frame due: a slow machine still streams at PUBLISH_HZ
+                        # (the rest of the batch runs after the frame goes out).
+                        if publish_now or time.perf_counter() >= next_publish:
                             break
             else:
                 wall0 = now - ticks * period
