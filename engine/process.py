@@ -48,6 +48,7 @@ def engine_main(conn: Connection, robot: str) -> None:
     rtf_wall, rtf_ticks = wall0, 0
     parent = os.getppid()
     publish_now = False
+    published_revision = core.style_revision
 
     def read_commands() -> bool:
         """Apply pending commands; True when the clock must restart or a frame should go out now."""
@@ -61,8 +62,9 @@ def engine_main(conn: Connection, robot: str) -> None:
             core.handle(command)
             if core.robot.name != robot_before or isinstance(command, msg.SetPlaybackSpeed):
                 restart = True
-            if isinstance(command, (msg.SetStyle, msg.SetMode, msg.Reset)):
+            if isinstance(command, (msg.SetMode, msg.Reset)):
                 publish_now = True  # show edits at once (edit latency)
+            # A style edit goes out with the first frame computed with it (see the tick loop).
         return restart
 
     try:
@@ -80,6 +82,8 @@ def engine_main(conn: Connection, robot: str) -> None:
                 for i in range(max(due, 0)):
                     core.tick()
                     ticks += 1
+                    if core.style_revision != published_revision:
+                        break  # the first pose planned with an edit goes out at once (edit latency)
                     if i % COMMAND_POLL_TICKS == COMMAND_POLL_TICKS - 1:
                         read_commands()
                         # An edit, or a frame due: a slow machine still streams at PUBLISH_HZ
@@ -99,8 +103,9 @@ def engine_main(conn: Connection, robot: str) -> None:
                 if telemetry is not None:
                     conn.send(telemetry)
                 next_telemetry = max(next_telemetry + telemetry_period, now)
-            if now >= next_publish or publish_now:
+            if now >= next_publish or publish_now or core.style_revision != published_revision:
                 publish_now = False
+                published_revision = core.style_revision
                 conn.send(core.frame())
                 next_publish = max(next_publish + publish_period, now)
                 if os.getppid() != parent:

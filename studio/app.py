@@ -176,7 +176,7 @@ class Studio:
                 self.curve_editor = self._make_curve_editor(session)
             self._style_folders.append(folder)
         self.session = session  # published once its panels exist: other threads see a complete set
-        session.subscribe(self._on_style_change)
+        session.subscribe(self._on_style_change, urgent=True)  # the robot walks an edit first
         self._send_style()
 
     def _make_curve_editor(self, session: StyleSession):

@@ -53,7 +53,7 @@ def bench_edit_latency(edits: int = 20) -> list[dict]:
         sent[revision[0]] = time.perf_counter()
         link.send(msg.SetStyle(session.as_document(), revision=revision[0]))
 
-    session.subscribe(push)
+    session.subscribe(push, urgent=True)  # as the studio's engine link
     try:
         if not loaded.wait(60):
             raise RuntimeError("engine did not start")

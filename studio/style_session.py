@@ -54,26 +54,42 @@ class StyleSession:
         self._redo: list[tuple[Style, str]] = []
         self._merge_key: object | None = None  # edits with the newest entry's key coalesce into it
         self._listeners: list[Callable[[Style, str], None]] = []
+        self._urgent_listeners: list[Callable[[Style, str], None]] = []
         self._lock = threading.RLock()
         self.last_error = ""
         self.warn: Callable[[str], None] | None = None  # tells the user (autosave failures)
         self._autosave_failed = False
 
     # ------------------------------------------------------------------ listeners
-    def subscribe(self, callback: Callable[[Style, str], None]) -> None:
-        """``callback(style, reason)`` after every change (edit, undo, open, ...)."""
-        self._listeners.append(callback)
+    def subscribe(self, callback: Callable[[Style, str], None], *, urgent: bool = False) -> None:
+        """``callback(style, reason)`` after every change (edit, undo, open, ...).
+
+        ``urgent`` listeners (the engine link: what the robot walks) hear of an edit first, before
+        it is autosaved; the others (panels) after.
+        """
+        (self._urgent_listeners if urgent else self._listeners).append(callback)
 
     def unsubscribe(self, callback: Callable[[Style, str], None]) -> None:
-        if callback in self._listeners:
-            self._listeners.remove(callback)
+        for listeners in (self._urgent_listeners, self._listeners):
+            if callback in listeners:
+                listeners.remove(callback)
 
-    def _notify(self, reason: str) -> None:
+    def _notify(self, reason: str, *, urgent: bool | None = None) -> None:
+        """Tell the listeners (``urgent``: True only the urgent ones, False only the others, None all)."""
         style = self.style
         if style is None:
             return
-        for callback in list(self._listeners):
-            callback(style, reason)
+        groups = {True: [self._urgent_listeners], False: [self._listeners], None: [self._urgent_listeners, self._listeners]}
+        for listeners in groups[urgent]:
+            for callback in list(listeners):
+                callback(style, reason)
+
+    def _commit(self, reason: str) -> None:
+        """After an edit, undo or redo: the engine hears of it, it is autosaved, then the panels."""
+        self._notify(reason, urgent=True)
+        with self._lock:
+            self._autosave()
+        self._notify(reason, urgent=False)
 
     # ------------------------------------------------------------------ files
     def style_names(self) -> list[str]:
@@ -205,8 +221,7 @@ class StyleSession:
             self._redo.clear()
             self.style = new_style
             self.dirty = True
-            self._autosave()
-        self._notify(f"edit: {label}")
+        self._commit(f"edit: {label}")
         return EditResult(True, label)
 
     def undo(self) -> EditResult:
@@ -219,8 +234,7 @@ class StyleSession:
                 self._redo.append((self.style, label))
             self.style = previous
             self.dirty = True
-            self._autosave()
-        self._notify(f"undo: {label}")
+        self._commit(f"undo: {label}")
         return EditResult(True, f"undid {label}")
 
     def redo(self) -> EditResult:
@@ -233,8 +247,7 @@ class StyleSession:
                 self._undo.append((self.style, label))
             self.style = following
             self.dirty = True
-            self._autosave()
-        self._notify(f"redo: {label}")
+        self._commit(f"redo: {label}")
         return EditResult(True, f"redid {label}")
 
     @property
