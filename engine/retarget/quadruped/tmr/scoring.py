@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 from engine.retarget.metrics import MIN_PATH_LENGTH_M, dtw_keypoint_l1_percent
 
 FALL_PENALTY = 1.0
-__all__ = ["MIN_PATH_LENGTH_M", "dtw_keypoint_l1_pct", "tmr_score", "tracking_error_mm", "contact_iou"]
+__all__ = ["MIN_PATH_LENGTH_M", "dtw_keypoint_l1_pct", "keypoint_l1_m", "tmr_score", "tracking_error_mm", "contact_iou"]
 
 
 def _euler(quat_wxyz: np.ndarray) -> np.ndarray:
@@ -51,18 +51,27 @@ def tracking_error_mm(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float
     return float(np.mean(np.linalg.norm(keypoints - keypoints_ref, axis=-1)) * 1e3)
 
 
+def keypoint_l1_m(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:
+    """Mean per-keypoint L1 distance (m), time-aligned."""
+    return float(np.mean(np.sum(np.abs(np.asarray(keypoints) - np.asarray(keypoints_ref)), axis=-1)))
+
+
 def tmr_score(qpos: np.ndarray, contact: np.ndarray, qpos_ref: np.ndarray, contact_ref: np.ndarray,
               log2_alpha: np.ndarray, fell: bool, w_contact: float = 0.2, w_alpha: float = 0.05,
-              fall_fraction: float = 0.0) -> dict:
-    """``fall_fraction``: share of the motion done before the first fall (only used when ``fell``)."""
+              fall_fraction: float = 0.0, keypoints: np.ndarray | None = None,
+              keypoints_ref: np.ndarray | None = None, w_keypoints: float = 0.0) -> dict:
+    """``fall_fraction``: share of the motion done before the first fall (only used when ``fell``).
+    ``w_keypoints`` > 0 adds −w_k · d_k, d_k the mean per-keypoint L1 distance (m) of the rollout to the
+    deformed target (ours: Eq. 15 scores the base only; the keypoints are what the DTW figure measures)."""
     d_b = base_position_l1_m(qpos, qpos_ref)
     d_e = base_euler_l1_rad(qpos, qpos_ref)
+    d_k = keypoint_l1_m(keypoints, keypoints_ref) if keypoints is not None and keypoints_ref is not None else 0.0
     iou = contact_iou(contact, contact_ref)
     reg = float(np.mean(np.square(log2_alpha)))
     fall = FALL_PENALTY * (1.0 + (1.0 - float(np.clip(fall_fraction, 0.0, 1.0)))) if fell else 0.0
-    score = -d_b - d_e + w_contact * iou - w_alpha * reg - fall
-    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "contact_iou": iou, "alpha_penalty": w_alpha * reg,
-            "fall_penalty": fall}
+    score = -d_b - d_e - w_keypoints * d_k + w_contact * iou - w_alpha * reg - fall
+    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "d_k_m": d_k, "contact_iou": iou,
+            "alpha_penalty": w_alpha * reg, "fall_penalty": fall}
 
 
 def dtw_keypoint_l1_pct(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:
