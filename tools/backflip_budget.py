@@ -9,8 +9,10 @@ can push with at the touchdown posture under the torque box (a linear programme 
 μ = 0.8); then, for α re-timings of the clip (flights re-made ballistic: touchdown vertical speed ∝ α, pitch rate
 ∝ 1/α, the strokes unchanged), the force the rear legs need to stop the fall within the clip's absorb stroke and
 the residual backward pitch before the front feet land (the front feet's upward force, ahead of the centre of
-mass, adds backward pitch: only the rear legs can stop it). A rough budget, not a simulation: it says which
-robot's landing is torque-infeasible and by how much.
+mass, adds backward pitch: only the rear legs can stop it). A rough budget, not a simulation. That first table
+counts only vertical forces against the pitch; the second solves a linear programme over both rear feet's 3-D
+forces (friction included: horizontal forces below the centre of mass brake the pitch too) and is the one to
+believe — a relaxation, so "short" there means torque-infeasible, "FEASIBLE" only "not excluded".
 """
 
 from __future__ import annotations
@@ -96,6 +98,42 @@ def budget(name: str) -> None:
         f_pitch = abs(L_td[1] / a) / (t_front * a * lever)
         print(f"    α {a:4.2f}: rear legs need ≈ {f_fall + f_pitch:6.0f} N ({f_fall:.0f} stop the fall + {f_pitch:.0f} stop the "
               f"pitch) = {(f_fall + f_pitch) / rear:.1f}× what they can give")
+    # the same check with friction: the rear feet's horizontal forces, below the centre of mass, also brake the
+    # pitch. A linear programme over both rear feet's forces (friction pyramid μ, torque box through Jᵀ): the
+    # largest braking pitch torque while the vertical forces still stop the fall. Every other constraint of a
+    # real landing (horizontal momentum, the posture changing over the stroke) is left out, which can only
+    # make the landing look easier than it is.
+    rows_A, rows_b, r_feet = [], [], []
+    for i, leg in enumerate((2, 3)):
+        fi = kp.foot_index[leg]
+        jp = np.zeros((3, m.nv))
+        mujoco.mj_jac(m, d, jp, None, pts[fi], int(kp.body[fi]))
+        joints = kp.joint[4 * leg: 4 * leg + 3]
+        JT = jp[:, [int(m.jnt_dofadr[j]) for j in joints]].T
+        tl = lim[[int(np.flatnonzero(m.actuator_trnid[:, 0] == j)[0]) for j in joints]]
+        block = np.vstack([JT, -JT, [[1, 0, -MU], [-1, 0, -MU], [0, 1, -MU], [0, -1, -MU]], [[0, 0, -1]]])
+        full = np.zeros((len(block), 6))
+        full[:, 3 * i: 3 * i + 3] = block
+        rows_A.append(full)
+        rows_b.append(np.concatenate([tl, tl, np.zeros(5)]))
+        r_feet.append(pts[fi] - com)
+    A_feet, b_feet = np.vstack(rows_A), np.concatenate(rows_b)
+    # pitch torque about the com: τ_y = r_z f_x − r_x f_z; braking a backward (L_y < 0) rotation needs τ_y > 0
+    sign = 1.0 if L_td[1] < 0 else -1.0
+    c_tau = np.concatenate([[r[2], 0.0, -r[0]] for r in r_feet]) * sign
+    print("  with friction (LP over both rear feet's forces):")
+    for a in ALPHAS:
+        f_fall = mass * ((lin_td[2] * a) ** 2 / (2 * stroke) + G)
+        tau_need = abs(L_td[1] / a) / (t_front * a)
+        A = np.vstack([A_feet, [[0, 0, -1, 0, 0, -1]]])
+        b = np.concatenate([b_feet, [-f_fall]])
+        res = linprog(-c_tau, A_ub=A, b_ub=b, bounds=[(None, None)] * 6)
+        if not res.success:
+            print(f"    α {a:4.2f}: the rear feet cannot even push the {f_fall:.0f} N that stops the fall")
+            continue
+        tau_max = float(c_tau @ res.x)
+        print(f"    α {a:4.2f}: braking pitch torque needed {tau_need:6.0f} N·m, the rear feet give at most {tau_max:6.0f} N·m "
+              f"while pushing {f_fall:.0f} N up: {'FEASIBLE' if tau_max >= tau_need else f'{tau_need / max(tau_max, 1e-9):.1f}× short'}")
 
 
 if __name__ == "__main__":

@@ -6,8 +6,8 @@ start) in this process, on a local Ray with 1 worker and with 2 workers; the spe
 times. A local Ray that does not start (a loaded machine can miss raylet's start-up window) is one row saying
 so; the in-process row is then the serial figure.
 
-``tmr-clips`` (minutes per clip; only when asked for) — the paper's six clips (§VIII-C, Table II/Fig. 6) × go1
-and a1: UVM's and SMR's motions tracked as they are (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
+``tmr-clips`` (minutes per clip; only when asked for; ``--robot go1|a1|anymal_c`` for one robot) — the paper's
+six clips (§VIII-C, Table II/Fig. 6) × go1, a1 and anymal_c: UVM's and SMR's motions tracked as they are (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
 falls or not, DTW-normalised keypoint L1 (%) against SMR's motion at its frames (the same measure for both;
 STMR's against its own re-timed target too), tracking error (mm) against the motion each tracked, plus α and
 the durations, and the wall time of each stage.
@@ -23,7 +23,7 @@ import numpy as np
 CLIP_DURATION_S = 1.0
 RAY_BUDGET = 4  # two batches of two on 2 workers
 CLIPS = ("trot0", "trot1", "pace0", "pace1", "sidesteps", "hopturn")
-CLIP_ROBOTS = ("go1", "a1")
+CLIP_ROBOTS = ("go1", "a1", "anymal_c")
 CLIP_BUDGET = 6
 # Table II (STMR, SMR: DTW keypoint L1 %) for the flight-phase clips; Fig. 6 mean tracking error 48.7 mm
 PAPER_TABLE_II = {("go1", "sidesteps"): (1.9, 5.3), ("a1", "sidesteps"): (2.7, 5.4), ("go1", "hopturn"): (2.1, 6.4),
@@ -96,8 +96,11 @@ def _warm() -> int:
 
 
 def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CLIP_ROBOTS, budget: int = CLIP_BUDGET,
-                    address: str | None = None, parallel: int = 1) -> list[dict]:
-    """SMR (tracked at α = 1) against STMR on the paper's clips; see the module docstring."""
+                    address: str | None = None, parallel: int = 1, robot: str | None = None) -> list[dict]:
+    """SMR (tracked at α = 1) against STMR on the paper's clips; see the module docstring. ``robot`` (the
+    bench's ``--robot``) picks one of ``CLIP_ROBOTS``; any other value (the bench's default g1) keeps them all."""
+    if robot in CLIP_ROBOTS:
+        robots = (robot,)
     from engine.bench.retarget import clip_path, shared_dir
     from engine.retarget.importers import import_source
     from engine.retarget.quadruped.pipeline import retarget_detailed

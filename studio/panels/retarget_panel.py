@@ -61,7 +61,9 @@ def contact_strip(source: np.ndarray | None, result: np.ndarray, frame: int, col
 def metrics_markdown(metrics: dict[str, Any]) -> str:
     rows = [("foot slide", "foot_slide_mm", "mm"), ("contact IoU", "contact_iou", ""),
             ("penetration", "penetration_mm", "mm"), ("keypoint error", "keypoint_error_mm", "mm"),
-            ("DTW keypoint L1", "dtw_keypoint_l1_percent", "%"), ("travel", "travel_m", "m"),
+            ("DTW keypoint L1 vs UVM target (kinematic)", "dtw_keypoint_l1_percent", "%"),
+            ("SMR's DTW keypoint L1 vs UVM target (kinematic)", "smr_kinematic_dtw_pct", "%"),
+            ("DTW keypoint L1 (open-loop replay)", "dtw_keypoint_l1_pct", "%"), ("travel", "travel_m", "m"),
             ("frames", "frames", ""), ("fps", "fps", ""), ("wall time", "wall_time_s", "s"),
             ("α (TMR)", "alpha", ""), ("duration (TMR)", "duration_s", "s"), ("BO evaluations", "bo_evaluations", ""),
             ("replay fell", "replay_fell", ""), ("tracking error", "tracking_error_mm", "mm")]

@@ -10,7 +10,8 @@ all fall the search still climbs towards the one that gets furthest.
 ``dtw_keypoint_l1_pct``: the keypoint trajectories aligned by dynamic time warping (so a re-timed motion is not
 penalised for its timing), the mean per-keypoint L1 distance along the warping path as a percentage of the mean
 keypoint path length of the reference (the paper's "normalised keypoint L1 distance with DTW"); NaN when the
-reference hardly moves (mean keypoint path under 1 cm).
+reference hardly moves (mean keypoint path under 1 cm). It *is* ``engine.retarget.metrics.dtw_keypoint_l1_percent``:
+one definition for UVM, SMR and STMR.
 """
 
 from __future__ import annotations
@@ -18,8 +19,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from engine.retarget.metrics import MIN_PATH_LENGTH_M, dtw_keypoint_l1_percent
+
 FALL_PENALTY = 1.0
-MIN_PATH_LENGTH_M = 0.01
+__all__ = ["MIN_PATH_LENGTH_M", "dtw_keypoint_l1_pct", "keypoint_l1_m", "tmr_score", "tracking_error_mm", "contact_iou"]
 
 
 def _euler(quat_wxyz: np.ndarray) -> np.ndarray:
@@ -48,46 +51,30 @@ def tracking_error_mm(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float
     return float(np.mean(np.linalg.norm(keypoints - keypoints_ref, axis=-1)) * 1e3)
 
 
+def keypoint_l1_m(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:
+    """Mean per-keypoint L1 distance (m), time-aligned."""
+    return float(np.mean(np.sum(np.abs(np.asarray(keypoints) - np.asarray(keypoints_ref)), axis=-1)))
+
+
 def tmr_score(qpos: np.ndarray, contact: np.ndarray, qpos_ref: np.ndarray, contact_ref: np.ndarray,
               log2_alpha: np.ndarray, fell: bool, w_contact: float = 0.2, w_alpha: float = 0.05,
-              fall_fraction: float = 0.0) -> dict:
-    """``fall_fraction``: share of the motion done before the first fall (only used when ``fell``)."""
+              fall_fraction: float = 0.0, keypoints: np.ndarray | None = None,
+              keypoints_ref: np.ndarray | None = None, w_keypoints: float = 0.0) -> dict:
+    """``fall_fraction``: share of the motion done before the first fall (only used when ``fell``).
+    ``w_keypoints`` > 0 adds −w_k · d_k, d_k the mean per-keypoint L1 distance (m) of the rollout to the
+    deformed target (ours: Eq. 15 scores the base only; the keypoints are what the DTW figure measures)."""
     d_b = base_position_l1_m(qpos, qpos_ref)
     d_e = base_euler_l1_rad(qpos, qpos_ref)
+    d_k = keypoint_l1_m(keypoints, keypoints_ref) if keypoints is not None and keypoints_ref is not None else 0.0
     iou = contact_iou(contact, contact_ref)
     reg = float(np.mean(np.square(log2_alpha)))
     fall = FALL_PENALTY * (1.0 + (1.0 - float(np.clip(fall_fraction, 0.0, 1.0)))) if fell else 0.0
-    score = -d_b - d_e + w_contact * iou - w_alpha * reg - fall
-    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "contact_iou": iou, "alpha_penalty": w_alpha * reg,
-            "fall_penalty": fall}
+    score = -d_b - d_e - w_keypoints * d_k + w_contact * iou - w_alpha * reg - fall
+    return {"score": score, "d_b_m": d_b, "d_E_rad": d_e, "d_k_m": d_k, "contact_iou": iou,
+            "alpha_penalty": w_alpha * reg, "fall_penalty": fall}
 
 
 def dtw_keypoint_l1_pct(keypoints: np.ndarray, keypoints_ref: np.ndarray) -> float:
-    """DTW-normalised keypoint L1 distance (%): see the module docstring."""
-    a = np.asarray(keypoints, float).reshape(len(keypoints), -1, 3)
-    b = np.asarray(keypoints_ref, float).reshape(len(keypoints_ref), -1, 3)
-    n, m = len(a), len(b)
-    # pairwise cost: mean over keypoints of the L1 distance (m)
-    cost = np.empty((n, m))
-    for i in range(n):
-        cost[i] = np.mean(np.sum(np.abs(b - a[i]), axis=2), axis=1)
-    acc = np.full((n + 1, m + 1), np.inf)
-    steps = np.zeros((n + 1, m + 1), dtype=np.int64)
-    acc[0, 0] = 0.0
-    for i in range(1, n + 1):
-        row = cost[i - 1]
-        up, up_steps = acc[i - 1], steps[i - 1]
-        cur, cur_steps = acc[i], steps[i]
-        for j in range(1, m + 1):
-            best, n_steps = up[j - 1], up_steps[j - 1]
-            if up[j] < best:
-                best, n_steps = up[j], up_steps[j]
-            if cur[j - 1] < best:
-                best, n_steps = cur[j - 1], cur_steps[j - 1]
-            cur[j] = row[j - 1] + best
-            cur_steps[j] = n_steps + 1
-    mean_l1 = acc[n, m] / max(int(steps[n, m]), 1)
-    length = float(np.mean(np.sum(np.linalg.norm(np.diff(b, axis=0), axis=2), axis=0)))
-    if length < MIN_PATH_LENGTH_M:
-        return float("nan")  # a motion that hardly moves has no meaningful normalisation
-    return float(100.0 * mean_l1 / length)
+    """DTW-normalised keypoint L1 distance (%): ``engine.retarget.metrics.dtw_keypoint_l1_percent``, the one
+    definition the spatial stage's figures use too."""
+    return dtw_keypoint_l1_percent(keypoints, keypoints_ref)

@@ -44,6 +44,7 @@ class TMRSettings:
     parallel: int = 1  # evaluations in flight (Ray workers)
     w_contact: float = 0.2  # w_c of Eq. 15
     w_alpha: float = 0.05  # regularisation of extreme α
+    w_keypoints: float = 1.0  # −w_k · mean keypoint L1 (m) in the score (ours; 0: Eq. 15's base-only score)
     timestep_s: float = 0.01  # control interval of the tracker
     mode: str = "receding"  # "receding" (MuJoCo MPC style) or "full" horizon iLQR
     window_s: float = 0.25
@@ -111,7 +112,8 @@ def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: 
     target = deformed_target(robot, qpos, contact, fps, deformation, tracker)
     result = tracker.track(target, cancel=cancel)
     score = tmr_score(result.qpos, result.contact, target.qpos, target.contact, np.asarray(log2_alpha), result.fell,
-                      settings.w_contact, settings.w_alpha, result.fall_fraction)
+                      settings.w_contact, settings.w_alpha, result.fall_fraction, result.keypoints, target.keypoints,
+                      settings.w_keypoints)
     score["fell_at_s"] = round(result.fall_fraction * target.horizon * tracker.dt_s, 3) if result.fell else None
     return Evaluation(np.asarray(log2_alpha, float), score, result.fell,
                       tracking_error_mm(result.keypoints, target.keypoints), target.horizon * tracker.dt_s,
