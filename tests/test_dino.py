@@ -71,3 +71,37 @@ def test_dino_figures():
     for bid in range(1, dino.mj_model.nbody):
         moments = np.sort(dino.mj_model.body_inertia[bid])
         assert moments[0] > 0 and moments[2] <= moments[0] + moments[1] + 1e-12
+
+
+def test_limb_segments_run_from_joint_to_joint():
+    """A capsule primitive spans its segment (plus its radius at both ends), whatever trimesh version
+    made it: the first model's capsules were centred on their first joint, so the thighs reached
+    half a thigh above the hip and rubbed on the tail while walking (slipping feet)."""
+    make_dino = _make_dino()
+    robot = make_dino.build()
+    links = {link.name: link for link in robot.links}
+    shank = links["left_knee_link"].parts[0].mesh  # knee (origin) to ankle, radius 0.028
+    np.testing.assert_allclose(shank.bounds[:, 2], [-make_dino.SHANK_M - 0.028, 0.028], atol=1e-6)
+    tail = links["tail_1_link"].parts[0].mesh  # tail joint (origin) back 0.15 m, radius 0.045
+    np.testing.assert_allclose(tail.bounds[:, 0], [-0.15 - 0.045, 0.045], atol=1e-6)
+
+
+def test_tail_swings_clear_of_the_legs():
+    """Standing legs, the tail anywhere in its yaw range (the strut style swings it): no body touches
+    another (the first model's tail hit the thighs from ±0.3 rad, so every strafe step was pushed)."""
+    import mujoco
+
+    dino = load_robot("dino")
+    model = dino.mj_model
+    data = mujoco.MjData(model)
+    floor = model.geom("floor").id
+    tail = model.joint("tail_yaw_1_joint").qposadr[0]
+    for yaw in np.linspace(-0.6, 0.6, 7):
+        qpos = dino.mj_standing_qpos().copy()
+        qpos[2] += 0.05  # clear of the floor
+        qpos[tail] = yaw
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        touching = [(model.body(int(model.geom_bodyid[c.geom1])).name, model.body(int(model.geom_bodyid[c.geom2])).name)
+                    for c in data.contact[:data.ncon] if floor not in (c.geom1, c.geom2)]
+        assert touching == [], f"tail yaw {yaw:.2f}: {touching}"

@@ -102,7 +102,10 @@ def capsule_between(a, b, radius: float, count=(12, 12)) -> trimesh.Trimesh:
     d = b - a
     length = float(np.linalg.norm(d))
     cap = trimesh.creation.capsule(height=length, radius=radius, count=list(count))
-    # trimesh's capsule runs along +z from z=0 to z=height.
+    # trimesh's capsule lies along z, centred on the origin (trimesh 4–5; centred here whatever the
+    # version does): placed at the segment's midpoint. (Placed at ``a``, the first model's thighs,
+    # shanks and tail reached half a segment past their joints: the thighs rubbed on the tail.)
+    cap.apply_translation([0.0, 0.0, -0.5 * float(cap.bounds[0, 2] + cap.bounds[1, 2])])
     z = d / length
     ref = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     x = np.cross(ref, z)
@@ -110,7 +113,7 @@ def capsule_between(a, b, radius: float, count=(12, 12)) -> trimesh.Trimesh:
     y = np.cross(z, x)
     mat = np.eye(4)
     mat[:3, :3] = np.column_stack([x, y, z])
-    mat[:3, 3] = a
+    mat[:3, 3] = 0.5 * (a + b)
     cap.apply_transform(mat)
     return cap
 
