@@ -64,6 +64,13 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     return np.linalg.norm(c1 - c2, axis=-1), c1, c2
 
 
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (N, 3) arrays (np.cross's numbers, a fraction of its per-call cost)."""
+    ux, uy, uz = u[:, 0], u[:, 1], u[:, 2]
+    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
+    return np.stack((uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx), axis=1)
+
+
 def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Enclosing capsule (a, b, radius) of a point cloud along its principal axis."""
     centre = points.mean(axis=0)
@@ -116,6 +123,7 @@ class CapsuleModel:
         self._a = np.array([c.a for c in self.capsules])
         self._b = np.array([c.b for c in self.capsules])
         self._r = np.array([c.radius for c in self.capsules])
+        self._masks = np.array([upper_body.support_mask(c.frame_id) for c in self.capsules])  # (C, n) joints moving each
         self.pairs = self._select_pairs(np.random.default_rng(seed), pair_samples)
         self._ia = np.array([i for i, _ in self.pairs], dtype=int)
         self._ib = np.array([j for _, j in self.pairs], dtype=int)
@@ -196,10 +204,11 @@ class CapsuleModel:
         dist, _, _ = segment_distance(a[:, self._ia], b[:, self._ia], a[:, self._ib], b[:, self._ib])
         return dist - self._r[self._ia] - self._r[self._ib]
 
-    def interpolation_free(self, x0: np.ndarray, x1: np.ndarray, step_rad: float = 0.1) -> bool:
-        """Linear interpolation x0 → x1 collision-free at every ``step_rad`` of the largest joint change."""
+    def interpolation_free(self, x0: np.ndarray, x1: np.ndarray, step_rad: float = 0.1, end_free: bool = False) -> bool:
+        """Linear interpolation x0 → x1 collision-free at every ``step_rad`` of the largest joint change.
+        ``end_free``: x1 is known to be collision-free (checked by the caller), so only the poses between are."""
         n = max(1, int(np.ceil(np.max(np.abs(x1 - x0)) / step_rad)))
-        for k in range(n, 0, -1):  # the end first: a colliding target fails on the first check
+        for k in range(n - 1 if end_free else n, 0, -1):  # the end first: a colliding target fails on the first check
             if self.min_signed_distance(x0 + (k / n) * (x1 - x0)) < 0.0:
                 return False
         return True
@@ -218,40 +227,44 @@ class CapsuleModel:
         if self.is_free(x, clearance_m):  # the common case at run time: one C++ check
             return x, True
         target = clearance_m + margin_m
-        pen = self.penetration(x, clearance_m)
+        # the signed distances of the current pose are carried from the accepted step (no re-evaluation)
+        d_all = self.signed_distances(x)
+        pen = float(np.sum(np.maximum(clearance_m - d_all, 0.0)))
         for _ in range(max_iters):
-            d_all = self.signed_distances(x)
-            if np.all(d_all >= clearance_m) and pen == 0.0:
+            if pen == 0.0 and np.all(d_all >= clearance_m):
                 return x, True
-            a, b = self.segments(x, forward=False)
             self.ub.jacobians(x)
-            rows, rhs = [], []
-            for k in np.nonzero(d_all < target)[0]:
-                i, j = self.pairs[k]
-                _, c1, c2 = segment_distance(a[i], b[i], a[j], b[j])
-                n = c1 - c2
-                norm = np.linalg.norm(n)
-                if norm < 1e-9:  # segments cross: push along the line between capsule centres
-                    n = 0.5 * (a[i] + b[i] - a[j] - b[j])
-                    norm = np.linalg.norm(n) + 1e-12
-                n = n / norm
-                j1 = self.ub.point_jacobian(self.capsules[i].frame_id, c1)
-                j2 = self.ub.point_jacobian(self.capsules[j].frame_id, c2)
-                rows.append(n @ (j1 - j2))
-                rhs.append(target - d_all[k])
-            jac = np.array(rows)
-            dx = jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(rows)), np.array(rhs))
+            active = np.nonzero(d_all < target)[0]
+            ia, ib = self._ia[active], self._ib[active]
+            a, b = self.segments(x, forward=False)
+            _, c1, c2 = segment_distance(a[ia], b[ia], a[ib], b[ib])  # every active pair at once
+            n = c1 - c2
+            norm = np.linalg.norm(n, axis=1)
+            crossing = norm < 1e-9
+            if crossing.any():  # segments cross: push along the line between capsule centres
+                centres = 0.5 * (a[ia] + b[ia] - a[ib] - b[ib])
+                n = np.where(crossing[:, None], centres, n)
+                norm = np.where(crossing, np.linalg.norm(centres, axis=1) + 1e-12, norm)
+            n = n / norm[:, None]
+            # row = n · (J(c1) − J(c2)); a point c on a capsule moves by mask ⊙ (linear + angular × c), and
+            # n · (angular × c) = angular · (c × n): all rows from the world joint Jacobian in a few products
+            lin, ang = self.ub.driven_jacobian()
+            nl = n @ lin
+            jac = (self._masks[ia] * (nl + _cross(c1, n) @ ang)) - (self._masks[ib] * (nl + _cross(c2, n) @ ang))
+            rhs = target - d_all[active]
+            dx = jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(active)), rhs)
             step, accepted = 1.0, False
             while step > 1e-3:
                 x_new = self.ub.clip(x + step * dx)
-                pen_new = self.penetration(x_new, clearance_m)
+                d_new = self.signed_distances(x_new)
+                pen_new = float(np.sum(np.maximum(clearance_m - d_new, 0.0)))
                 if pen_new <= pen:
-                    x, pen, accepted = x_new, pen_new, True
+                    x, pen, d_all, accepted = x_new, pen_new, d_new, True
                     break
                 step *= 0.5
             if not accepted:
                 break
-        return x, bool(self.is_free(x, clearance_m))
+        return x, bool(np.min(d_all) >= clearance_m)
 
     # --- pair selection
     def _select_pairs(self, rng: np.random.Generator, n_samples: int) -> list[tuple[int, int]]:
