@@ -180,3 +180,36 @@ def test_pose15_check_fast_path_accepts_and_rejects_like_the_full_check():
         v[4] = bad
         with pytest.raises(ValueError, match="finite"):
             check_pose15(v)
+
+
+def test_lwr_blend_and_reused_neighbours_equal_the_query():
+    """LWL2's refinement starts from ``blend(neighbours, k_max)``; ``query(z, neighbours)`` (the fallback) must
+    answer as ``query(z)`` and a feasible k_max blend must be the query's pose."""
+    from engine.retarget.humanoid_arm.lwr import LatentLWR
+
+    rng = np.random.default_rng(6)
+    latents, poses = rng.standard_normal((200, 4)), rng.uniform(-1, 1, (200, 5))
+    for feasible in (lambda x: True, lambda x: False, lambda x: x[0] > 0):
+        lwr = LatentLWR(latents, poses, feasible, k_max=3)
+        for _ in range(20):
+            z = rng.standard_normal(4)
+            nb = lwr.neighbours(z)
+            a, b = lwr.query(z), lwr.query(z, nb)
+            assert a.k == b.k and np.array_equal(a.x, b.x)
+            if a.k == 3:
+                np.testing.assert_array_equal(lwr.blend(*nb, 3), a.x)
+            np.testing.assert_array_equal(lwr.blend(*nb, 1), poses[nb[1][0]])
+
+
+def test_interpolation_check_with_a_known_free_end_equals_the_full_check(robot):
+    ub, cm = robot
+    rng = np.random.default_rng(7)
+    agree = 0
+    for _ in range(40):
+        x0, x1 = rng.uniform(ub.lower, ub.upper, (2, ub.n))
+        x1 = x0 + 0.3 * (x1 - x0)
+        if not (cm.is_free(x0) and cm.is_free(x1)):
+            continue
+        assert cm.interpolation_free(x0, x1, end_free=True) == cm.interpolation_free(x0, x1)
+        agree += 1
+    assert agree >= 5
