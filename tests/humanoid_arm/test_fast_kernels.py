@@ -213,3 +213,23 @@ def test_interpolation_check_with_a_known_free_end_equals_the_full_check(robot):
         assert cm.interpolation_free(x0, x1, end_free=True) == cm.interpolation_free(x0, x1)
         agree += 1
     assert agree >= 5
+
+
+def test_coal_nearest_points_give_the_segment_tests_closest_points(robot):
+    """The fixer reads the capsule axes' closest points from coal (p1 = c1 + r1·normal, p2 = c2 − r2·normal)."""
+    ub, cm = robot
+    rng = np.random.default_rng(8)
+    compared = 0
+    for _ in range(40):
+        x = rng.uniform(ub.lower, ub.upper)
+        d = cm.signed_distances(x)
+        a, b = cm.segments(x, forward=False)
+        for k in np.nonzero(d < 0.01)[0]:
+            i, j = cm.pairs[k]
+            _, c1, c2 = segment_distance(a[i], b[i], a[j], b[j])
+            r = cm._geom_data.distanceResults[int(k)]
+            normal = np.array(r.normal)
+            np.testing.assert_allclose(np.array(r.getNearestPoint1()) - cm._r[i] * normal, c1, atol=1e-10)
+            np.testing.assert_allclose(np.array(r.getNearestPoint2()) + cm._r[j] * normal, c2, atol=1e-10)
+            compared += 1
+    assert compared >= 10

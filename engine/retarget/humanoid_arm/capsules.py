@@ -236,12 +236,19 @@ class CapsuleModel:
             self.ub.jacobians(x)
             active = np.nonzero(d_all < target)[0]
             ia, ib = self._ia[active], self._ib[active]
-            a, b = self.segments(x, forward=False)
-            _, c1, c2 = segment_distance(a[ia], b[ia], a[ib], b[ib])  # every active pair at once
-            n = c1 - c2
-            norm = np.linalg.norm(n, axis=1)
-            crossing = norm < 1e-9
+            # closest points of the capsule axes from coal's answer for x (still in the geometry data: d_all was
+            # its last computeDistances): surface points p1 = c1 + r1·normal, p2 = c2 − r2·normal, normal = c2 − c1
+            # normalised (equal to the numpy segment test to 1e-13, tested)
+            res = self._geom_data.distanceResults
+            near = [res[int(k)] for k in active]
+            normal = np.array([r.normal for r in near])
+            c1 = np.array([r.getNearestPoint1() for r in near]) - self._r[ia, None] * normal
+            c2 = np.array([r.getNearestPoint2() for r in near]) + self._r[ib, None] * normal
+            n = -normal
+            norm = np.ones(len(active))
+            crossing = d_all[active] + self._r[ia] + self._r[ib] < 1e-9
             if crossing.any():  # segments cross: push along the line between capsule centres
+                a, b = self.segments(x, forward=False)
                 centres = 0.5 * (a[ia] + b[ia] - a[ib] - b[ib])
                 n = np.where(crossing[:, None], centres, n)
                 norm = np.where(crossing, np.linalg.norm(centres, axis=1) + 1e-12, norm)
