@@ -11,12 +11,14 @@ straight interpolation from the previous output to the new pose collides, one st
 the transition graph (:mod:`graph`), or hold the previous pose when the graph offers nothing collision-free.
 
 Refinement (``refine_iters``, default :data:`REFINE_ITERS`; 0 = the paper's LWL2 unchanged): a few damped
-Gauss–Newton steps of the optimisation-based objective (:class:`ik.ArmIK`: bone directions and hand
-positions) started from the LWR pose, then the capsule fixer (§III). The LWR table is only as dense as its
-~20 k poses in a 10–11-D joint space: its best entry is ~80 mm from a held-out target (the paper reports
-79–140 mm), so the learned map gives the basin and the local steps the last centimetres. When the fixer
-cannot free the refined pose, the LWR pose (feasible by construction, k = 1 at worst) is used, so every
-output stays collision-free.
+Gauss–Newton steps of the optimisation-based objective (:meth:`ik.ArmIK.gauss_newton`: bone directions and hand
+positions) started from LWR's k_max blend and stopped early once the largest joint step is below
+:data:`REFINE_TOLERANCE_RAD`, then the capsule fixer (§III). The LWR table is only as dense as its ~20 k poses
+in a 10–11-D joint space: its best entry is ~80 mm from a held-out target (the paper reports 79–140 mm), so
+the learned map gives the basin and the local steps the last centimetres. Only the refined pose is checked
+for collisions; when the fixer cannot free it, LWR's k → 1 fallback runs (feasible by construction, k = 1 at
+worst), so every output stays collision-free. The straight move from the previous output is checked at the
+poses in between (the target's own check is the fixer's or LWR's).
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ REFINE_TOLERANCE_RAD = 1e-3  # the refinement stops once its largest joint step 
 @dataclass
 class RetargetStep:
     x: np.ndarray  # driven joint angles (rad), collision-free
-    k: int  # LWR's feasible k (3..1)
-    lwr_x: np.ndarray  # the LWR pose (before refinement and the transition logic)
+    k: int  # LWR's k: the k_max blend that started an accepted refinement, else the feasible k (3..1)
+    lwr_x: np.ndarray  # that LWR pose (before refinement and the transition logic)
     transition: str  # "direct", "graph" (one BFS step) or "hold"
     inference_s: float
     refined: bool = False  # the refinement's pose was used (else the LWR pose)
