@@ -233,3 +233,15 @@ def test_coal_nearest_points_give_the_segment_tests_closest_points(robot):
             np.testing.assert_allclose(np.array(r.getNearestPoint2()) + cm._r[j] * normal, c2, atol=1e-10)
             compared += 1
     assert compared >= 10
+
+
+def test_distances_read_through_held_results_follow_every_new_pose(robot):
+    """The capsule model reads coal's answers through references taken once: they must be the fresh values."""
+    ub, cm = robot
+    rng = np.random.default_rng(9)
+    for _ in range(10):
+        x = rng.uniform(ub.lower, ub.upper)
+        d = cm.signed_distances(x)
+        fresh = np.array([r.min_distance for r in cm._geom_data.distanceResults])
+        np.testing.assert_array_equal(d, fresh)
+        assert cm.min_signed_distance(x) == fresh.min()

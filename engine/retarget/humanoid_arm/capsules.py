@@ -23,6 +23,7 @@ squares through the point Jacobians, with a backtracking step so total penetrati
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
 
 import coal
@@ -33,6 +34,7 @@ import pinocchio as pin
 from engine.retarget.humanoid_arm.upper_body import UpperBody
 
 ALWAYS_TOUCHING_FRACTION = 0.95
+_MIN_DISTANCE = operator.attrgetter("min_distance")
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -128,6 +130,9 @@ class CapsuleModel:
         self._ia = np.array([i for i, _ in self.pairs], dtype=int)
         self._ib = np.array([j for _, j in self.pairs], dtype=int)
         self._geom_model, self._geom_data = self._coal_geometry()
+        # references into the geometry data's result vector (updated in place by every computeDistances; its size
+        # never changes): reading a distance through them skips the copy of a whole DistanceResult per pair
+        self._results = list(self._geom_data.distanceResults)
 
     def _coal_geometry(self) -> tuple[pin.GeometryModel, pin.GeometryData]:
         """The capsules as coal capsules (axis = local z, centred) on their frames' joints, with our pairs."""
@@ -154,7 +159,7 @@ class CapsuleModel:
 
     def min_signed_distance(self, x: np.ndarray) -> float:
         """The smallest signed distance over the checked pairs (m; negative = colliding)."""
-        return float(self._geom_data.distanceResults[self._distances(x)].min_distance)
+        return float(self._results[self._distances(x)].min_distance)
 
     # --- geometry in the world (pelvis) frame
     def segments(self, x: np.ndarray, forward: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +176,7 @@ class CapsuleModel:
     def signed_distances(self, x: np.ndarray) -> np.ndarray:
         """(P,) signed distance of every checked pair (m; negative = colliding)."""
         self._distances(x)
-        return np.array([r.min_distance for r in self._geom_data.distanceResults])
+        return np.fromiter(map(_MIN_DISTANCE, self._results), float, len(self._results))
 
     def signed_distances_numpy(self, x: np.ndarray) -> np.ndarray:
         """:meth:`signed_distances` by the numpy segment test (the reference the coal path is checked against)."""
@@ -239,8 +244,7 @@ class CapsuleModel:
             # closest points of the capsule axes from coal's answer for x (still in the geometry data: d_all was
             # its last computeDistances): surface points p1 = c1 + r1·normal, p2 = c2 − r2·normal, normal = c2 − c1
             # normalised (equal to the numpy segment test to 1e-13, tested)
-            res = self._geom_data.distanceResults
-            near = [res[int(k)] for k in active]
+            near = [self._results[k] for k in active]
             normal = np.array([r.normal for r in near])
             c1 = np.array([r.getNearestPoint1() for r in near]) - self._r[ia, None] * normal
             c2 = np.array([r.getNearestPoint2() for r in near]) + self._r[ib, None] * normal

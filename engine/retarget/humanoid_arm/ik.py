@@ -68,6 +68,9 @@ class ArmIK:
         self._m_t = np.ascontiguousarray(m.transpose(0, 2, 1))  # (5, n, 7)
         self._s = m.sum(axis=1)[:, None, :]  # (5, 1, n)
         self._q = ub.q_base.copy()
+        # views of the key frames' positions inside ub.data (pinocchio updates them in place; ub.data is never
+        # replaced): one array construction reads all seven
+        self._point_views = [ub.data.oMf[f].translation for f in self._points]
         self._damped_eye = (damping + regularisation) * self._eye
 
     def residual(self, x: np.ndarray, pose15: np.ndarray, with_jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
@@ -80,8 +83,7 @@ class ArmIK:
             pin.updateFramePlacements(ub.pin_model, ub.data)
         else:
             pin.framesForwardKinematics(ub.pin_model, ub.data, q)
-        omf = ub.data.oMf
-        p = np.array([omf[f].translation for f in self._points])  # (7, 3)
+        p = np.array(self._point_views)  # (7, 3)
         r = (self._c @ p - self._b @ pose15.reshape(5, 3)).ravel()
         if not with_jacobian:
             return r, None
