@@ -62,11 +62,13 @@ class ArmIK:
         lt, lu, lf = ub.lengths_m["torso"], ub.lengths_m["upper_arm"], ub.lengths_m["forearm"]
         self._b = np.array([[w * lt, 0, 0, 0, 0], [0, lu, 0, 0, 0], [0, lu, lf, 0, 0],
                             [0, 0, 0, lu, 0], [0, 0, 0, lu, lf]])
-        # Jacobian rows: row t, joint j = Σ_k C[t,k] mask_k[j] (linear_j + angular_j × P_k)
-        #                               = s[t,j] linear_j + angular_j × Q[t,j],  Q[t,j] = Σ_k C[t,k] mask_k[j] P_k
-        m = self._c[:, :, None] * np.array([ub.support_mask(f) for f in self._points])[None]  # (5, 7, n)
-        self._m_t = np.ascontiguousarray(m.transpose(0, 2, 1))  # (5, n, 7)
-        self._s = m.sum(axis=1)[:, None, :]  # (5, 1, n)
+        # Jacobian: the key points' Jacobians from the world joint Jacobian (linear, angular), P_k moving by
+        # mask_k ⊙ (linear − skew(P_k) angular), all seven as one (21, 3) @ (3, n) product, then J = (C ⊗ I3) Y
+        self._masks = np.array([ub.support_mask(f) for f in self._points])[:, None, :]  # (7, 1, n)
+        skew = np.zeros((3, 3, 3))  # skew(p)[r, c] = Σ_i p_i skew[i, r, c]
+        skew[0, 2, 1], skew[0, 1, 2], skew[1, 0, 2], skew[1, 2, 0], skew[2, 1, 0], skew[2, 0, 1] = 1, -1, 1, -1, 1, -1
+        self._skew = skew.reshape(3, 9)
+        self._c3 = np.kron(self._c, np.eye(3))  # (15, 21)
         self._q = ub.q_base.copy()
         # views of the key frames' positions inside ub.data (pinocchio updates them in place; ub.data is never
         # replaced): one array construction reads all seven
@@ -88,11 +90,8 @@ class ArmIK:
         if not with_jacobian:
             return r, None
         lin, ang = ub.driven_jacobian()
-        qt = self._m_t @ p  # (5, n, 3)
-        qx, qy, qz = qt[..., 0], qt[..., 1], qt[..., 2]
-        wx, wy, wz = ang
-        cross = np.stack((wy * qz - wz * qy, wz * qx - wx * qz, wx * qy - wy * qx), axis=1)  # (5, 3, n)
-        return r, (cross + self._s * lin).reshape(15, ub.n)
+        y = self._masks * (lin - ((p @ self._skew).reshape(21, 3) @ ang).reshape(7, 3, ub.n))  # (7, 3, n)
+        return r, self._c3 @ y.reshape(21, ub.n)
 
     def gauss_newton(self, pose15: np.ndarray, x0: np.ndarray | None = None, iters: int | None = None,
                      tolerance_rad: float = 1e-4) -> np.ndarray:
