@@ -229,11 +229,12 @@ class CapsuleModel:
         limits; a step is halved until the total penetration (below the clearance) does not increase (it never
         does)."""
         x = self.ub.clip(np.asarray(x, dtype=float).copy())
-        if self.is_free(x, clearance_m):  # the common case at run time: one C++ check
+        # one C++ check gives every pair's distance (the free case returns here); they are then carried from each
+        # accepted step (no re-evaluation)
+        d_all = self.signed_distances(x)
+        if d_all.min() >= clearance_m:
             return x, True
         target = clearance_m + margin_m
-        # the signed distances of the current pose are carried from the accepted step (no re-evaluation)
-        d_all = self.signed_distances(x)
         pen = float(np.sum(np.maximum(clearance_m - d_all, 0.0)))
         for _ in range(max_iters):
             if pen == 0.0 and np.all(d_all >= clearance_m):
