@@ -246,18 +246,3 @@ def test_distances_read_through_held_results_follow_every_new_pose(robot):
         np.testing.assert_array_equal(d, fresh)
         assert cm.min_signed_distance(x) == fresh.min()
 
-
-def test_approximate_neighbours_stay_within_their_bound():
-    """With refinement, LWL2's k-NN is the k-d tree's approximate search: each returned distance is at most
-    (1 + eps) × the exact one, and the poses are table entries (the k = 1 fallback stays a look-up)."""
-    from engine.retarget.humanoid_arm.lwr import LatentLWR
-
-    rng = np.random.default_rng(10)
-    latents, poses = rng.standard_normal((3000, 8)), rng.uniform(-1, 1, (3000, 5))
-    lwr = LatentLWR(latents, poses, lambda x: True, k_max=3)
-    for _ in range(50):
-        z = 2.0 * rng.standard_normal(8)  # far from the table, like mocap codes
-        exact, _ = lwr.neighbours(z)
-        approx, idx = lwr.neighbours(z, eps=0.5)
-        assert np.all(approx <= 1.5 * exact + 1e-12)
-        np.testing.assert_allclose(approx, np.linalg.norm(latents[idx] - z, axis=1), atol=1e-12)

@@ -36,10 +36,9 @@ class LatentLWR:
         w = np.exp(-0.5 * (dist / h) ** 2)
         return w / w.sum()
 
-    def neighbours(self, z: np.ndarray, eps: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """(distances, table indices) of the ``k_max`` nearest latent codes, nearest first. ``eps`` > 0: the
-        k-d tree's approximate search (the i-th returned distance is at most (1 + eps) × the true i-th)."""
-        dist, idx = self.tree.query(np.asarray(z, dtype=float).ravel(), k=self.k_max, eps=eps)
+    def neighbours(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distances, table indices) of the ``k_max`` nearest latent codes, nearest first."""
+        dist, idx = self.tree.query(np.asarray(z, dtype=float).ravel(), k=self.k_max)
         return np.atleast_1d(dist), np.atleast_1d(idx)
 
     def blend(self, dist: np.ndarray, idx: np.ndarray, k: int) -> np.ndarray:

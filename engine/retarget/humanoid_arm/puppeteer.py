@@ -39,10 +39,6 @@ from engine.retarget.humanoid_arm.upper_body import UpperBody
 
 REFINE_ITERS = 3
 REFINE_TOLERANCE_RAD = 1e-3  # the refinement stops once its largest joint step is below this
-# with refinement, the k-NN in latent space only picks the start (and the fallback's stored poses): the k-d
-# tree's approximate search (distances within 1.5× of the true k nearest) halves its cost on mocap codes,
-# which lie far from the table; refine_iters = 0 (the paper's method) keeps the exact search
-REFINE_KNN_EPS = 0.5
 
 
 @dataclass
@@ -131,7 +127,7 @@ class ArmRetargeter:
         t0 = time.perf_counter()
         p = check_pose15(np.asarray(pose15, dtype=float).ravel(), "pose15")
         z = self.encode_mocap(p)[0]
-        neighbours = self.lwr.neighbours(z, REFINE_KNN_EPS if self.refine_iters > 0 else 0.0)
+        neighbours = self.lwr.neighbours(z)
         refined = False
         if self.refine_iters > 0:
             # the k_max blend starts the refinement whether or not it collides: only the refined pose is checked
