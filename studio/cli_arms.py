@@ -40,7 +40,7 @@ def register(sub) -> None:  # noqa: ANN001 - argparse's private subparsers type
     puppet.add_argument("--fps", type=float, default=30.0, help="output rate: the clip is decimated to at most this")
     puppet.add_argument("--json", action="store_true", help="print the summary as JSON")
     puppet.add_argument("--refine-iters", type=int, default=None,
-                        help="refinement steps after LWR (default 5; 0: the paper's LWL2 alone)")
+                        help="refinement steps after LWR (default 3; 0: the paper's LWL2 alone)")
 
     stream = sub.add_parser("stream-bvh", help="replay a BVH clip in real time as live mocap datagrams (UDP JSON)")
     stream.add_argument("bvh", help="BVH clip")

@@ -23,6 +23,7 @@ squares through the point Jacobians, with a backtracking step so total penetrati
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
 
 import coal
@@ -33,6 +34,7 @@ import pinocchio as pin
 from engine.retarget.humanoid_arm.upper_body import UpperBody
 
 ALWAYS_TOUCHING_FRACTION = 0.95
+_MIN_DISTANCE = operator.attrgetter("min_distance")
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -62,6 +64,13 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     c1 = p1 + s[..., None] * d1
     c2 = p2 + t[..., None] * d2
     return np.linalg.norm(c1 - c2, axis=-1), c1, c2
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (N, 3) arrays (np.cross's numbers, a fraction of its per-call cost)."""
+    ux, uy, uz = u[:, 0], u[:, 1], u[:, 2]
+    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
+    return np.stack((uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx), axis=1)
 
 
 def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -116,10 +125,14 @@ class CapsuleModel:
         self._a = np.array([c.a for c in self.capsules])
         self._b = np.array([c.b for c in self.capsules])
         self._r = np.array([c.radius for c in self.capsules])
+        self._masks = np.array([upper_body.support_mask(c.frame_id) for c in self.capsules])  # (C, n) joints moving each
         self.pairs = self._select_pairs(np.random.default_rng(seed), pair_samples)
         self._ia = np.array([i for i, _ in self.pairs], dtype=int)
         self._ib = np.array([j for _, j in self.pairs], dtype=int)
         self._geom_model, self._geom_data = self._coal_geometry()
+        # references into the geometry data's result vector (updated in place by every computeDistances; its size
+        # never changes): reading a distance through them skips the copy of a whole DistanceResult per pair
+        self._results = list(self._geom_data.distanceResults)
 
     def _coal_geometry(self) -> tuple[pin.GeometryModel, pin.GeometryData]:
         """The capsules as coal capsules (axis = local z, centred) on their frames' joints, with our pairs."""
@@ -146,7 +159,7 @@ class CapsuleModel:
 
     def min_signed_distance(self, x: np.ndarray) -> float:
         """The smallest signed distance over the checked pairs (m; negative = colliding)."""
-        return float(self._geom_data.distanceResults[self._distances(x)].min_distance)
+        return float(self._results[self._distances(x)].min_distance)
 
     # --- geometry in the world (pelvis) frame
     def segments(self, x: np.ndarray, forward: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +176,7 @@ class CapsuleModel:
     def signed_distances(self, x: np.ndarray) -> np.ndarray:
         """(P,) signed distance of every checked pair (m; negative = colliding)."""
         self._distances(x)
-        return np.array([r.min_distance for r in self._geom_data.distanceResults])
+        return np.fromiter(map(_MIN_DISTANCE, self._results), float, len(self._results))
 
     def signed_distances_numpy(self, x: np.ndarray) -> np.ndarray:
         """:meth:`signed_distances` by the numpy segment test (the reference the coal path is checked against)."""
@@ -196,10 +209,11 @@ class CapsuleModel:
         dist, _, _ = segment_distance(a[:, self._ia], b[:, self._ia], a[:, self._ib], b[:, self._ib])
         return dist - self._r[self._ia] - self._r[self._ib]
 
-    def interpolation_free(self, x0: np.ndarray, x1: np.ndarray, step_rad: float = 0.1) -> bool:
-        """Linear interpolation x0 → x1 collision-free at every ``step_rad`` of the largest joint change."""
+    def interpolation_free(self, x0: np.ndarray, x1: np.ndarray, step_rad: float = 0.1, end_free: bool = False) -> bool:
+        """Linear interpolation x0 → x1 collision-free at every ``step_rad`` of the largest joint change.
+        ``end_free``: x1 is known to be collision-free (checked by the caller), so only the poses between are."""
         n = max(1, int(np.ceil(np.max(np.abs(x1 - x0)) / step_rad)))
-        for k in range(n, 0, -1):  # the end first: a colliding target fails on the first check
+        for k in range(n - 1 if end_free else n, 0, -1):  # the end first: a colliding target fails on the first check
             if self.min_signed_distance(x0 + (k / n) * (x1 - x0)) < 0.0:
                 return False
         return True
@@ -215,43 +229,54 @@ class CapsuleModel:
         limits; a step is halved until the total penetration (below the clearance) does not increase (it never
         does)."""
         x = self.ub.clip(np.asarray(x, dtype=float).copy())
-        if self.is_free(x, clearance_m):  # the common case at run time: one C++ check
+        # one C++ check gives every pair's distance (the free case returns here); they are then carried from each
+        # accepted step (no re-evaluation)
+        d_all = self.signed_distances(x)
+        if d_all.min() >= clearance_m:
             return x, True
         target = clearance_m + margin_m
-        pen = self.penetration(x, clearance_m)
+        pen = float(np.sum(np.maximum(clearance_m - d_all, 0.0)))
         for _ in range(max_iters):
-            d_all = self.signed_distances(x)
-            if np.all(d_all >= clearance_m) and pen == 0.0:
+            if pen == 0.0 and np.all(d_all >= clearance_m):
                 return x, True
-            a, b = self.segments(x, forward=False)
             self.ub.jacobians(x)
-            rows, rhs = [], []
-            for k in np.nonzero(d_all < target)[0]:
-                i, j = self.pairs[k]
-                _, c1, c2 = segment_distance(a[i], b[i], a[j], b[j])
-                n = c1 - c2
-                norm = np.linalg.norm(n)
-                if norm < 1e-9:  # segments cross: push along the line between capsule centres
-                    n = 0.5 * (a[i] + b[i] - a[j] - b[j])
-                    norm = np.linalg.norm(n) + 1e-12
-                n = n / norm
-                j1 = self.ub.point_jacobian(self.capsules[i].frame_id, c1)
-                j2 = self.ub.point_jacobian(self.capsules[j].frame_id, c2)
-                rows.append(n @ (j1 - j2))
-                rhs.append(target - d_all[k])
-            jac = np.array(rows)
-            dx = jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(rows)), np.array(rhs))
+            active = np.nonzero(d_all < target)[0]
+            ia, ib = self._ia[active], self._ib[active]
+            # closest points of the capsule axes from coal's answer for x (still in the geometry data: d_all was
+            # its last computeDistances): surface points p1 = c1 + r1·normal, p2 = c2 − r2·normal, normal = c2 − c1
+            # normalised (equal to the numpy segment test to 1e-13, tested)
+            near = [self._results[k] for k in active]
+            normal = np.array([r.normal for r in near])
+            c1 = np.array([r.getNearestPoint1() for r in near]) - self._r[ia, None] * normal
+            c2 = np.array([r.getNearestPoint2() for r in near]) + self._r[ib, None] * normal
+            n = -normal
+            norm = np.ones(len(active))
+            crossing = d_all[active] + self._r[ia] + self._r[ib] < 1e-9
+            if crossing.any():  # segments cross: push along the line between capsule centres
+                a, b = self.segments(x, forward=False)
+                centres = 0.5 * (a[ia] + b[ia] - a[ib] - b[ib])
+                n = np.where(crossing[:, None], centres, n)
+                norm = np.where(crossing, np.linalg.norm(centres, axis=1) + 1e-12, norm)
+            n = n / norm[:, None]
+            # row = n · (J(c1) − J(c2)); a point c on a capsule moves by mask ⊙ (linear + angular × c), and
+            # n · (angular × c) = angular · (c × n): all rows from the world joint Jacobian in a few products
+            lin, ang = self.ub.driven_jacobian()
+            nl = n @ lin
+            jac = (self._masks[ia] * (nl + _cross(c1, n) @ ang)) - (self._masks[ib] * (nl + _cross(c2, n) @ ang))
+            rhs = target - d_all[active]
+            dx = jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(active)), rhs)
             step, accepted = 1.0, False
             while step > 1e-3:
                 x_new = self.ub.clip(x + step * dx)
-                pen_new = self.penetration(x_new, clearance_m)
+                d_new = self.signed_distances(x_new)
+                pen_new = float(np.sum(np.maximum(clearance_m - d_new, 0.0)))
                 if pen_new <= pen:
-                    x, pen, accepted = x_new, pen_new, True
+                    x, pen, d_all, accepted = x_new, pen_new, d_new, True
                     break
                 step *= 0.5
             if not accepted:
                 break
-        return x, bool(self.is_free(x, clearance_m))
+        return x, bool(np.min(d_all) >= clearance_m)
 
     # --- pair selection
     def _select_pairs(self, rng: np.random.Generator, n_samples: int) -> list[tuple[int, int]]:

@@ -11,6 +11,7 @@ The hand and elbow errors reported everywhere (:func:`arm_errors_m`) are the dis
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from engine.retarget.humanoid_arm.capsules import CapsuleModel
 from engine.retarget.humanoid_arm.upper_body import UpperBody
@@ -48,51 +49,73 @@ class ArmIK:
                    "elbow": [fid[f] for f in s.elbow_frames], "hand": [fid[f] for f in s.hand_frames]}
         self._neutral = ub.neutral()
         self._eye = np.eye(ub.n)
+        # The residual as linear maps (the vectorised kernel, one pass per Gauss–Newton step): with the key
+        # points P = (pelvis, shoulder R, shoulder L, elbow R, elbow L, hand R, hand L) (7, 3) and the bone
+        # directions v (5, 3), r = C P − B v row by row (neck, elbow R, hand R, elbow L, hand L):
+        #   neck: NECK_WEIGHT (½(sh_R + sh_L) − pelvis − L_torso v0); elbow: el − sh − L_upper v;
+        #   hand: ha − sh − L_upper v_upper − L_fore v_fore (= the targets of :func:`arm_targets`).
+        self._points = [self._f["pelvis"], *self._f["shoulder"], *self._f["elbow"], *self._f["hand"]]
+        w = NECK_WEIGHT
+        self._c = np.array([[-w, 0.5 * w, 0.5 * w, 0, 0, 0, 0],
+                            [0, -1, 0, 1, 0, 0, 0], [0, -1, 0, 0, 0, 1, 0],
+                            [0, 0, -1, 0, 1, 0, 0], [0, 0, -1, 0, 0, 0, 1]], dtype=float)
+        lt, lu, lf = ub.lengths_m["torso"], ub.lengths_m["upper_arm"], ub.lengths_m["forearm"]
+        self._b = np.array([[w * lt, 0, 0, 0, 0], [0, lu, 0, 0, 0], [0, lu, lf, 0, 0],
+                            [0, 0, 0, lu, 0], [0, 0, 0, lu, lf]])
+        # Jacobian: the key points' Jacobians from the world joint Jacobian (linear, angular), P_k moving by
+        # mask_k ⊙ (linear − skew(P_k) angular), all seven as one (21, 3) @ (3, n) product, then J = (C ⊗ I3) Y
+        self._masks = np.array([ub.support_mask(f) for f in self._points])[:, None, :]  # (7, 1, n)
+        skew = np.zeros((3, 3, 3))  # skew(p)[r, c] = Σ_i p_i skew[i, r, c]
+        skew[0, 2, 1], skew[0, 1, 2], skew[1, 0, 2], skew[1, 2, 0], skew[2, 1, 0], skew[2, 0, 1] = 1, -1, 1, -1, 1, -1
+        self._skew = skew.reshape(3, 9)
+        self._c3 = np.kron(self._c, np.eye(3))  # (15, 21)
+        self._q = ub.q_base.copy()
+        # views of the key frames' positions inside ub.data (pinocchio updates them in place; ub.data is never
+        # replaced): one array construction reads all seven
+        self._point_views = [ub.data.oMf[f].translation for f in self._points]
+        self._damped_eye = (damping + regularisation) * self._eye
 
-    def _residual(self, x: np.ndarray, pose15: np.ndarray, with_jacobian: bool):
-        ub = self.ub
+    def residual(self, x: np.ndarray, pose15: np.ndarray, with_jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """The stacked residual (15,) — neck (weighted), right elbow, right hand, left elbow, left hand, each
+        relative to the robot's own shoulder — and its (15, n) Jacobian w.r.t. the driven joints."""
+        ub, q = self.ub, self._q
+        q[ub.q_index] = x
         if with_jacobian:
-            ub.jacobians(x)
+            pin.computeJointJacobians(ub.pin_model, ub.data, q)
+            pin.updateFramePlacements(ub.pin_model, ub.data)
         else:
-            ub.forward(x)
-        d = ub.data
-        pos = lambda f: d.oMf[f].translation  # noqa: E731
-        jac = ub.frame_origin_jacobian
-        v = pose15.reshape(5, 3)
-        lt = ub.lengths_m["torso"]
-        sh = np.stack([pos(f) for f in self._f["shoulder"]])
-        elbow_t, hand_t = arm_targets(ub, pose15, sh)
-        neck = sh.mean(axis=0)
-        res = [NECK_WEIGHT * (neck - pos(self._f["pelvis"]) - lt * v[0])]
-        for k in range(2):
-            res.append(pos(self._f["elbow"][k]) - elbow_t[k])
-            res.append(pos(self._f["hand"][k]) - hand_t[k])
-        r = np.concatenate(res)
+            pin.framesForwardKinematics(ub.pin_model, ub.data, q)
+        p = np.array(self._point_views)  # (7, 3)
+        r = (self._c @ p - self._b @ pose15.reshape(5, 3)).ravel()
         if not with_jacobian:
             return r, None
-        js = [jac(f) for f in self._f["shoulder"]]
-        rows = [NECK_WEIGHT * (0.5 * (js[0] + js[1]) - jac(self._f["pelvis"]))]
-        for k in range(2):
-            rows.append(jac(self._f["elbow"][k]) - js[k])
-            rows.append(jac(self._f["hand"][k]) - js[k])
-        return r, np.vstack(rows)
+        lin, ang = ub.driven_jacobian()
+        y = self._masks * (lin - ((p @ self._skew).reshape(21, 3) @ ang).reshape(7, 3, ub.n))  # (7, 3, n)
+        return r, self._c3 @ y.reshape(21, ub.n)
 
-    def solve(self, pose15: np.ndarray, x0: np.ndarray | None = None, fix: bool = True,
-              iters: int | None = None) -> tuple[np.ndarray, bool]:
-        """Joint angles for one 15-d pose; (x, collision_free). ``iters`` overrides the iteration cap (LWL2's
-        refinement runs a few from the LWR pose)."""
+    def gauss_newton(self, pose15: np.ndarray, x0: np.ndarray | None = None, iters: int | None = None,
+                     tolerance_rad: float = 1e-4) -> np.ndarray:
+        """Damped Gauss–Newton steps from ``x0`` (default: the standing pose) until the largest joint step is
+        below ``tolerance_rad`` or ``iters`` steps (default: the solver's cap) were taken; clipped to the limits."""
         ub = self.ub
         x = ub.clip(ub.neutral() if x0 is None else np.asarray(x0, dtype=float).copy())
         xn = self._neutral
-        eye = self._eye
         for _ in range(self.iters if iters is None else iters):
-            r, jm = self._residual(x, pose15, True)
-            h = jm.T @ jm + (self.damping + self.reg) * eye
+            r, jm = self.residual(x, pose15, True)
+            assert jm is not None
+            h = jm.T @ jm + self._damped_eye
             g = jm.T @ r + self.reg * (x - xn)
             dx = -np.linalg.solve(h, g)
             x = ub.clip(x + dx)
-            if np.max(np.abs(dx)) < 1e-4:
+            if np.abs(dx).max() < tolerance_rad:
                 break
+        return x
+
+    def solve(self, pose15: np.ndarray, x0: np.ndarray | None = None, fix: bool = True,
+              iters: int | None = None) -> tuple[np.ndarray, bool]:
+        """Joint angles for one 15-d pose; (x, collision_free): Gauss–Newton converged to 1e-4 rad (at most
+        ``iters`` steps, default 30), then the capsule fixer."""
+        x = self.gauss_newton(pose15, x0, iters)
         if fix and self.capsules is not None:
             return self.capsules.fix(x)
         return x, True if self.capsules is None else self.capsules.is_free(x)

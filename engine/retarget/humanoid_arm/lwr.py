@@ -36,11 +36,23 @@ class LatentLWR:
         w = np.exp(-0.5 * (dist / h) ** 2)
         return w / w.sum()
 
-    def query(self, z: np.ndarray) -> LwrResult:
+    def neighbours(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distances, table indices) of the ``k_max`` nearest latent codes, nearest first."""
         dist, idx = self.tree.query(np.asarray(z, dtype=float).ravel(), k=self.k_max)
-        dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
+        return np.atleast_1d(dist), np.atleast_1d(idx)
+
+    def blend(self, dist: np.ndarray, idx: np.ndarray, k: int) -> np.ndarray:
+        """The regression with the ``k`` nearest (k = 1: the stored pose itself), feasible or not."""
+        if k <= 1:
+            return self.poses[idx[0]].copy()
+        return self.weights(dist[:k]) @ self.poses[idx[:k]]
+
+    def query(self, z: np.ndarray, neighbours: tuple[np.ndarray, np.ndarray] | None = None) -> LwrResult:
+        """The largest feasible k (from ``k_max`` down to 1) and its pose; ``neighbours``: reuse a
+        :meth:`neighbours` answer for the same ``z``."""
+        dist, idx = self.neighbours(z) if neighbours is None else neighbours
         for k in range(self.k_max, 1, -1):
-            x = self.weights(dist[:k]) @ self.poses[idx[:k]]
+            x = self.blend(dist, idx, k)
             if self.is_free(x):
                 return LwrResult(x, k, idx[:k])
         return LwrResult(self.poses[idx[0]].copy(), 1, idx[:1])

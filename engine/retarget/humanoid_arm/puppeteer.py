@@ -11,12 +11,14 @@ straight interpolation from the previous output to the new pose collides, one st
 the transition graph (:mod:`graph`), or hold the previous pose when the graph offers nothing collision-free.
 
 Refinement (``refine_iters``, default :data:`REFINE_ITERS`; 0 = the paper's LWL2 unchanged): a few damped
-Gauss–Newton steps of the optimisation-based objective (:class:`ik.ArmIK`: bone directions and hand
-positions) started from the LWR pose, then the capsule fixer (§III). The LWR table is only as dense as its
-~20 k poses in a 10–11-D joint space: its best entry is ~80 mm from a held-out target (the paper reports
-79–140 mm), so the learned map gives the basin and the local steps the last centimetres. When the fixer
-cannot free the refined pose, the LWR pose (feasible by construction, k = 1 at worst) is used, so every
-output stays collision-free.
+Gauss–Newton steps of the optimisation-based objective (:meth:`ik.ArmIK.gauss_newton`: bone directions and hand
+positions) started from LWR's k_max blend and stopped early once the largest joint step is below
+:data:`REFINE_TOLERANCE_RAD`, then the capsule fixer (§III). The LWR table is only as dense as its ~20 k poses
+in a 10–11-D joint space: its best entry is ~80 mm from a held-out target (the paper reports 79–140 mm), so
+the learned map gives the basin and the local steps the last centimetres. Only the refined pose is checked
+for collisions; when the fixer cannot free it, LWR's k → 1 fallback runs (feasible by construction, k = 1 at
+worst), so every output stays collision-free. The straight move from the previous output is checked at the
+poses in between (the target's own check is the fixer's or LWR's).
 """
 
 from __future__ import annotations
@@ -35,14 +37,15 @@ from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
 from engine.retarget.humanoid_arm.pose15 import check_pose15
 from engine.retarget.humanoid_arm.upper_body import UpperBody
 
-REFINE_ITERS = 5
+REFINE_ITERS = 3
+REFINE_TOLERANCE_RAD = 1e-3  # the refinement stops once its largest joint step is below this
 
 
 @dataclass
 class RetargetStep:
     x: np.ndarray  # driven joint angles (rad), collision-free
-    k: int  # LWR's feasible k (3..1)
-    lwr_x: np.ndarray  # the LWR pose (before refinement and the transition logic)
+    k: int  # LWR's k: the k_max blend that started an accepted refinement, else the feasible k (3..1)
+    lwr_x: np.ndarray  # that LWR pose (before refinement and the transition logic)
     transition: str  # "direct", "graph" (one BFS step) or "hold"
     inference_s: float
     refined: bool = False  # the refinement's pose was used (else the LWR pose)
@@ -56,7 +59,8 @@ class RetargetStep:
 class ArmRetargeter:
     def __init__(self, ub: UpperBody, capsules: CapsuleModel, model, robot_poses: np.ndarray,
                  graph: TransitionGraph | None, meta: dict, k_max: int = 3, feed_forward=None,
-                 refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0):
+                 refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0,
+                 refine_tolerance_rad: float = REFINE_TOLERANCE_RAD):
         self.ub, self.capsules, self.model, self.meta = ub, capsules, model, meta
         self.robot_poses = robot_poses
         # clearance_m > 0 (live puppeteering): blended and refined poses keep this distance between capsules, so
@@ -66,6 +70,7 @@ class ArmRetargeter:
                              lambda x: capsules.is_free(x, self.clearance_m), k_max)
         self.encode_mocap = model.numpy_encoder("mocap")  # run-time path: numpy, no torch call per frame
         self.refine_iters = int(refine_iters)
+        self.refine_tolerance_rad = float(refine_tolerance_rad)
         self.ik = ArmIK(ub, capsules)
         self.graph = graph
         self.feed_forward = feed_forward
@@ -87,7 +92,8 @@ class ArmRetargeter:
 
     @classmethod
     def load(cls, robot: str, path: Path | None = None, capsules: CapsuleModel | None = None,
-             refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0) -> "ArmRetargeter":
+             refine_iters: int = REFINE_ITERS, clearance_m: float = 0.0,
+             refine_tolerance_rad: float = REFINE_TOLERANCE_RAD) -> "ArmRetargeter":
         """Load trained weights for ``robot``; ValueError (one line) when missing or for another robot."""
         path = Path(path) if path is not None else weights_path(robot)
         if path.suffix in (".json", ".safetensors"):
@@ -111,7 +117,7 @@ class ArmRetargeter:
 
             ff = load_feed_forward(path)
         return cls(ub, capsules, model, poses, graph, meta, feed_forward=ff, refine_iters=refine_iters,
-                   clearance_m=clearance_m)
+                   clearance_m=clearance_m, refine_tolerance_rad=refine_tolerance_rad)
 
     def reset(self, x: np.ndarray | None = None) -> None:
         self.current = None if x is None else np.asarray(x, dtype=float).copy()
@@ -120,21 +126,28 @@ class ArmRetargeter:
         """One control period: collision-free joint targets for a 15-d pose (ValueError on a bad pose)."""
         t0 = time.perf_counter()
         p = check_pose15(np.asarray(pose15, dtype=float).ravel(), "pose15")
-        res = self.lwr.query(self.encode_mocap(p)[0])
-        target = res.x
+        z = self.encode_mocap(p)[0]
+        neighbours = self.lwr.neighbours(z)
         refined = False
         if self.refine_iters > 0:
-            y, free = self.ik.solve(p, target, fix=False, iters=self.refine_iters)
+            # the k_max blend starts the refinement whether or not it collides: only the refined pose is checked
+            # (LWR's k → 1 checks run only when the fixer cannot free it)
+            start = self.lwr.blend(*neighbours, self.lwr.k_max)
+            y = self.ik.gauss_newton(p, start, self.refine_iters, self.refine_tolerance_rad)
             y, free = self.capsules.fix(y, clearance_m=self.clearance_m)
             if free:
-                target, refined = y, True
+                target, lwr_x, k, refined = y, start, self.lwr.k_max, True
+        if not refined:
+            res = self.lwr.query(z, neighbours)
+            target, lwr_x, k = res.x, res.x, res.k
         transition = "direct"
-        if self.current is None or self.capsules.interpolation_free(self.current, target):
+        # the target itself is collision-free (LWR's check or the fixer's): only the poses in between are checked
+        if self.current is None or self.capsules.interpolation_free(self.current, target, end_free=True):
             out = target
         else:
             out, transition = self._graph_step(target)
         self.current = out
-        return RetargetStep(out.copy(), res.k, res.x, transition, time.perf_counter() - t0,
+        return RetargetStep(out.copy(), k, lwr_x, transition, time.perf_counter() - t0,
                             refined=refined and transition == "direct", joint_names=self.joint_names)
 
     def _graph_step(self, target: np.ndarray) -> tuple[np.ndarray, str]:
@@ -160,4 +173,4 @@ class ArmRetargeter:
         return self.ub.clip(self.feed_forward(np.atleast_2d(pose15))[0])
 
 
-__all__ = ["ArmRetargeter", "RetargetStep", "REFINE_ITERS", "check_metadata", "weights_path"]
+__all__ = ["ArmRetargeter", "RetargetStep", "REFINE_ITERS", "REFINE_TOLERANCE_RAD", "check_metadata", "weights_path"]

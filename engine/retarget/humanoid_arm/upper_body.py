@@ -131,7 +131,7 @@ class UpperBody:
         return q
 
     def clip(self, x: np.ndarray) -> np.ndarray:
-        return np.clip(x, self.lower, self.upper)
+        return np.minimum(np.maximum(x, self.lower), self.upper)  # np.clip's numbers, without its wrapper's cost
 
     def neutral(self) -> np.ndarray:
         """The standing pose's arm angles (clipped to the limits)."""
@@ -171,6 +171,23 @@ class UpperBody:
         """(3, n) Jacobian of a frame's origin w.r.t. the driven joints (after :meth:`jacobians`)."""
         j6 = pin.getFrameJacobian(self.pin_model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         return j6[:3, self.v_index]
+
+    def support_mask(self, frame_id: int) -> np.ndarray:
+        """(n,) 1.0 for each driven joint on ``frame_id``'s kinematic chain (the joints that move it), else 0."""
+        column = {int(v): c for c, v in enumerate(self.v_index)}
+        mask = np.zeros(self.n)
+        for j in self.pin_model.supports[self.pin_model.frames[frame_id].parentJoint]:
+            c = column.get(int(self.pin_model.joints[j].idx_v)) if j > 0 else None
+            if c is not None:
+                mask[c] = 1.0
+        return mask
+
+    def driven_jacobian(self) -> tuple[np.ndarray, np.ndarray]:
+        """(linear, angular), each (3, n): the driven joints' columns of the world-frame joint Jacobian (after
+        :meth:`jacobians`). A world point p on a link that joint j moves has velocity column
+        ``linear[:, j] + angular[:, j] × p`` — every point Jacobian at once, without a pinocchio call per frame."""
+        j = self.data.J[:, self.v_index]
+        return j[:3], j[3:]
 
     def jacobians(self, x: np.ndarray) -> None:
         pin.computeJointJacobians(self.pin_model, self.data, self.full_q(x))
