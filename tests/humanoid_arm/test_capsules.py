@@ -22,7 +22,9 @@ def test_segment_distance_matches_brute_force(p1, q1, p2, q2):
     a = p1 + s[:, None] * (q1 - p1)
     b = p2 + s[:, None] * (q2 - p2)
     brute = np.min(np.linalg.norm(a[:, None] - b[None], axis=-1))
-    assert d <= brute + 1e-9  # never more than any sampled pair
+    # never more than any sampled pair, to within the implementation's degenerate threshold: a segment
+    # shorter than 1 µm (squared length ≤ 1e-12) counts as its first point (Ericson's special case)
+    assert d <= brute + 2e-6
     # grid spacing bounds how far the sampled minimum can be above the true one
     assert brute - d <= 0.5 * (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) / 400 + 1e-9
     assert np.linalg.norm(c1 - c2) == pytest.approx(d, abs=1e-9)
