@@ -54,6 +54,10 @@ from engine.robot.model import RobotModel
 from engine.control.wbc.qp import CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
+from engine.control.wbc import kernels as _kernels
+
+#: How the QP is assembled: compiled (numba, the default) or the numpy reference it replaces.
+KERNELS = ("numba", "numpy")
 
 FloatArray = NDArray[np.float64]
 
@@ -73,13 +77,16 @@ class TaskSpaceInverseDynamics:
 
     def __init__(self, robot: RobotModel, gains: WbcGains | None = None,
                  upper_body_joints: Sequence[str] | None = None, dt_s: float = CONTROL_PERIOD_S,
-                 qp_backend: str = "daqp"):
+                 qp_backend: str = "daqp", kernels: str = "numba"):
         if set(robot.config.soles) != set(SIDES):
             raise ValueError(f"{robot.name}: the inverse dynamics needs left and right soles")
         choices = ("dense", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
         if qp_backend not in choices:
             raise ValueError(f"qp_backend: expected one of {', '.join(choices)}, got {qp_backend!r}")
+        if kernels not in KERNELS:
+            raise ValueError(f"kernels: expected one of {', '.join(KERNELS)}, got {kernels!r}")
         self.robot = robot
+        self.kernels = kernels
         self.gains = gains or WbcGains.for_robot(robot)
         self.dt_s = dt_s
         self.qp_backend = qp_backend
@@ -150,7 +157,7 @@ class TaskSpaceInverseDynamics:
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
         self.osqp_solver = OsqpQpSolver(self.nv, self.n_rho)
-        self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints)
+        self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints, compiled=kernels == "numba")
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
         self.last_tau = np.zeros(self.n_joints)
@@ -282,6 +289,41 @@ class TaskSpaceInverseDynamics:
                             rhs[r:r + d])
             r += d
         self._jac_filled = True
+        if self.kernels == "numba":
+            p_qq, c_q, r_rr, g_rho, tj = self._assemble_compiled(snap)
+        else:
+            p_qq, c_q, r_rr, g_rho, tj = self._assemble_numpy(snap)
+
+        # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
+        b = -snap.centroidal_drift
+        b[2] -= self.mass_kg * GRAVITY_MPS2
+        if ref.external_wrench is not None:
+            b = b + np.asarray(ref.external_wrench, dtype=float)
+
+        # ---- soft joint limits (22, 23) within the acceleration limits; ρ bounds (24, 25)
+        qj, vj = snap.q[7:], snap.v[6:]
+        amax = g.max_joint_acc_radps2
+        lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
+        up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
+        key = contact.tobytes()
+        if key != self._rho_up_cache[0]:
+            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
+            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
+        rho_up = self._rho_up_cache[1]
+        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
+        bias = snap.nonlinear_effects[6:].copy()
+        if self._joint_damping is not None:
+            bias += self._joint_damping * snap.v[6:]
+        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
+                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
+                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
+
+    def _assemble_numpy(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The tasks' normal equations and the contact model in numpy (the reference of
+        :func:`engine.control.wbc.kernels.assemble_qp`): P, c, R, G and the τ̄ map's joint rows."""
+        g = self.gains
+        nv = self.nv
+        jac, rhs = self._jac, self._rhs
         wj = jac * self._w[:, None]
         p_qq = jac.T @ wj
         p_qq.flat[::nv + 1] += g.lambda_qdd
@@ -317,29 +359,21 @@ class TaskSpaceInverseDynamics:
         r_rr = g.lambda_tau * (tj.T @ tj)  # λ_τ̄ ‖τ̄‖²
         r_rr.flat[::self.n_rho + 1] += g.lambda_rho
 
-        # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
-        b = -snap.centroidal_drift
-        b[2] -= self.mass_kg * GRAVITY_MPS2
-        if ref.external_wrench is not None:
-            b = b + np.asarray(ref.external_wrench, dtype=float)
+        return p_qq, c_q, r_rr, g_rho, tj
 
-        # ---- soft joint limits (22, 23) within the acceleration limits; ρ bounds (24, 25)
-        qj, vj = snap.q[7:], snap.v[6:]
-        amax = g.max_joint_acc_radps2
-        lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
-        up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
-        key = contact.tobytes()
-        if key != self._rho_up_cache[0]:
-            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
-            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
-        rho_up = self._rho_up_cache[1]
-        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
-        bias = snap.nonlinear_effects[6:].copy()
-        if self._joint_damping is not None:
-            bias += self._joint_damping * snap.v[6:]
-        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
-                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
-                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
+    def _assemble_compiled(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:meth:`_assemble_numpy` in one compiled call (:func:`engine.control.wbc.kernels.assemble_qp`)."""
+        g = self.gains
+        nv, n_rho = self.nv, self.n_rho
+        p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
+        g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
+        corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
+        _kernels.assemble_qp(self._jac, self._w, self._rhs, float(g.lambda_qdd), snap.frame_rotation,
+                             snap.frame_position_m, self._corner_offsets_t, snap.com_m, self._basis_xy,
+                             float(self._basis_template[0, 2, 0]), snap.frame_jacobian, float(g.lambda_tau),
+                             float(g.lambda_rho), p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+        self._basis, self._corners_m, self._tau_map = basis, corners, tau_map
+        return p_qq, c_q, r_rr, g_rho, tau_map[6:]
 
     def _skew_stack(self, arms: FloatArray) -> FloatArray:
         s = self._skew

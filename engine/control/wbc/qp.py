@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
 
 from engine.control.qp_backends import QpProblem
+from engine.control.wbc.kernels import fill_daqp
 
 FloatArray = NDArray[np.float64]
 
@@ -391,10 +392,11 @@ class DaqpQpSolver:
     Hessian's two blocks, the centroidal equalities (sense 5: immutable equality) and the torque
     rows are written in place each tick. Bounds first (DAQP's simple bounds), then the rows."""
 
-    def __init__(self, nv: int, n_rho: int, n_tau: int):
+    def __init__(self, nv: int, n_rho: int, n_tau: int, compiled: bool = False):
         import daqp
 
         self._solve = daqp.solve
+        self.compiled = compiled  # write the form with engine.control.wbc.kernels.fill_daqp
         self.nv, self.n_rho, self.n_tau = nv, n_rho, n_tau
         n = nv + n_rho
         self._h = np.zeros((n, n))
@@ -409,6 +411,16 @@ class DaqpQpSolver:
         self.iterations = 0
 
     def solve(self, qp: CentroidalQp) -> tuple[FloatArray, FloatArray] | None:
+        h, a, lo, up = self._h, self._a, self._lo, self._up
+        torque = qp.torque_rows()
+        if self.compiled and torque is not None:
+            fill_daqp(qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up,
+                      torque.qdd, torque.rho, torque.bias, torque.lo, torque.up, h, self._f, a, lo, up)
+        else:
+            self._fill_numpy(qp)
+        return self._run()
+
+    def _fill_numpy(self, qp: CentroidalQp) -> None:
         nv, n = self.nv, self.nv + self.n_rho
         h, a, lo, up = self._h, self._a, self._lo, self._up
         h[:nv, :nv] = qp.p_qq
@@ -428,10 +440,13 @@ class DaqpQpSolver:
         else:
             a[6:] = 0.0
             lo[n + 6:], up[n + 6:] = -1e20, 1e20
-        x, _, flag, info = self._solve(h, self._f, a, up, lo, self._sense)
+
+    def _run(self) -> tuple[FloatArray, FloatArray] | None:
+        nv = self.nv
+        x, _, flag, info = self._solve(self._h, self._f, self._a, self._up, self._lo, self._sense)
         self.status = f"daqp exitflag {flag}"
         self.iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
         if flag not in (1, 2) or not math.isfinite(float(np.sum(x))):
             return None
         x = np.asarray(x)
-        return x[:nv].copy(), np.minimum(np.maximum(x[nv:], 0.0), qp.rho_up)
+        return x[:nv].copy(), np.minimum(np.maximum(x[nv:], 0.0), self._up[nv:nv + self.n_rho])

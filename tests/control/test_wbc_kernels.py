@@ -1,0 +1,77 @@
+"""The compiled whole-body QP kernels (engine/control/wbc/kernels.py) compute the numbers of the numpy
+code they replace (``TaskSpaceInverseDynamics(kernels="numpy")``), to rounding."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from engine.control.controller import RobotState
+from engine.control.wbc import TaskSpaceInverseDynamics
+from engine.control.wbc.qp import DaqpQpSolver
+from engine.robot.model import load_robot
+
+PATTERNS = (
+    [[1, 1, 1, 1], [1, 1, 1, 1]],
+    [[1, 1, 1, 1], [0, 0, 0, 0]],
+    [[0, 0, 1, 1], [1, 1, 0, 0]],
+)
+
+
+def _state(robot, seed: int) -> RobotState:
+    rng = np.random.default_rng(seed)
+    q = robot.q_standing.copy()
+    q[7:] += rng.normal(0.0, 0.05, robot.n_joints)
+    q[3:7] = pin.Quaternion(pin.exp3(rng.normal(0.0, 0.1, 3))).coeffs()
+    return RobotState(0.0, q, rng.normal(0.0, 0.3, robot.pin_model.nv))
+
+
+@pytest.mark.parametrize("robot_name", ["g1", "talos"])
+def test_compiled_assembly_equals_numpy(robot_name: str) -> None:
+    robot = load_robot(robot_name)
+    ours = TaskSpaceInverseDynamics(robot)
+    reference = TaskSpaceInverseDynamics(robot, kernels="numpy")
+    assert ours.kernels == "numba"
+    for seed in range(6):
+        state = _state(robot, seed)
+        rng = np.random.default_rng(seed + 50)
+        ref = reference.hold_reference(robot.q_standing)
+        ref = replace(ref, contact=np.array(PATTERNS[seed % len(PATTERNS)], dtype=bool),
+                      com_xy_acc_mps2=rng.normal(0.0, 1.0, 2), foot_pos_m=ref.foot_pos_m + rng.normal(0.0, 0.02, (2, 3)),
+                      external_wrench=rng.normal(0.0, 5.0, 6) if seed % 2 else None)
+        for wbc in (ours, reference):
+            wbc.reset(state)
+        cmd_a, cmd_b = ours.compute(state, ref), reference.compute(state, ref)
+        assert ours.diagnostics.ok and reference.diagnostics.ok
+        qa, qb = ours.qp, reference.qp
+        assert qa is not None and qb is not None
+        for field in ("p_qq", "c_q", "r_rr", "a_h", "g_rho", "b", "qdd_joint_lo", "qdd_joint_up", "rho_up",
+                      "tau_qdd", "tau_rho", "tau_bias"):
+            a, b = getattr(qa, field), getattr(qb, field)
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9 * max(1.0, float(np.abs(b).max())), err_msg=field)
+        np.testing.assert_allclose(ours._basis, reference._basis, atol=1e-14)
+        np.testing.assert_allclose(ours._corners_m, reference._corners_m, atol=1e-14)
+        np.testing.assert_allclose(ours._tau_map, reference._tau_map, rtol=1e-12, atol=1e-10)
+        np.testing.assert_allclose(cmd_a.tau_ff, cmd_b.tau_ff, atol=1e-7)
+        np.testing.assert_allclose(cmd_a.q_des, cmd_b.q_des, atol=1e-12)
+
+
+def test_compiled_daqp_form_equals_numpy() -> None:
+    robot = load_robot("g1")
+    wbc = TaskSpaceInverseDynamics(robot, kernels="numpy")
+    state = _state(robot, 3)
+    wbc.reset(state)
+    wbc.compute(state, wbc.hold_reference(robot.q_standing))
+    qp = wbc.qp
+    assert qp is not None
+    compiled = DaqpQpSolver(wbc.nv, wbc.n_rho, wbc.n_joints, compiled=True)
+    numpy_form = DaqpQpSolver(wbc.nv, wbc.n_rho, wbc.n_joints)
+    sol_a, sol_b = compiled.solve(qp), numpy_form.solve(qp)
+    for name in ("_h", "_f", "_a", "_lo", "_up"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(numpy_form, name), err_msg=name)
+    assert sol_a is not None and sol_b is not None
+    np.testing.assert_array_equal(sol_a[0], sol_b[0])
+    np.testing.assert_array_equal(sol_a[1], sol_b[1])
