@@ -10,7 +10,8 @@ import pinocchio as pin
 import pytest
 
 from engine.control.controller import RobotState
-from engine.control.wbc import TaskSpaceInverseDynamics
+from engine.control.wbc import TaskSpaceInverseDynamics, WbcGains
+from engine.control.wbc.kernels import log3
 from engine.control.wbc.qp import DaqpQpSolver
 from engine.robot.model import load_robot
 
@@ -32,8 +33,9 @@ def _state(robot, seed: int) -> RobotState:
 @pytest.mark.parametrize("robot_name", ["g1", "talos"])
 def test_compiled_assembly_equals_numpy(robot_name: str) -> None:
     robot = load_robot(robot_name)
-    ours = TaskSpaceInverseDynamics(robot)
-    reference = TaskSpaceInverseDynamics(robot, kernels="numpy")
+    gains = replace(WbcGains.for_robot(robot), com_z_weight=20.0 if robot_name == "talos" else 0.0)
+    ours = TaskSpaceInverseDynamics(robot, gains)
+    reference = TaskSpaceInverseDynamics(robot, gains, kernels="numpy")
     assert ours.kernels == "numba"
     for seed in range(6):
         state = _state(robot, seed)
@@ -41,7 +43,14 @@ def test_compiled_assembly_equals_numpy(robot_name: str) -> None:
         ref = reference.hold_reference(robot.q_standing)
         ref = replace(ref, contact=np.array(PATTERNS[seed % len(PATTERNS)], dtype=bool),
                       com_xy_acc_mps2=rng.normal(0.0, 1.0, 2), foot_pos_m=ref.foot_pos_m + rng.normal(0.0, 0.02, (2, 3)),
-                      external_wrench=rng.normal(0.0, 5.0, 6) if seed % 2 else None)
+                      external_wrench=rng.normal(0.0, 5.0, 6) if seed % 2 else None,
+                      foot_rotation=np.array([pin.exp3(rng.normal(0.0, 0.1, 3)) for _ in range(2)]),
+                      foot_lin_vel_mps=rng.normal(0.0, 0.3, (2, 3)), foot_ang_vel_radps=rng.normal(0.0, 0.3, (2, 3)),
+                      foot_lin_acc_mps2=rng.normal(0.0, 1.0, (2, 3)) if seed % 3 else None,
+                      foot_ang_acc_radps2=rng.normal(0.0, 1.0, (2, 3)) if seed % 3 else None,
+                      pelvis_rotation=pin.exp3(rng.normal(0.0, 0.1, 3)), pelvis_ang_vel_radps=rng.normal(0.0, 0.2, 3),
+                      upper_body_qd_radps=rng.normal(0.0, 0.2, ref.upper_body_q_rad.size),
+                      com_z_m=0.7 if seed % 2 else None)
         for wbc in (ours, reference):
             wbc.reset(state)
         cmd_a, cmd_b = ours.compute(state, ref), reference.compute(state, ref)
@@ -52,6 +61,9 @@ def test_compiled_assembly_equals_numpy(robot_name: str) -> None:
                       "tau_qdd", "tau_rho", "tau_bias"):
             a, b = getattr(qa, field), getattr(qb, field)
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9 * max(1.0, float(np.abs(b).max())), err_msg=field)
+        np.testing.assert_allclose(ours._jac, reference._jac, rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(ours._rhs, reference._rhs, rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(ours._w, reference._w)
         np.testing.assert_allclose(ours._basis, reference._basis, atol=1e-14)
         np.testing.assert_allclose(ours._corners_m, reference._corners_m, atol=1e-14)
         np.testing.assert_allclose(ours._tau_map, reference._tau_map, rtol=1e-12, atol=1e-10)
@@ -75,3 +87,13 @@ def test_compiled_daqp_form_equals_numpy() -> None:
     assert sol_a is not None and sol_b is not None
     np.testing.assert_array_equal(sol_a[0], sol_b[0])
     np.testing.assert_array_equal(sol_a[1], sol_b[1])
+
+
+def test_log3_equals_pinocchio() -> None:
+    rng = np.random.default_rng(0)
+    vectors = [rng.normal(0.0, 1.0, 3) * scale for scale in (1e-9, 1e-6, 1e-3, 0.1, 1.0) for _ in range(20)]
+    vectors += [axis / np.linalg.norm(axis) * angle for axis in rng.normal(0.0, 1.0, (20, 3))
+                for angle in (np.pi - 1e-3, np.pi - 2e-2, np.pi)]
+    for vec in vectors:
+        rot = pin.exp3(vec)
+        np.testing.assert_allclose(log3(rot), pin.log3(rot), atol=1e-12)

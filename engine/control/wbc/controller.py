@@ -133,6 +133,12 @@ class TaskSpaceInverseDynamics:
             task.weight = self._w[r:r + task.dim]
             r += task.dim
         self._foot_rows = 6 * n_feet
+        # The compiled rows' gains (kernels.task_rows) and zero feed-forward.
+        self._task_gains = np.array([g.swing_foot_kp, g.swing_foot_kd, g.swing_foot_weight, g.contact_foot_kd,
+                                     g.contact_foot_weight, g.pelvis_height_kp, g.pelvis_height_kd, g.pelvis_rot_kp,
+                                     g.pelvis_rot_kd, g.com_kp, g.com_kd, g.com_z_weight, g.upper_body_kp,
+                                     g.upper_body_kd, g.angular_momentum_kd], dtype=float)
+        self._zeros_2x3 = np.zeros((n_feet, 3))
         self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
         self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()
         mu_n = g.friction_mu / math.sqrt(1.0 + g.friction_mu**2)
@@ -208,7 +214,8 @@ class TaskSpaceInverseDynamics:
 
         snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
         t1 = time.perf_counter()
-        self._set_targets(ref, contact)
+        if self.kernels == "numpy":  # (the compiled rows read the reference directly)
+            self._set_targets(ref, contact)
         qp = self._build_qp(snap, ref, contact)
         self.qp = qp
         t2 = time.perf_counter()
@@ -275,19 +282,10 @@ class TaskSpaceInverseDynamics:
         g = self.gains
         nv = self.nv
         # ---- tasks: stacked weighted least squares on q̈ (Eq. 20); both feet at once (rows 0..11)
-        jac, rhs, nf = self._jac, self._rhs, self._foot_rows
-        jac[:nf] = snap.frame_jacobian.reshape(nf, nv)
-        acc = self._foot_acc + self._foot_kd * (self._foot_vel - snap.frame_velocity)
-        for i, foot in enumerate(self.foot_tasks):
-            if foot.kp.any():  # swing or heel/toe: PD on the pose (a flat contact foot is damped only)
-                acc[i] += foot.kp * foot.compute_error(snap)
-        np.subtract(acc, snap.frame_drift, out=rhs[:nf].reshape(acc.shape))
-        r = nf
-        for task in self.tasks[len(self.foot_tasks):]:
-            d = task.dim
-            task.write_rows(snap, jac[r:r + d] if not task.constant_jacobian or not self._jac_filled else None,
-                            rhs[r:r + d])
-            r += d
+        if self.kernels == "numba":
+            self._rows_compiled(snap, ref, contact)
+        else:
+            self._rows_numpy(snap)
         self._jac_filled = True
         if self.kernels == "numba":
             p_qq, c_q, r_rr, g_rho, tj = self._assemble_compiled(snap)
@@ -317,6 +315,38 @@ class TaskSpaceInverseDynamics:
         return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
                             tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
                             tau_lo=-self._torque_limit, tau_up=self._torque_limit)
+
+    def _rows_numpy(self, snap: DynamicsSnapshot) -> None:
+        """The tasks' rows (J, a* − J̇ q̇) written by the task objects (targets set by :meth:`_set_targets`)."""
+        nv = self.nv
+        jac, rhs, nf = self._jac, self._rhs, self._foot_rows
+        jac[:nf] = snap.frame_jacobian.reshape(nf, nv)
+        acc = self._foot_acc + self._foot_kd * (self._foot_vel - snap.frame_velocity)
+        for i, foot in enumerate(self.foot_tasks):
+            if foot.kp.any():  # swing or heel/toe: PD on the pose (a flat contact foot is damped only)
+                acc[i] += foot.kp * foot.compute_error(snap)
+        np.subtract(acc, snap.frame_drift, out=rhs[:nf].reshape(acc.shape))
+        r = nf
+        for task in self.tasks[len(self.foot_tasks):]:
+            d = task.dim
+            task.write_rows(snap, jac[r:r + d] if not task.constant_jacobian or not self._jac_filled else None,
+                            rhs[r:r + d])
+            r += d
+
+    def _rows_compiled(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> None:
+        """:meth:`_set_targets` and :meth:`_rows_numpy` in one compiled call
+        (:func:`engine.control.wbc.kernels.task_rows`), weights included."""
+        zeros = self._zeros_2x3
+        _kernels.task_rows(
+            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
+            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
+            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
+            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
+            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
+            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
+            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
+            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if ref.com_z_m is None else float(ref.com_z_m),
+            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps)
 
     def _assemble_numpy(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """The tasks' normal equations and the contact model in numpy (the reference of

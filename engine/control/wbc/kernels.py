@@ -150,3 +150,165 @@ def fill_daqp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, tau_qdd, t
     for j in range(n_rho):
         lo[nv + j] = 0.0
         up[nv + j] = rho_up[j]
+
+
+_EPS = float(np.finfo(np.float64).eps)
+_PREC_2 = _EPS ** (1.0 / 3.0)  # pinocchio's TaylorSeriesExpansion<double>::precision<2>()
+
+
+@njit(cache=True, nogil=True)
+def _theta_axis(i0, val, rn):  # noqa: ANN001, ANN201
+    """pinocchio's internal::compute_theta_axis (the θ ≈ π branch of log3)."""
+    i1, i2 = (i0 + 1) % 3, (i0 + 2) % 3
+    s = math.sqrt(val + _EPS + _EPS * _EPS) * (1.0 if rn[i2, i1] >= rn[i1, i2] else -1.0)
+    axis = np.empty(3)
+    axis[i0] = s / 2.0
+    axis[i1] = 1.0 / (2.0 * s) * (rn[i1, i0] + rn[i0, i1])
+    axis[i2] = 1.0 / (2.0 * s) * (rn[i2, i0] + rn[i0, i2])
+    w = 1.0 / (2.0 * s) * (rn[i2, i1] - rn[i1, i2])
+    norm = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
+    angle = 2.0 * math.atan2(norm, w)
+    return angle, axis / norm
+
+
+@njit(cache=True, nogil=True)
+def log3(rot):  # noqa: ANN001, ANN201
+    """pinocchio 3's ``log3`` (the same renormalisation, branches and series): the rotation vector of ``rot``."""
+    rn = np.empty((3, 3))
+    n0 = math.sqrt(rot[0, 0] ** 2 + rot[1, 0] ** 2 + rot[2, 0] ** 2)
+    n1 = math.sqrt(rot[0, 1] ** 2 + rot[1, 1] ** 2 + rot[2, 1] ** 2)
+    c0 = rot[:, 0] / n0
+    c1 = rot[:, 1] / n1
+    c2 = np.array([c0[1] * c1[2] - c0[2] * c1[1], c0[2] * c1[0] - c0[0] * c1[2], c0[0] * c1[1] - c0[1] * c1[0]])
+    c0 = np.array([c1[1] * c2[2] - c1[2] * c2[1], c1[2] * c2[0] - c1[0] * c2[2], c1[0] * c2[1] - c1[1] * c2[0]])
+    for i in range(3):
+        rn[i, 0], rn[i, 1], rn[i, 2] = c0[i], c1[i], c2[i]
+    tr = rn[0, 0] + rn[1, 1] + rn[2, 2]
+    cos_value = (tr - 1.0) / 2.0
+    prec = _PREC_2
+    out = np.empty(3)
+    if cos_value < -1.0 + prec:  # θ ≈ π
+        v0, v1, v2 = 2.0 * rn[0, 0] - tr + 1.0, 2.0 * rn[1, 1] - tr + 1.0, 2.0 * rn[2, 2] - tr + 1.0
+        if v0 >= v1:
+            i0, val = (0, v0) if v0 >= v2 else (2, v2)
+        else:
+            i0, val = (1, v1) if v1 >= v2 else (2, v2)
+        theta, axis = _theta_axis(i0, val, rn)
+        for k in range(3):
+            out[k] = theta * axis[k]
+        return out
+    acos_expansion = math.sqrt(2.0 * (1.0 - cos_value) + _EPS * _EPS)
+    if tr <= 3.0 - prec:
+        theta = math.acos(cos_value) if tr >= -1.0 + prec else math.pi - acos_expansion
+    else:
+        theta = acos_expansion
+    a0, a1, a2 = 0.5 * (rn[2, 1] - rn[1, 2]), 0.5 * (rn[0, 2] - rn[2, 0]), 0.5 * (rn[1, 0] - rn[0, 1])
+    if theta >= prec:
+        t = theta / math.sin(theta)
+    else:
+        n2 = a0 * a0 + a1 * a1 + a2 * a2
+        t = 1.0 + n2 / 6.0 + n2 * n2 * 3.0 / 40.0
+    out[0], out[1], out[2] = t * a0, t * a1, t * a2
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _rotation_error(target, rot):  # noqa: ANN001, ANN201
+    """log3(target · rotᵀ)."""
+    prod = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            prod[i, j] = target[i, 0] * rot[j, 0] + target[i, 1] * rot[j, 1] + target[i, 2] * rot[j, 2]
+    return log3(prod)
+
+
+@njit(cache=True, nogil=True)
+def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+              foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+              pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+              momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, upper_v_idx, upper_q_ref,
+              upper_qd_ref):  # noqa: ANN001, ANN201
+    """The stacked tasks' rows (Eq. 18) in place — J into ``jac``, a* − J̇ q̇ into ``rhs``, the per-tick
+    weights into ``w`` — as the task objects of :mod:`engine.control.wbc.tasks` write them: feet
+    (rows 0–11: damping only when flat on the ground, else PD on the planned pose), pelvis height and
+    orientation, CoM, upper-body joints, angular-momentum damping. ``gains``: swing kp, kd, weight,
+    contact kd, weight, pelvis height kp, kd, rotation kp, kd, CoM kp, kd, z weight, upper-body kp,
+    kd, angular-momentum kd. ``com_z``: NaN when the CoM height is not tracked. The constant
+    Jacobian rows (upper body) are written only when ``fill_constant``."""
+    nv = jac.shape[1]
+    swing_kp, swing_kd, swing_w, contact_kd, contact_w = gains[0], gains[1], gains[2], gains[3], gains[4]
+    # ---- feet
+    for s in range(2):
+        flat = True
+        touching = False
+        for c in range(contact.shape[1]):
+            if contact[s, c]:
+                touching = True
+            else:
+                flat = False
+        for r in range(6):
+            for j in range(nv):
+                jac[6 * s + r, j] = frame_jac[s, r, j]
+        if flat:
+            for r in range(6):
+                w[6 * s + r] = contact_w
+                rhs[6 * s + r] = (0.0 + contact_kd * (0.0 - frame_vel[s, r])) - frame_drift[s, r]
+        else:
+            err = _rotation_error(foot_rot[s], frame_rot[s])
+            for r in range(6):
+                w[6 * s + r] = contact_w if touching else swing_w
+                if r < 3:
+                    vel, acc, e = foot_lin_vel[s, r], foot_lin_acc[s, r], foot_pos[s, r] - frame_pos[s, r]
+                else:
+                    vel, acc, e = foot_ang_vel[s, r - 3], foot_ang_acc[s, r - 3], err[r - 3]
+                a = acc + swing_kd * (vel - frame_vel[s, r])
+                if swing_kp != 0.0:
+                    a += swing_kp * e
+                rhs[6 * s + r] = a - frame_drift[s, r]
+    # ---- pelvis: rows [z; ωx; ωy; ωz]
+    r0 = 12
+    for j in range(nv):
+        for r in range(4):
+            jac[r0 + r, j] = 0.0
+    for k in range(3):
+        jac[r0, k] = base_rot[2, k]
+        for r in range(3):
+            jac[r0 + 1 + r, 3 + k] = base_rot[r, k]
+    vx, vy, vz, wx, wy, wz = v[0], v[1], v[2], v[3], v[4], v[5]
+    rz = base_rot[2]
+    height_rate = rz[0] * vx + rz[1] * vy + rz[2] * vz
+    drift = rz[0] * (wy * vz - wz * vy) + rz[1] * (wz * vx - wx * vz) + rz[2] * (wx * vy - wy * vx)
+    rhs[r0] = (0.0 + gains[5] * (pelvis_height - q[2]) + gains[6] * (pelvis_height_rate - height_rate)) - drift
+    err = _rotation_error(pelvis_rot, base_rot)
+    for r in range(3):
+        omega = base_rot[r, 0] * wx + base_rot[r, 1] * wy + base_rot[r, 2] * wz
+        rhs[r0 + 1 + r] = 0.0 + gains[7] * err[r] + gains[8] * (pelvis_ang_vel[r] - omega)
+    # ---- CoM: rows [x; y; z]
+    r0 = 16
+    inv_m = 1.0 / mass
+    for r in range(3):
+        for j in range(nv):
+            jac[r0 + r, j] = centroidal_map[r, j] * inv_m
+        target = com_xy[r] if r < 2 else (0.0 if math.isnan(com_z) else com_z)
+        target_vel = com_xy_vel[r] if r < 2 else 0.0
+        target_acc = com_xy_acc[r] if r < 2 else 0.0
+        lin = momentum[r] * inv_m
+        rhs[r0 + r] = (target_acc + gains[9] * (target - com[r]) + gains[10] * (target_vel - lin)
+                       - centroidal_drift[r] * inv_m)
+    w[r0 + 2] = 0.0 if math.isnan(com_z) else gains[11]
+    # ---- upper-body joints (J constant: one 1 per row)
+    r0 = 19
+    n_upper = upper_v_idx.shape[0]
+    for r in range(n_upper):
+        k = upper_v_idx[r]
+        if fill_constant:
+            for j in range(nv):
+                jac[r0 + r, j] = 0.0
+            jac[r0 + r, k] = 1.0
+        rhs[r0 + r] = 0.0 + gains[12] * (upper_q_ref[r] - q[k + 1]) + gains[13] * (upper_qd_ref[r] - v[k])
+    # ---- angular momentum damping (k* = 0)
+    r0 = 19 + n_upper
+    for r in range(3):
+        for j in range(nv):
+            jac[r0 + r, j] = centroidal_map[3 + r, j]
+        rhs[r0 + r] = gains[14] * (0.0 - momentum[3 + r]) - centroidal_drift[3 + r]
