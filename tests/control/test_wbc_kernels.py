@@ -97,3 +97,24 @@ def test_log3_equals_pinocchio() -> None:
     for vec in vectors:
         rot = pin.exp3(vec)
         np.testing.assert_allclose(log3(rot), pin.log3(rot), atol=1e-12)
+
+
+@pytest.mark.parametrize("positive_definite", [True, False])
+def test_torques_kernel_equals_numpy(positive_definite: bool) -> None:
+    from engine.control.wbc.kernels import torques
+
+    rng = np.random.default_rng(1)
+    nv, n_rho = 12, 8
+    half = rng.normal(size=(nv, nv))
+    mass = half @ half.T + nv * np.eye(nv)
+    if not positive_definite:  # a base block that is not positive definite: the LU fallback
+        mass[:6, :6] = np.diag([1.0, -1.0, 2.0, 3.0, 1.0, 1.0])
+    nle, tau_map, rho = rng.normal(size=nv), rng.normal(size=(nv, n_rho)), rng.uniform(0, 1, n_rho)
+    qdd, damping = rng.normal(size=nv), rng.normal(size=nv - 6)
+    gen = tau_map @ rho
+    expected_qdd = qdd.copy()
+    expected_qdd[:6] = np.linalg.solve(mass[:6, :6], -(mass[:6, 6:] @ qdd[6:]) - nle[:6] - gen[:6])
+    expected_tau = mass[6:] @ expected_qdd + nle[6:] + gen[6:] + damping
+    tau = torques(mass, nle, tau_map, rho, qdd, damping)
+    np.testing.assert_allclose(qdd, expected_qdd, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(tau, expected_tau, rtol=1e-12, atol=1e-11)

@@ -155,6 +155,7 @@ class TaskSpaceInverseDynamics:
 
         damping = np.asarray(self.model.damping[6:], dtype=float).copy()
         self._joint_damping = damping if np.any(damping > 0.0) else None
+        self._no_damping = np.zeros(self.n_joints)
         self._joint_lower = robot.joint_lower.copy()
         self._joint_upper = robot.joint_upper.copy()
         effort = np.asarray(robot.effort_limits, dtype=float)
@@ -417,6 +418,9 @@ class TaskSpaceInverseDynamics:
 
     def _torques(self, snap: DynamicsSnapshot, qdd: FloatArray, rho: FloatArray) -> FloatArray:
         """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows."""
+        if self.kernels == "numba":
+            damping = self._no_damping if self._joint_damping is None else self._joint_damping * snap.v[6:]
+            return _kernels.torques(snap.mass_matrix, snap.nonlinear_effects, self._tau_map, rho, qdd, damping)
         m = snap.mass_matrix
         contact_gen = self._tau_map @ rho  # −Σ J_cᵀ f_c
         rhs = -(m[:6, 6:] @ qdd[6:]) - snap.nonlinear_effects[:6] - contact_gen[:6]

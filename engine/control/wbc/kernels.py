@@ -95,21 +95,39 @@ def assemble_qp(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, basis_xy, bas
                 wrench[3, m] = fy * ez - fz * ey
                 wrench[4, m] = fz * ex - fx * ez
                 wrench[5, m] = fx * ey - fy * ex
-        # τ̄ map of this side: −J_sᵀ wrench (nv, 16)
+        # τ̄ map of this side: −J_sᵀ wrench (nv, 16); the foot's Jacobian is zero outside its leg and the base
         for i in range(nv):
+            nonzero = False
+            for r in range(6):
+                if frame_jac[s, r, i] != 0.0:
+                    nonzero = True
             for m in range(per_side):
                 acc = 0.0
-                for r in range(6):
-                    acc += frame_jac[s, r, i] * wrench[r, m]
+                if nonzero:
+                    for r in range(6):
+                        acc += frame_jac[s, r, i] * wrench[r, m]
                 tau_map[i, s * per_side + m] = -acc
     # ---- R = λ_τ̄ T_jᵀ T_j + λ_ρ I over the joint rows (6:) of the τ̄ map
+    # (row by row over the non-zero entries: each joint row of T touches one foot's columns at most)
     n_rho = tau_map.shape[1]
     for a in range(n_rho):
+        for b in range(n_rho):
+            r_rr[a, b] = 0.0
+    nz = np.empty(n_rho, dtype=np.int64)
+    for i in range(6, nv):
+        k = 0
+        for a in range(n_rho):
+            if tau_map[i, a] != 0.0:
+                nz[k] = a
+                k += 1
+        for ia in range(k):
+            a = nz[ia]
+            ta = tau_map[i, a]
+            for ib in range(ia, k):
+                r_rr[a, nz[ib]] += ta * tau_map[i, nz[ib]]
+    for a in range(n_rho):
         for b in range(a, n_rho):
-            acc = 0.0
-            for i in range(6, nv):
-                acc += tau_map[i, a] * tau_map[i, b]
-            r_rr[a, b] = lambda_tau * acc
+            r_rr[a, b] = lambda_tau * r_rr[a, b]
             r_rr[b, a] = r_rr[a, b]
         r_rr[a, a] += lambda_rho
 
@@ -312,3 +330,61 @@ def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac
         for j in range(nv):
             jac[r0 + r, j] = centroidal_map[3 + r, j]
         rhs[r0 + r] = gains[14] * (0.0 - momentum[3 + r]) - centroidal_drift[3 + r]
+
+
+@njit(cache=True, nogil=True)
+def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN201
+    """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block, LU if that fails),
+    written into ``qdd[:6]``; returns τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c + ``damping`` (the model's viscous
+    joint torque, already multiplied by q̇_j; zeros when the model has none)."""
+    nv = mass_matrix.shape[0]
+    n_rho = rho.shape[0]
+    gen = np.empty(nv)  # −Σ J_cᵀ f_c
+    for i in range(nv):
+        acc = 0.0
+        for k in range(n_rho):
+            acc += tau_map[i, k] * rho[k]
+        gen[i] = acc
+    rhs = np.empty(6)
+    for r in range(6):
+        acc = 0.0
+        for j in range(6, nv):
+            acc += mass_matrix[r, j] * qdd[j]
+        rhs[r] = -acc - nle[r] - gen[r]
+    low = np.zeros((6, 6))  # Cholesky factor of M[:6, :6]
+    ok = True
+    for i in range(6):
+        for j in range(i + 1):
+            acc = mass_matrix[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            if i == j:
+                if acc <= 0.0:
+                    ok = False
+                    break
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, j] = acc / low[j, j]
+        if not ok:
+            break
+    if ok:
+        y = np.empty(6)
+        for i in range(6):
+            acc = rhs[i]
+            for k in range(i):
+                acc -= low[i, k] * y[k]
+            y[i] = acc / low[i, i]
+        for i in range(5, -1, -1):
+            acc = y[i]
+            for k in range(i + 1, 6):
+                acc -= low[k, i] * qdd[k]
+            qdd[i] = acc / low[i, i]
+    else:
+        qdd[:6] = np.linalg.solve(np.ascontiguousarray(mass_matrix[:6, :6]), rhs)
+    tau = np.empty(nv - 6)
+    for i in range(nv - 6):
+        acc = 0.0
+        for j in range(nv):
+            acc += mass_matrix[6 + i, j] * qdd[j]
+        tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
+    return tau
