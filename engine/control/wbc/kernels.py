@@ -134,40 +134,48 @@ def assemble_qp(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, basis_xy, bas
 
 @njit(cache=True, nogil=True)
 def fill_daqp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, tau_qdd, tau_rho, tau_bias, tau_lo,
-              tau_up, h, f, a, lo, up):  # noqa: ANN001, ANN201
-    """The QP in DAQP's form, in place: H = diag(P, R), f = [c; 0], rows [A_h −G; M_j T] and bounds
+              tau_up, rho_idx, h, f, a, lo, up):  # noqa: ANN001, ANN201
+    """The QP in DAQP's form, in place, over x = [q̈; ρ[rho_idx]] (the corners in contact: the others'
+    weights are 0 and leave the problem): H = diag(P, R), f = [c; 0], rows [A_h −G; M_j T] and bounds
     [free base; q̈ joint limits; 0 ≤ ρ ≤ ρ_max; b = b; τ_lo − h_j ≤ · ≤ τ_up − h_j]."""
     nv = p_qq.shape[0]
-    n_rho = r_rr.shape[0]
+    n_rho = rho_idx.shape[0]
     n = nv + n_rho
     n_tau = tau_qdd.shape[0]
     for i in range(nv):
         for j in range(nv):
             h[i, j] = p_qq[i, j]
+        for j in range(n_rho):
+            h[i, nv + j] = 0.0
+            h[nv + j, i] = 0.0
         f[i] = c_q[i]
     for i in range(n_rho):
         for j in range(n_rho):
-            h[nv + i, nv + j] = r_rr[i, j]
+            h[nv + i, nv + j] = r_rr[rho_idx[i], rho_idx[j]]
+        f[nv + i] = 0.0
     for r in range(6):
         for j in range(nv):
             a[r, j] = a_h[r, j]
         for j in range(n_rho):
-            a[r, nv + j] = -g_rho[r, j]
+            a[r, nv + j] = -g_rho[r, rho_idx[j]]
         lo[n + r] = b[r]
         up[n + r] = b[r]
     for r in range(n_tau):
         for j in range(nv):
             a[6 + r, j] = tau_qdd[r, j]
         for j in range(n_rho):
-            a[6 + r, nv + j] = tau_rho[r, j]
+            a[6 + r, nv + j] = tau_rho[r, rho_idx[j]]
         lo[n + 6 + r] = tau_lo[r] - tau_bias[r]
         up[n + 6 + r] = tau_up[r] - tau_bias[r]
+    for j in range(6):
+        lo[j] = -1e20
+        up[j] = 1e20
     for j in range(nv - 6):
         lo[6 + j] = qdd_lo[j]
         up[6 + j] = qdd_up[j]
     for j in range(n_rho):
         lo[nv + j] = 0.0
-        up[nv + j] = rho_up[j]
+        up[nv + j] = rho_up[rho_idx[j]]
 
 
 _EPS = float(np.finfo(np.float64).eps)
