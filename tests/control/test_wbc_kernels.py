@@ -127,6 +127,11 @@ def test_torques_kernel_equals_numpy(positive_definite: bool) -> None:
     expected_qdd = qdd.copy()
     expected_qdd[:6] = np.linalg.solve(mass[:6, :6], -(mass[:6, 6:] @ qdd[6:]) - nle[:6] - gen[:6])
     expected_tau = mass[6:] @ expected_qdd + nle[6:] + gen[6:] + damping
-    tau = torques(mass, nle, tau_map, rho, qdd, damping)
+    tau, rhs, gen_out = torques(mass, nle, tau_map, rho, qdd, damping)
+    np.testing.assert_allclose(gen_out, gen, rtol=1e-12, atol=1e-12)
+    if not positive_definite:  # the caller's LU fallback
+        assert tau.size == 0
+        qdd[:6] = np.linalg.solve(mass[:6, :6], rhs)
+        tau = mass[6:] @ qdd + nle[6:] + gen_out[6:] + damping
     np.testing.assert_allclose(qdd, expected_qdd, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(tau, expected_tau, rtol=1e-12, atol=1e-11)

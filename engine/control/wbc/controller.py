@@ -420,7 +420,12 @@ class TaskSpaceInverseDynamics:
         """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows."""
         if self.kernels == "numba":
             damping = self._no_damping if self._joint_damping is None else self._joint_damping * snap.v[6:]
-            return _kernels.torques(snap.mass_matrix, snap.nonlinear_effects, self._tau_map, rho, qdd, damping)
+            tau, rhs, gen = _kernels.torques(snap.mass_matrix, snap.nonlinear_effects, self._tau_map, rho, qdd, damping)
+            if tau.size:
+                return tau
+            m = snap.mass_matrix
+            qdd[:6] = np.linalg.solve(m[:6, :6], rhs)
+            return m[6:] @ qdd + snap.nonlinear_effects[6:] + gen[6:] + damping
         m = snap.mass_matrix
         contact_gen = self._tau_map @ rho  # −Σ J_cᵀ f_c
         rhs = -(m[:6, 6:] @ qdd[6:]) - snap.nonlinear_effects[:6] - contact_gen[:6]

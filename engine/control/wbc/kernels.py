@@ -342,9 +342,10 @@ def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac
 
 @njit(cache=True, nogil=True)
 def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN201
-    """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block, LU if that fails),
-    written into ``qdd[:6]``; returns τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c + ``damping`` (the model's viscous
-    joint torque, already multiplied by q̇_j; zeros when the model has none)."""
+    """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block), written into
+    ``qdd[:6]``; returns (τ, base rows' right-hand side, −Σ J_cᵀ f_c) with τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c
+    + ``damping`` (the model's viscous joint torque, already multiplied by q̇_j; zeros when the model
+    has none). τ is empty when the base block is not positive definite: the caller solves it (LU)."""
     nv = mass_matrix.shape[0]
     n_rho = rho.shape[0]
     gen = np.empty(nv)  # −Σ J_cᵀ f_c
@@ -387,12 +388,34 @@ def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN2
             for k in range(i + 1, 6):
                 acc -= low[k, i] * qdd[k]
             qdd[i] = acc / low[i, i]
-    else:
-        qdd[:6] = np.linalg.solve(np.ascontiguousarray(mass_matrix[:6, :6]), rhs)
+    else:  # the caller solves with LU (numba's LAPACK binding would triple this kernel's compile time)
+        return np.empty(0), rhs, gen
     tau = np.empty(nv - 6)
     for i in range(nv - 6):
         acc = 0.0
         for j in range(nv):
             acc += mass_matrix[6 + i, j] * qdd[j]
         tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
-    return tau
+    return tau, rhs, gen
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) every kernel with the argument types the controller
+    passes, so a fresh clone pays the compilation once (``make setup``) rather than in its first walk."""
+    from engine.constants import SIDES
+    from engine.control.controller import RobotState
+    from engine.control.wbc.controller import TaskSpaceInverseDynamics
+    from engine.geometry.polygon import convex_hull_2d
+    from engine.robot.model import load_robot
+
+    robot = load_robot("g1")
+    wbc = TaskSpaceInverseDynamics(robot)
+    state = RobotState(0.0, robot.q_standing.copy(), np.zeros(robot.pin_model.nv))
+    wbc.reset(state)
+    ref = wbc.hold_reference(robot.q_standing)
+    for contact in (np.ones((len(SIDES), 4), dtype=bool), np.eye(len(SIDES), 4, dtype=bool)):
+        ref.contact = contact
+        wbc.compute(state, ref)
+        if not wbc.diagnostics.ok:
+            raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
+    convex_hull_2d(np.random.default_rng(0).random((8, 2)))
