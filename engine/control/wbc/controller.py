@@ -71,6 +71,10 @@ class TaskSpaceInverseDynamics:
     ``qp_backend``: ``"daqp"`` (default: fastest in ``studio bench qp``), ``"dense"`` (the
     hand-written exact active set), ``"osqp"`` (fixed sparsity pattern, warm started; the others'
     fallback) or ``"proxsuite"`` / ``"quadprog"`` (:mod:`engine.control.qp_backends`).
+
+    ``kernels``: ``"numba"`` (default) computes the task rows, the QP's assembly, DAQP's form and the
+    torques in the compiled kernels of :mod:`engine.control.wbc.kernels`; ``"numpy"`` keeps the
+    task objects and numpy code they replace (the tests' reference: the same numbers to rounding).
     """
 
     name = "task-space-id"
