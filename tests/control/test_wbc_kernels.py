@@ -135,3 +135,14 @@ def test_torques_kernel_equals_numpy(positive_definite: bool) -> None:
         tau = mass[6:] @ qdd + nle[6:] + gen_out[6:] + damping
     np.testing.assert_allclose(qdd, expected_qdd, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(tau, expected_tau, rtol=1e-12, atol=1e-11)
+
+
+def test_warm_up_compiles_every_kernel() -> None:
+    """``make setup``'s warm-up runs (a whole-body tick that solves, a hull)."""
+    from engine.compiled_kernels import warm_up
+    from engine.control.wbc import kernels
+    from engine.geometry import polygon
+
+    warm_up()
+    for kernel in (kernels.assemble_qp, kernels.task_rows, kernels.fill_daqp, kernels.torques, polygon._hull_compiled):
+        assert kernel.signatures, kernel

@@ -398,24 +398,3 @@ def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN2
         tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
     return tau, rhs, gen
 
-
-def warm_up() -> None:
-    """Compile (or load from the on-disk cache) every kernel with the argument types the controller
-    passes, so a fresh clone pays the compilation once (``make setup``) rather than in its first walk."""
-    from engine.constants import SIDES
-    from engine.control.controller import RobotState
-    from engine.control.wbc.controller import TaskSpaceInverseDynamics
-    from engine.geometry.polygon import convex_hull_2d
-    from engine.robot.model import load_robot
-
-    robot = load_robot("g1")
-    wbc = TaskSpaceInverseDynamics(robot)
-    state = RobotState(0.0, robot.q_standing.copy(), np.zeros(robot.pin_model.nv))
-    wbc.reset(state)
-    ref = wbc.hold_reference(robot.q_standing)
-    for contact in (np.ones((len(SIDES), 4), dtype=bool), np.eye(len(SIDES), 4, dtype=bool)):
-        ref.contact = contact
-        wbc.compute(state, ref)
-        if not wbc.diagnostics.ok:
-            raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
-    convex_hull_2d(np.random.default_rng(0).random((8, 2)))
