@@ -58,7 +58,7 @@ def test_compiled_assembly_equals_numpy(robot_name: str) -> None:
         qa, qb = ours.qp, reference.qp
         assert qa is not None and qb is not None
         for field in ("p_qq", "c_q", "r_rr", "a_h", "g_rho", "b", "qdd_joint_lo", "qdd_joint_up", "rho_up",
-                      "tau_qdd", "tau_rho", "tau_bias"):
+                      "tau_qdd", "tau_rho", "tau_bias", "tau_lo", "tau_up"):
             a, b = getattr(qa, field), getattr(qb, field)
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9 * max(1.0, float(np.abs(b).max())), err_msg=field)
         np.testing.assert_allclose(ours._jac, reference._jac, rtol=1e-13, atol=1e-12)
@@ -144,5 +144,6 @@ def test_warm_up_compiles_every_kernel() -> None:
     from engine.geometry import polygon
 
     warm_up()
-    for kernel in (kernels.assemble_qp, kernels.task_rows, kernels.fill_daqp, kernels.torques, polygon._hull_compiled):
+    for kernel in (kernels.assemble_qp, kernels.task_rows, kernels.fill_daqp, kernels.torques, kernels.qp_bounds,
+                   polygon._hull_compiled):
         assert kernel.signatures, kernel

@@ -164,6 +164,8 @@ class TaskSpaceInverseDynamics:
         self._joint_upper = robot.joint_upper.copy()
         effort = np.asarray(robot.effort_limits, dtype=float)
         self._torque_limit = np.where(effort > 0.0, g.torque_limit_fraction * effort, 1e6)
+        self._neg_torque_limit = -self._torque_limit
+        self._zeros_6 = np.zeros(6)
         self._servo_kp = g.servo_kp_scale * robot.kp
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
@@ -297,6 +299,23 @@ class TaskSpaceInverseDynamics:
         else:
             p_qq, c_q, r_rr, g_rho, tj = self._assemble_numpy(snap)
 
+        key = contact.tobytes()
+        if key != self._rho_up_cache[0]:
+            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
+            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
+        rho_up = self._rho_up_cache[1]
+        if self.kernels == "numba":  # the lines below in one call (kernels.qp_bounds)
+            ext = ref.external_wrench
+            damping = self._joint_damping
+            b, lo, up, bias = _kernels.qp_bounds(
+                snap.centroidal_drift, self.mass_kg * GRAVITY_MPS2, self._zeros_6 if ext is None else np.asarray(ext, dtype=float),
+                ext is not None,
+                snap.q, snap.v, self._joint_lower, self._joint_upper, float(g.joint_limit_kl), float(g.joint_limit_bl),
+                float(g.max_joint_acc_radps2), snap.nonlinear_effects, self._no_damping if damping is None else damping,
+                damping is not None)
+            return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
+                                tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
+                                tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
         # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
         b = -snap.centroidal_drift
         b[2] -= self.mass_kg * GRAVITY_MPS2
@@ -308,11 +327,6 @@ class TaskSpaceInverseDynamics:
         amax = g.max_joint_acc_radps2
         lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
         up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
-        key = contact.tobytes()
-        if key != self._rho_up_cache[0]:
-            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
-            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
-        rho_up = self._rho_up_cache[1]
         # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
         bias = snap.nonlinear_effects[6:].copy()
         if self._joint_damping is not None:

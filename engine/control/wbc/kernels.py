@@ -398,3 +398,24 @@ def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN2
         tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
     return tau, rhs, gen
 
+
+
+@njit(cache=True, nogil=True)
+def qp_bounds(centroidal_drift, weight_n, external_wrench, has_external, q, v, joint_lower, joint_upper, kl, bl,
+              amax, nle, damping, has_damping):  # noqa: ANN001, ANN201
+    """The centroidal equality's right-hand side b = −Ȧ_h q̇ − [0 0 m g 0 0 0] (+ w_ext), the soft joint
+    limits' q̈ bounds (Eqs. 22, 23, within ±q̈_max) and the torque rows' bias h_j (+ joint damping)."""
+    b = np.empty(6)
+    for r in range(6):
+        b[r] = -centroidal_drift[r]
+    b[2] -= weight_n
+    if has_external:
+        for r in range(6):
+            b[r] = b[r] + external_wrench[r]
+    n = joint_lower.shape[0]
+    lo, up, bias = np.empty(n), np.empty(n), np.empty(n)
+    for j in range(n):
+        lo[j] = min(max(kl * (joint_lower[j] - q[7 + j]) - bl * v[6 + j], -amax), amax)
+        up[j] = max(min(kl * (joint_upper[j] - q[7 + j]) - bl * v[6 + j], amax), lo[j])
+        bias[j] = nle[6 + j] + damping[j] * v[6 + j] if has_damping else nle[6 + j]
+    return b, lo, up, bias
