@@ -21,6 +21,8 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -e '.[test]'
+	# the control stack's compiled kernels (numba): compiled once here and cached on disk, not in the first walk
+	$(PY) -c "from engine.compiled_kernels import warm_up; warm_up()"
 	@touch $(STAMP)
 
 studio: setup

@@ -6,13 +6,23 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
 
 
 def convex_hull_2d(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex hull (monotone chain) of (N, 2) points; collinear points dropped."""
+    """Counter-clockwise convex hull (monotone chain) of (N, 2) points; collinear points dropped.
+    Compiled (:func:`_hull_compiled`); :func:`convex_hull_2d_numpy` is the reference it equals."""
+    pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) <= 2:
+        return convex_hull_2d_numpy(pts)
+    return _hull_compiled(pts)
+
+
+def convex_hull_2d_numpy(points: np.ndarray) -> np.ndarray:
+    """The reference (plain Python) of :func:`convex_hull_2d`."""
     pts = sorted(map(tuple, np.asarray(points, dtype=float).tolist()))
     if len(pts) <= 2:
         return np.array(pts, dtype=float)
@@ -29,6 +39,42 @@ def convex_hull_2d(points: np.ndarray) -> np.ndarray:
             upper.pop()
         upper.append(p)
     return np.array(lower[:-1] + upper[:-1], dtype=float)
+
+
+@njit(cache=True, nogil=True)
+def _hull_compiled(points):  # noqa: ANN001, ANN201
+    """:func:`convex_hull_2d_numpy` for N ≥ 3 points: the same lexicographic order, turn test and tolerance."""
+    n = points.shape[0]
+    pts = points.copy()
+    for i in range(1, n):  # insertion sort by (x, y): the order of Python's sorted() on tuples
+        x, y = pts[i, 0], pts[i, 1]
+        j = i - 1
+        while j >= 0 and (pts[j, 0] > x or (pts[j, 0] == x and pts[j, 1] > y)):
+            pts[j + 1, 0], pts[j + 1, 1] = pts[j, 0], pts[j, 1]
+            j -= 1
+        pts[j + 1, 0], pts[j + 1, 1] = x, y
+    lower = np.empty((n, 2))
+    k = 0
+    for i in range(n):
+        px, py = pts[i, 0], pts[i, 1]
+        while k >= 2 and ((lower[k - 1, 0] - lower[k - 2, 0]) * (py - lower[k - 2, 1])
+                          - (lower[k - 1, 1] - lower[k - 2, 1]) * (px - lower[k - 2, 0])) <= 1e-15:
+            k -= 1
+        lower[k, 0], lower[k, 1] = px, py
+        k += 1
+    upper = np.empty((n, 2))
+    m = 0
+    for i in range(n - 1, -1, -1):
+        px, py = pts[i, 0], pts[i, 1]
+        while m >= 2 and ((upper[m - 1, 0] - upper[m - 2, 0]) * (py - upper[m - 2, 1])
+                          - (upper[m - 1, 1] - upper[m - 2, 1]) * (px - upper[m - 2, 0])) <= 1e-15:
+            m -= 1
+        upper[m, 0], upper[m, 1] = px, py
+        m += 1
+    out = np.empty((k - 1 + m - 1, 2))
+    out[:k - 1] = lower[:k - 1]
+    out[k - 1:] = upper[:m - 1]
+    return out
 
 
 def polygon_area(polygon: ArrayLike) -> float:

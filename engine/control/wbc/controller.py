@@ -54,6 +54,10 @@ from engine.robot.model import RobotModel
 from engine.control.wbc.qp import CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
+from engine.control.wbc import kernels as _kernels
+
+#: How the QP is assembled: compiled (numba, the default) or the numpy reference it replaces.
+KERNELS = ("numba", "numpy")
 
 FloatArray = NDArray[np.float64]
 
@@ -67,19 +71,26 @@ class TaskSpaceInverseDynamics:
     ``qp_backend``: ``"daqp"`` (default: fastest in ``studio bench qp``), ``"dense"`` (the
     hand-written exact active set), ``"osqp"`` (fixed sparsity pattern, warm started; the others'
     fallback) or ``"proxsuite"`` / ``"quadprog"`` (:mod:`engine.control.qp_backends`).
+
+    ``kernels``: ``"numba"`` (default) computes the task rows, the QP's assembly, DAQP's form and the
+    torques in the compiled kernels of :mod:`engine.control.wbc.kernels`; ``"numpy"`` keeps the
+    task objects and numpy code they replace (the tests' reference: the same numbers to rounding).
     """
 
     name = "task-space-id"
 
     def __init__(self, robot: RobotModel, gains: WbcGains | None = None,
                  upper_body_joints: Sequence[str] | None = None, dt_s: float = CONTROL_PERIOD_S,
-                 qp_backend: str = "daqp"):
+                 qp_backend: str = "daqp", kernels: str = "numba"):
         if set(robot.config.soles) != set(SIDES):
             raise ValueError(f"{robot.name}: the inverse dynamics needs left and right soles")
         choices = ("dense", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
         if qp_backend not in choices:
             raise ValueError(f"qp_backend: expected one of {', '.join(choices)}, got {qp_backend!r}")
+        if kernels not in KERNELS:
+            raise ValueError(f"kernels: expected one of {', '.join(KERNELS)}, got {kernels!r}")
         self.robot = robot
+        self.kernels = kernels
         self.gains = gains or WbcGains.for_robot(robot)
         self.dt_s = dt_s
         self.qp_backend = qp_backend
@@ -126,6 +137,12 @@ class TaskSpaceInverseDynamics:
             task.weight = self._w[r:r + task.dim]
             r += task.dim
         self._foot_rows = 6 * n_feet
+        # The compiled rows' gains (kernels.task_rows) and zero feed-forward.
+        self._task_gains = np.array([g.swing_foot_kp, g.swing_foot_kd, g.swing_foot_weight, g.contact_foot_kd,
+                                     g.contact_foot_weight, g.pelvis_height_kp, g.pelvis_height_kd, g.pelvis_rot_kp,
+                                     g.pelvis_rot_kd, g.com_kp, g.com_kd, g.com_z_weight, g.upper_body_kp,
+                                     g.upper_body_kd, g.angular_momentum_kd], dtype=float)
+        self._zeros_2x3 = np.zeros((n_feet, 3))
         self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
         self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()
         mu_n = g.friction_mu / math.sqrt(1.0 + g.friction_mu**2)
@@ -142,15 +159,18 @@ class TaskSpaceInverseDynamics:
 
         damping = np.asarray(self.model.damping[6:], dtype=float).copy()
         self._joint_damping = damping if np.any(damping > 0.0) else None
+        self._no_damping = np.zeros(self.n_joints)
         self._joint_lower = robot.joint_lower.copy()
         self._joint_upper = robot.joint_upper.copy()
         effort = np.asarray(robot.effort_limits, dtype=float)
         self._torque_limit = np.where(effort > 0.0, g.torque_limit_fraction * effort, 1e6)
+        self._neg_torque_limit = -self._torque_limit
+        self._zeros_6 = np.zeros(6)
         self._servo_kp = g.servo_kp_scale * robot.kp
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
         self.osqp_solver = OsqpQpSolver(self.nv, self.n_rho)
-        self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints)
+        self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints, compiled=kernels == "numba")
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
         self.last_tau = np.zeros(self.n_joints)
@@ -201,7 +221,8 @@ class TaskSpaceInverseDynamics:
 
         snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
         t1 = time.perf_counter()
-        self._set_targets(ref, contact)
+        if self.kernels == "numpy":  # (the compiled rows read the reference directly)
+            self._set_targets(ref, contact)
         qp = self._build_qp(snap, ref, contact)
         self.qp = qp
         t2 = time.perf_counter()
@@ -268,6 +289,55 @@ class TaskSpaceInverseDynamics:
         g = self.gains
         nv = self.nv
         # ---- tasks: stacked weighted least squares on q̈ (Eq. 20); both feet at once (rows 0..11)
+        if self.kernels == "numba":
+            self._rows_compiled(snap, ref, contact)
+        else:
+            self._rows_numpy(snap)
+        self._jac_filled = True
+        if self.kernels == "numba":
+            p_qq, c_q, r_rr, g_rho, tj = self._assemble_compiled(snap)
+        else:
+            p_qq, c_q, r_rr, g_rho, tj = self._assemble_numpy(snap)
+
+        key = contact.tobytes()
+        if key != self._rho_up_cache[0]:
+            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
+            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
+        rho_up = self._rho_up_cache[1]
+        if self.kernels == "numba":  # the lines below in one call (kernels.qp_bounds)
+            ext = ref.external_wrench
+            damping = self._joint_damping
+            b, lo, up, bias = _kernels.qp_bounds(
+                snap.centroidal_drift, self.mass_kg * GRAVITY_MPS2, self._zeros_6 if ext is None else np.asarray(ext, dtype=float),
+                ext is not None,
+                snap.q, snap.v, self._joint_lower, self._joint_upper, float(g.joint_limit_kl), float(g.joint_limit_bl),
+                float(g.max_joint_acc_radps2), snap.nonlinear_effects, self._no_damping if damping is None else damping,
+                damping is not None)
+            return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
+                                tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
+                                tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
+        # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
+        b = -snap.centroidal_drift
+        b[2] -= self.mass_kg * GRAVITY_MPS2
+        if ref.external_wrench is not None:
+            b = b + np.asarray(ref.external_wrench, dtype=float)
+
+        # ---- soft joint limits (22, 23) within the acceleration limits; ρ bounds (24, 25)
+        qj, vj = snap.q[7:], snap.v[6:]
+        amax = g.max_joint_acc_radps2
+        lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
+        up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
+        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
+        bias = snap.nonlinear_effects[6:].copy()
+        if self._joint_damping is not None:
+            bias += self._joint_damping * snap.v[6:]
+        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
+                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
+                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
+
+    def _rows_numpy(self, snap: DynamicsSnapshot) -> None:
+        """The tasks' rows (J, a* − J̇ q̇) written by the task objects (targets set by :meth:`_set_targets`)."""
+        nv = self.nv
         jac, rhs, nf = self._jac, self._rhs, self._foot_rows
         jac[:nf] = snap.frame_jacobian.reshape(nf, nv)
         acc = self._foot_acc + self._foot_kd * (self._foot_vel - snap.frame_velocity)
@@ -281,7 +351,28 @@ class TaskSpaceInverseDynamics:
             task.write_rows(snap, jac[r:r + d] if not task.constant_jacobian or not self._jac_filled else None,
                             rhs[r:r + d])
             r += d
-        self._jac_filled = True
+
+    def _rows_compiled(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> None:
+        """:meth:`_set_targets` and :meth:`_rows_numpy` in one compiled call
+        (:func:`engine.control.wbc.kernels.task_rows`), weights included."""
+        zeros = self._zeros_2x3
+        _kernels.task_rows(
+            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
+            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
+            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
+            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
+            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
+            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
+            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
+            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if ref.com_z_m is None else float(ref.com_z_m),
+            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps)
+
+    def _assemble_numpy(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The tasks' normal equations and the contact model in numpy (the reference of
+        :func:`engine.control.wbc.kernels.assemble_qp`): P, c, R, G and the τ̄ map's joint rows."""
+        g = self.gains
+        nv = self.nv
+        jac, rhs = self._jac, self._rhs
         wj = jac * self._w[:, None]
         p_qq = jac.T @ wj
         p_qq.flat[::nv + 1] += g.lambda_qdd
@@ -317,29 +408,21 @@ class TaskSpaceInverseDynamics:
         r_rr = g.lambda_tau * (tj.T @ tj)  # λ_τ̄ ‖τ̄‖²
         r_rr.flat[::self.n_rho + 1] += g.lambda_rho
 
-        # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
-        b = -snap.centroidal_drift
-        b[2] -= self.mass_kg * GRAVITY_MPS2
-        if ref.external_wrench is not None:
-            b = b + np.asarray(ref.external_wrench, dtype=float)
+        return p_qq, c_q, r_rr, g_rho, tj
 
-        # ---- soft joint limits (22, 23) within the acceleration limits; ρ bounds (24, 25)
-        qj, vj = snap.q[7:], snap.v[6:]
-        amax = g.max_joint_acc_radps2
-        lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
-        up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
-        key = contact.tobytes()
-        if key != self._rho_up_cache[0]:
-            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
-            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
-        rho_up = self._rho_up_cache[1]
-        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
-        bias = snap.nonlinear_effects[6:].copy()
-        if self._joint_damping is not None:
-            bias += self._joint_damping * snap.v[6:]
-        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
-                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
-                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
+    def _assemble_compiled(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:meth:`_assemble_numpy` in one compiled call (:func:`engine.control.wbc.kernels.assemble_qp`)."""
+        g = self.gains
+        nv, n_rho = self.nv, self.n_rho
+        p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
+        g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
+        corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
+        _kernels.assemble_qp(self._jac, self._w, self._rhs, float(g.lambda_qdd), snap.frame_rotation,
+                             snap.frame_position_m, self._corner_offsets_t, snap.com_m, self._basis_xy,
+                             float(self._basis_template[0, 2, 0]), snap.frame_jacobian, float(g.lambda_tau),
+                             float(g.lambda_rho), p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+        self._basis, self._corners_m, self._tau_map = basis, corners, tau_map
+        return p_qq, c_q, r_rr, g_rho, tau_map[6:]
 
     def _skew_stack(self, arms: FloatArray) -> FloatArray:
         s = self._skew
@@ -353,6 +436,14 @@ class TaskSpaceInverseDynamics:
 
     def _torques(self, snap: DynamicsSnapshot, qdd: FloatArray, rho: FloatArray) -> FloatArray:
         """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows."""
+        if self.kernels == "numba":
+            damping = self._no_damping if self._joint_damping is None else self._joint_damping * snap.v[6:]
+            tau, rhs, gen = _kernels.torques(snap.mass_matrix, snap.nonlinear_effects, self._tau_map, rho, qdd, damping)
+            if tau.size:
+                return tau
+            m = snap.mass_matrix
+            qdd[:6] = np.linalg.solve(m[:6, :6], rhs)
+            return m[6:] @ qdd + snap.nonlinear_effects[6:] + gen[6:] + damping
         m = snap.mass_matrix
         contact_gen = self._tau_map @ rho  # −Σ J_cᵀ f_c
         rhs = -(m[:6, 6:] @ qdd[6:]) - snap.nonlinear_effects[:6] - contact_gen[:6]

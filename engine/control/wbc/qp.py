@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import osqp
@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
 
 from engine.control.qp_backends import QpProblem
+from engine.control.wbc.kernels import fill_daqp
 
 FloatArray = NDArray[np.float64]
 
@@ -389,26 +390,58 @@ class OsqpQpSolver:
 class DaqpQpSolver:
     """:class:`CentroidalQp` in DAQP (dense dual active set, C), its arrays preallocated: the
     Hessian's two blocks, the centroidal equalities (sense 5: immutable equality) and the torque
-    rows are written in place each tick. Bounds first (DAQP's simple bounds), then the rows."""
+    rows are written in place each tick. Bounds first (DAQP's simple bounds), then the rows. One
+    ``daqp.Model`` workspace per problem size is kept: each tick updates its data and starts from
+    the previous solve's active set (equal to a cold ``daqp.solve`` to ~1e-11, ≈ 15 % less time).
 
-    def __init__(self, nv: int, n_rho: int, n_tau: int):
+    ``compiled``: the form is written by :func:`engine.control.wbc.kernels.fill_daqp` over the ρ of the
+    corners in contact only (the others are fixed at 0: in single support the QP has 16 variables
+    fewer, and DAQP's factorisations scale with the cube); otherwise by numpy over every ρ (the
+    reference)."""
+
+    def __init__(self, nv: int, n_rho: int, n_tau: int, compiled: bool = False):
         import daqp
 
-        self._solve = daqp.solve
+        self._daqp = daqp
+        self.compiled = compiled
         self.nv, self.n_rho, self.n_tau = nv, n_rho, n_tau
-        n = nv + n_rho
-        self._h = np.zeros((n, n))
-        self._f = np.zeros(n)
-        self._a = np.zeros((6 + n_tau, n))
-        self._up = np.zeros(n + 6 + n_tau)
-        self._lo = np.zeros(n + 6 + n_tau)
-        self._up[:6], self._lo[:6] = 1e20, -1e20  # the floating base is free
-        self._sense = np.zeros(n + 6 + n_tau, dtype=np.int32)
-        self._sense[n:n + 6] = 5
+        self._workspaces: dict[int, _DaqpWorkspace] = {}
+        self._rho_idx_cache: tuple[bytes, NDArray[np.int64]] = (b"", np.arange(n_rho))
+        ws = self._workspace(n_rho)
+        self._h, self._f, self._a, self._lo, self._up, self._sense = ws.h, ws.f, ws.a, ws.lo, ws.up, ws.sense
         self.status = ""
         self.iterations = 0
 
+    def _workspace(self, n_rho: int) -> _DaqpWorkspace:
+        ws = self._workspaces.get(n_rho)
+        if ws is None:
+            ws = self._workspaces[n_rho] = _DaqpWorkspace(self._daqp.Model(), self.nv, n_rho, self.n_tau)
+        return ws
+
     def solve(self, qp: CentroidalQp) -> tuple[FloatArray, FloatArray] | None:
+        torque = qp.torque_rows()
+        if self.compiled and torque is not None:
+            key = (qp.rho_up > 0.0).tobytes()
+            if key != self._rho_idx_cache[0]:
+                self._rho_idx_cache = (key, np.flatnonzero(qp.rho_up > 0.0).astype(np.int64))
+            rho_idx = self._rho_idx_cache[1]
+            ws = self._workspace(rho_idx.size)
+            fill_daqp(qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up,
+                      torque.qdd, torque.rho, torque.bias, torque.lo, torque.up, rho_idx, ws.h, ws.f, ws.a, ws.lo, ws.up)
+            x = self._run(ws)
+            if x is None:
+                return None
+            rho = np.zeros(self.n_rho)
+            rho[rho_idx] = np.minimum(np.maximum(x[self.nv:], 0.0), ws.up[self.nv:self.nv + rho_idx.size])
+            return x[:self.nv].copy(), rho
+        self._fill_numpy(qp)
+        ws = self._workspace(self.n_rho)
+        x = self._run(ws)
+        if x is None:
+            return None
+        return x[:self.nv].copy(), np.minimum(np.maximum(x[self.nv:], 0.0), ws.up[self.nv:self.nv + self.n_rho])
+
+    def _fill_numpy(self, qp: CentroidalQp) -> None:
         nv, n = self.nv, self.nv + self.n_rho
         h, a, lo, up = self._h, self._a, self._lo, self._up
         h[:nv, :nv] = qp.p_qq
@@ -428,10 +461,34 @@ class DaqpQpSolver:
         else:
             a[6:] = 0.0
             lo[n + 6:], up[n + 6:] = -1e20, 1e20
-        x, _, flag, info = self._solve(h, self._f, a, up, lo, self._sense)
+
+    def _run(self, ws: _DaqpWorkspace) -> FloatArray | None:
+        if ws.set_up:
+            ws.model.update(H=ws.h, f=ws.f, A=ws.a, bupper=ws.up, blower=ws.lo)
+        else:
+            ws.model.setup(ws.h, ws.f, ws.a, ws.up, ws.lo, ws.sense)
+            ws.set_up = True
+        x, _, flag, info = ws.model.solve()
         self.status = f"daqp exitflag {flag}"
         self.iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
         if flag not in (1, 2) or not math.isfinite(float(np.sum(x))):
+            ws.set_up = False  # start the next solve of this size cold
             return None
-        x = np.asarray(x)
-        return x[:nv].copy(), np.minimum(np.maximum(x[nv:], 0.0), qp.rho_up)
+        return np.asarray(x)
+
+
+class _DaqpWorkspace:
+    """One DAQP problem size: its model and preallocated arrays (bounds, then the 6 + n_tau rows)."""
+
+    def __init__(self, model: object, nv: int, n_rho: int, n_tau: int):
+        n = nv + n_rho
+        self.model: Any = model
+        self.set_up = False
+        self.h = np.zeros((n, n))
+        self.f = np.zeros(n)
+        self.a = np.zeros((6 + n_tau, n))
+        self.up = np.zeros(n + 6 + n_tau)
+        self.lo = np.zeros(n + 6 + n_tau)
+        self.up[:6], self.lo[:6] = 1e20, -1e20  # the floating base is free
+        self.sense = np.zeros(n + 6 + n_tau, dtype=np.int32)
+        self.sense[n:n + 6] = 5

@@ -1,0 +1,33 @@
+"""The engine's compiled (numba) kernels, compiled ahead of the first walk: ``make setup`` runs
+:func:`warm_up` so a fresh clone pays the compilation once (≈ 15 s CPU) and every later process loads
+the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` beside the sources).
+
+Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
+and the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) every kernel with the argument types the controller
+    passes, by running them once: a standing G1 whole-body tick in double and partial support, and a hull."""
+    from engine.constants import SIDES
+    from engine.control.controller import RobotState
+    from engine.control.wbc.controller import TaskSpaceInverseDynamics
+    from engine.geometry.polygon import convex_hull_2d
+    from engine.robot.model import load_robot
+
+    robot = load_robot("g1")
+    wbc = TaskSpaceInverseDynamics(robot)
+    state = RobotState(0.0, robot.q_standing.copy(), np.zeros(robot.pin_model.nv))
+    wbc.reset(state)
+    ref = wbc.hold_reference(robot.q_standing)
+    for contact in (np.ones((len(SIDES), 4), dtype=bool), np.eye(len(SIDES), 4, dtype=bool)):
+        ref.contact = contact
+        wbc.compute(state, ref)
+        if not wbc.diagnostics.ok:
+            raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
+    convex_hull_2d(np.random.default_rng(0).random((8, 2)))

@@ -1,0 +1,421 @@
+"""Compiled (numba) kernels of the whole-body QP's assembly: the same numbers as the numpy code in
+:meth:`engine.control.wbc.controller.TaskSpaceInverseDynamics._build_qp_numpy` (equal to rounding,
+``tests/test_wbc_kernels.py``), in one call instead of ~40 small numpy operations per 500 Hz tick.
+
+* :func:`assemble_qp` — the stacked tasks' normal equations (P = Jᵀ W J + λ I, c = −Jᵀ W r), the contact
+  model (sole corners, friction-pyramid edges, Eq. 17), the centroidal map of ρ (Eq. 21), the
+  τ̄ map −Σ J_footᵀ [f; m] per unit ρ and its regulariser R = λ_τ̄ T_jᵀ T_j + λ_ρ I.
+* :func:`fill_daqp` — the QP in DAQP's dense form (Hessian, cost, rows, bounds) written into the
+  solver's preallocated arrays.
+
+Compiled on first use and cached on disk (``cache=True``: a fresh process loads the machine code
+instead of compiling it again).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def assemble_qp(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, basis_xy, basis_z, frame_jac,
+                lambda_tau, lambda_rho, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis):  # noqa: ANN001, ANN201
+    """Fill ``p_qq`` (nv, nv), ``c_q`` (nv,), ``r_rr`` (32, 32), ``g_rho`` (6, 32), ``tau_map`` (nv, 32),
+    ``corners`` (2, 3, 4) and ``basis`` (2, 3, 4) in place (see the module docstring)."""
+    n_rows, nv = jac.shape
+    # ---- tasks: P = Jᵀ W J + λ I (upper triangle, mirrored), c = −Jᵀ W r; zero entries skipped
+    for i in range(nv):
+        c_q[i] = 0.0
+        for j in range(nv):
+            p_qq[i, j] = 0.0
+    for r in range(n_rows):
+        wr = w[r]
+        if wr == 0.0:
+            continue
+        wrr = wr * rhs[r]
+        for i in range(nv):
+            a = jac[r, i]
+            if a == 0.0:
+                continue
+            wa = wr * a
+            c_q[i] -= a * wrr
+            for j in range(i, nv):
+                b = jac[r, j]
+                if b != 0.0:
+                    p_qq[i, j] += wa * b
+    for i in range(nv):
+        p_qq[i, i] += lambda_qdd
+        for j in range(i + 1, nv):
+            p_qq[j, i] = p_qq[i, j]
+    # ---- contact model: corners and pyramid edges per sole (world z normal, foot-yaw tangents)
+    n_sides = rot.shape[0]
+    n_corners = offsets_t.shape[2]
+    n_basis = basis_xy.shape[2]
+    per_side = n_corners * n_basis
+    corner_rel = np.empty((n_sides, 3, n_corners))
+    for s in range(n_sides):
+        for r in range(3):
+            for c in range(n_corners):
+                acc = 0.0
+                for k in range(3):
+                    acc += rot[s, r, k] * offsets_t[s, k, c]
+                corner_rel[s, r, c] = acc
+                corners[s, r, c] = pos[s, r] + acc
+        hx, hy = rot[s, 0, 0], rot[s, 1, 0]
+        norm = max(math.sqrt(hx * hx + hy * hy), 1e-9)
+        hx /= norm
+        hy /= norm
+        for r in range(2):
+            for k in range(n_basis):
+                basis[s, r, k] = hx * basis_xy[r, 0, k] + hy * basis_xy[r, 1, k]
+        for k in range(n_basis):
+            basis[s, 2, k] = basis_z
+    # ---- G ρ (force rows, then moments about the CoM) and the feet's wrenches per unit ρ
+    wrench = np.empty((6, per_side))
+    for s in range(n_sides):
+        for c in range(n_corners):
+            ax, ay, az = corners[s, 0, c] - com[0], corners[s, 1, c] - com[1], corners[s, 2, c] - com[2]
+            fx, fy, fz = corner_rel[s, 0, c], corner_rel[s, 1, c], corner_rel[s, 2, c]
+            for k in range(n_basis):
+                ex, ey, ez = basis[s, 0, k], basis[s, 1, k], basis[s, 2, k]
+                col = s * per_side + c * n_basis + k
+                g_rho[0, col] = ex
+                g_rho[1, col] = ey
+                g_rho[2, col] = ez
+                g_rho[3, col] = ay * ez - az * ey
+                g_rho[4, col] = az * ex - ax * ez
+                g_rho[5, col] = ax * ey - ay * ex
+                m = c * n_basis + k
+                wrench[0, m] = ex
+                wrench[1, m] = ey
+                wrench[2, m] = ez
+                wrench[3, m] = fy * ez - fz * ey
+                wrench[4, m] = fz * ex - fx * ez
+                wrench[5, m] = fx * ey - fy * ex
+        # τ̄ map of this side: −J_sᵀ wrench (nv, 16); the foot's Jacobian is zero outside its leg and the base
+        for i in range(nv):
+            nonzero = False
+            for r in range(6):
+                if frame_jac[s, r, i] != 0.0:
+                    nonzero = True
+            for m in range(per_side):
+                acc = 0.0
+                if nonzero:
+                    for r in range(6):
+                        acc += frame_jac[s, r, i] * wrench[r, m]
+                tau_map[i, s * per_side + m] = -acc
+    # ---- R = λ_τ̄ T_jᵀ T_j + λ_ρ I over the joint rows (6:) of the τ̄ map
+    # (row by row over the non-zero entries: each joint row of T touches one foot's columns at most)
+    n_rho = tau_map.shape[1]
+    for a in range(n_rho):
+        for b in range(n_rho):
+            r_rr[a, b] = 0.0
+    nz = np.empty(n_rho, dtype=np.int64)
+    for i in range(6, nv):
+        k = 0
+        for a in range(n_rho):
+            if tau_map[i, a] != 0.0:
+                nz[k] = a
+                k += 1
+        for ia in range(k):
+            a = nz[ia]
+            ta = tau_map[i, a]
+            for ib in range(ia, k):
+                r_rr[a, nz[ib]] += ta * tau_map[i, nz[ib]]
+    for a in range(n_rho):
+        for b in range(a, n_rho):
+            r_rr[a, b] = lambda_tau * r_rr[a, b]
+            r_rr[b, a] = r_rr[a, b]
+        r_rr[a, a] += lambda_rho
+
+
+@njit(cache=True, nogil=True)
+def fill_daqp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, tau_qdd, tau_rho, tau_bias, tau_lo,
+              tau_up, rho_idx, h, f, a, lo, up):  # noqa: ANN001, ANN201
+    """The QP in DAQP's form, in place, over x = [q̈; ρ[rho_idx]] (the corners in contact: the others'
+    weights are 0 and leave the problem): H = diag(P, R), f = [c; 0], rows [A_h −G; M_j T] and bounds
+    [free base; q̈ joint limits; 0 ≤ ρ ≤ ρ_max; b = b; τ_lo − h_j ≤ · ≤ τ_up − h_j]."""
+    nv = p_qq.shape[0]
+    n_rho = rho_idx.shape[0]
+    n = nv + n_rho
+    n_tau = tau_qdd.shape[0]
+    for i in range(nv):
+        for j in range(nv):
+            h[i, j] = p_qq[i, j]
+        for j in range(n_rho):
+            h[i, nv + j] = 0.0
+            h[nv + j, i] = 0.0
+        f[i] = c_q[i]
+    for i in range(n_rho):
+        for j in range(n_rho):
+            h[nv + i, nv + j] = r_rr[rho_idx[i], rho_idx[j]]
+        f[nv + i] = 0.0
+    for r in range(6):
+        for j in range(nv):
+            a[r, j] = a_h[r, j]
+        for j in range(n_rho):
+            a[r, nv + j] = -g_rho[r, rho_idx[j]]
+        lo[n + r] = b[r]
+        up[n + r] = b[r]
+    for r in range(n_tau):
+        for j in range(nv):
+            a[6 + r, j] = tau_qdd[r, j]
+        for j in range(n_rho):
+            a[6 + r, nv + j] = tau_rho[r, rho_idx[j]]
+        lo[n + 6 + r] = tau_lo[r] - tau_bias[r]
+        up[n + 6 + r] = tau_up[r] - tau_bias[r]
+    for j in range(6):
+        lo[j] = -1e20
+        up[j] = 1e20
+    for j in range(nv - 6):
+        lo[6 + j] = qdd_lo[j]
+        up[6 + j] = qdd_up[j]
+    for j in range(n_rho):
+        lo[nv + j] = 0.0
+        up[nv + j] = rho_up[rho_idx[j]]
+
+
+_EPS = float(np.finfo(np.float64).eps)
+_PREC_2 = _EPS ** (1.0 / 3.0)  # pinocchio's TaylorSeriesExpansion<double>::precision<2>()
+
+
+@njit(cache=True, nogil=True)
+def _theta_axis(i0, val, rn):  # noqa: ANN001, ANN201
+    """pinocchio's internal::compute_theta_axis (the θ ≈ π branch of log3)."""
+    i1, i2 = (i0 + 1) % 3, (i0 + 2) % 3
+    s = math.sqrt(val + _EPS + _EPS * _EPS) * (1.0 if rn[i2, i1] >= rn[i1, i2] else -1.0)
+    axis = np.empty(3)
+    axis[i0] = s / 2.0
+    axis[i1] = 1.0 / (2.0 * s) * (rn[i1, i0] + rn[i0, i1])
+    axis[i2] = 1.0 / (2.0 * s) * (rn[i2, i0] + rn[i0, i2])
+    w = 1.0 / (2.0 * s) * (rn[i2, i1] - rn[i1, i2])
+    norm = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
+    angle = 2.0 * math.atan2(norm, w)
+    return angle, axis / norm
+
+
+@njit(cache=True, nogil=True)
+def log3(rot):  # noqa: ANN001, ANN201
+    """pinocchio 3's ``log3`` (the same renormalisation, branches and series): the rotation vector of ``rot``."""
+    rn = np.empty((3, 3))
+    n0 = math.sqrt(rot[0, 0] ** 2 + rot[1, 0] ** 2 + rot[2, 0] ** 2)
+    n1 = math.sqrt(rot[0, 1] ** 2 + rot[1, 1] ** 2 + rot[2, 1] ** 2)
+    c0 = rot[:, 0] / n0
+    c1 = rot[:, 1] / n1
+    c2 = np.array([c0[1] * c1[2] - c0[2] * c1[1], c0[2] * c1[0] - c0[0] * c1[2], c0[0] * c1[1] - c0[1] * c1[0]])
+    c0 = np.array([c1[1] * c2[2] - c1[2] * c2[1], c1[2] * c2[0] - c1[0] * c2[2], c1[0] * c2[1] - c1[1] * c2[0]])
+    for i in range(3):
+        rn[i, 0], rn[i, 1], rn[i, 2] = c0[i], c1[i], c2[i]
+    tr = rn[0, 0] + rn[1, 1] + rn[2, 2]
+    cos_value = (tr - 1.0) / 2.0
+    prec = _PREC_2
+    out = np.empty(3)
+    if cos_value < -1.0 + prec:  # θ ≈ π
+        v0, v1, v2 = 2.0 * rn[0, 0] - tr + 1.0, 2.0 * rn[1, 1] - tr + 1.0, 2.0 * rn[2, 2] - tr + 1.0
+        if v0 >= v1:
+            i0, val = (0, v0) if v0 >= v2 else (2, v2)
+        else:
+            i0, val = (1, v1) if v1 >= v2 else (2, v2)
+        theta, axis = _theta_axis(i0, val, rn)
+        for k in range(3):
+            out[k] = theta * axis[k]
+        return out
+    acos_expansion = math.sqrt(2.0 * (1.0 - cos_value) + _EPS * _EPS)
+    if tr <= 3.0 - prec:
+        theta = math.acos(cos_value) if tr >= -1.0 + prec else math.pi - acos_expansion
+    else:
+        theta = acos_expansion
+    a0, a1, a2 = 0.5 * (rn[2, 1] - rn[1, 2]), 0.5 * (rn[0, 2] - rn[2, 0]), 0.5 * (rn[1, 0] - rn[0, 1])
+    if theta >= prec:
+        t = theta / math.sin(theta)
+    else:
+        n2 = a0 * a0 + a1 * a1 + a2 * a2
+        t = 1.0 + n2 / 6.0 + n2 * n2 * 3.0 / 40.0
+    out[0], out[1], out[2] = t * a0, t * a1, t * a2
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _rotation_error(target, rot):  # noqa: ANN001, ANN201
+    """log3(target · rotᵀ)."""
+    prod = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            prod[i, j] = target[i, 0] * rot[j, 0] + target[i, 1] * rot[j, 1] + target[i, 2] * rot[j, 2]
+    return log3(prod)
+
+
+@njit(cache=True, nogil=True)
+def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+              foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+              pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+              momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, upper_v_idx, upper_q_ref,
+              upper_qd_ref):  # noqa: ANN001, ANN201
+    """The stacked tasks' rows (Eq. 18) in place — J into ``jac``, a* − J̇ q̇ into ``rhs``, the per-tick
+    weights into ``w`` — as the task objects of :mod:`engine.control.wbc.tasks` write them: feet
+    (rows 0–11: damping only when flat on the ground, else PD on the planned pose), pelvis height and
+    orientation, CoM, upper-body joints, angular-momentum damping. ``gains``: swing kp, kd, weight,
+    contact kd, weight, pelvis height kp, kd, rotation kp, kd, CoM kp, kd, z weight, upper-body kp,
+    kd, angular-momentum kd. ``com_z``: NaN when the CoM height is not tracked. The constant
+    Jacobian rows (upper body) are written only when ``fill_constant``."""
+    nv = jac.shape[1]
+    swing_kp, swing_kd, swing_w, contact_kd, contact_w = gains[0], gains[1], gains[2], gains[3], gains[4]
+    # ---- feet
+    for s in range(2):
+        flat = True
+        touching = False
+        for c in range(contact.shape[1]):
+            if contact[s, c]:
+                touching = True
+            else:
+                flat = False
+        for r in range(6):
+            for j in range(nv):
+                jac[6 * s + r, j] = frame_jac[s, r, j]
+        if flat:
+            for r in range(6):
+                w[6 * s + r] = contact_w
+                rhs[6 * s + r] = (0.0 + contact_kd * (0.0 - frame_vel[s, r])) - frame_drift[s, r]
+        else:
+            err = _rotation_error(foot_rot[s], frame_rot[s])
+            for r in range(6):
+                w[6 * s + r] = contact_w if touching else swing_w
+                if r < 3:
+                    vel, acc, e = foot_lin_vel[s, r], foot_lin_acc[s, r], foot_pos[s, r] - frame_pos[s, r]
+                else:
+                    vel, acc, e = foot_ang_vel[s, r - 3], foot_ang_acc[s, r - 3], err[r - 3]
+                a = acc + swing_kd * (vel - frame_vel[s, r])
+                if swing_kp != 0.0:
+                    a += swing_kp * e
+                rhs[6 * s + r] = a - frame_drift[s, r]
+    # ---- pelvis: rows [z; ωx; ωy; ωz]
+    r0 = 12
+    for j in range(nv):
+        for r in range(4):
+            jac[r0 + r, j] = 0.0
+    for k in range(3):
+        jac[r0, k] = base_rot[2, k]
+        for r in range(3):
+            jac[r0 + 1 + r, 3 + k] = base_rot[r, k]
+    vx, vy, vz, wx, wy, wz = v[0], v[1], v[2], v[3], v[4], v[5]
+    rz = base_rot[2]
+    height_rate = rz[0] * vx + rz[1] * vy + rz[2] * vz
+    drift = rz[0] * (wy * vz - wz * vy) + rz[1] * (wz * vx - wx * vz) + rz[2] * (wx * vy - wy * vx)
+    rhs[r0] = (0.0 + gains[5] * (pelvis_height - q[2]) + gains[6] * (pelvis_height_rate - height_rate)) - drift
+    err = _rotation_error(pelvis_rot, base_rot)
+    for r in range(3):
+        omega = base_rot[r, 0] * wx + base_rot[r, 1] * wy + base_rot[r, 2] * wz
+        rhs[r0 + 1 + r] = 0.0 + gains[7] * err[r] + gains[8] * (pelvis_ang_vel[r] - omega)
+    # ---- CoM: rows [x; y; z]
+    r0 = 16
+    inv_m = 1.0 / mass
+    for r in range(3):
+        for j in range(nv):
+            jac[r0 + r, j] = centroidal_map[r, j] * inv_m
+        target = com_xy[r] if r < 2 else (0.0 if math.isnan(com_z) else com_z)
+        target_vel = com_xy_vel[r] if r < 2 else 0.0
+        target_acc = com_xy_acc[r] if r < 2 else 0.0
+        lin = momentum[r] * inv_m
+        rhs[r0 + r] = (target_acc + gains[9] * (target - com[r]) + gains[10] * (target_vel - lin)
+                       - centroidal_drift[r] * inv_m)
+    w[r0 + 2] = 0.0 if math.isnan(com_z) else gains[11]
+    # ---- upper-body joints (J constant: one 1 per row)
+    r0 = 19
+    n_upper = upper_v_idx.shape[0]
+    for r in range(n_upper):
+        k = upper_v_idx[r]
+        if fill_constant:
+            for j in range(nv):
+                jac[r0 + r, j] = 0.0
+            jac[r0 + r, k] = 1.0
+        rhs[r0 + r] = 0.0 + gains[12] * (upper_q_ref[r] - q[k + 1]) + gains[13] * (upper_qd_ref[r] - v[k])
+    # ---- angular momentum damping (k* = 0)
+    r0 = 19 + n_upper
+    for r in range(3):
+        for j in range(nv):
+            jac[r0 + r, j] = centroidal_map[3 + r, j]
+        rhs[r0 + r] = gains[14] * (0.0 - momentum[3 + r]) - centroidal_drift[3 + r]
+
+
+@njit(cache=True, nogil=True)
+def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN201
+    """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block), written into
+    ``qdd[:6]``; returns (τ, base rows' right-hand side, −Σ J_cᵀ f_c) with τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c
+    + ``damping`` (the model's viscous joint torque, already multiplied by q̇_j; zeros when the model
+    has none). τ is empty when the base block is not positive definite: the caller solves it (LU)."""
+    nv = mass_matrix.shape[0]
+    n_rho = rho.shape[0]
+    gen = np.empty(nv)  # −Σ J_cᵀ f_c
+    for i in range(nv):
+        acc = 0.0
+        for k in range(n_rho):
+            acc += tau_map[i, k] * rho[k]
+        gen[i] = acc
+    rhs = np.empty(6)
+    for r in range(6):
+        acc = 0.0
+        for j in range(6, nv):
+            acc += mass_matrix[r, j] * qdd[j]
+        rhs[r] = -acc - nle[r] - gen[r]
+    low = np.zeros((6, 6))  # Cholesky factor of M[:6, :6]
+    ok = True
+    for i in range(6):
+        for j in range(i + 1):
+            acc = mass_matrix[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            if i == j:
+                if acc <= 0.0:
+                    ok = False
+                    break
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, j] = acc / low[j, j]
+        if not ok:
+            break
+    if ok:
+        y = np.empty(6)
+        for i in range(6):
+            acc = rhs[i]
+            for k in range(i):
+                acc -= low[i, k] * y[k]
+            y[i] = acc / low[i, i]
+        for i in range(5, -1, -1):
+            acc = y[i]
+            for k in range(i + 1, 6):
+                acc -= low[k, i] * qdd[k]
+            qdd[i] = acc / low[i, i]
+    else:  # the caller solves with LU (numba's LAPACK binding would triple this kernel's compile time)
+        return np.empty(0), rhs, gen
+    tau = np.empty(nv - 6)
+    for i in range(nv - 6):
+        acc = 0.0
+        for j in range(nv):
+            acc += mass_matrix[6 + i, j] * qdd[j]
+        tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
+    return tau, rhs, gen
+
+
+
+@njit(cache=True, nogil=True)
+def qp_bounds(centroidal_drift, weight_n, external_wrench, has_external, q, v, joint_lower, joint_upper, kl, bl,
+              amax, nle, damping, has_damping):  # noqa: ANN001, ANN201
+    """The centroidal equality's right-hand side b = −Ȧ_h q̇ − [0 0 m g 0 0 0] (+ w_ext), the soft joint
+    limits' q̈ bounds (Eqs. 22, 23, within ±q̈_max) and the torque rows' bias h_j (+ joint damping)."""
+    b = np.empty(6)
+    for r in range(6):
+        b[r] = -centroidal_drift[r]
+    b[2] -= weight_n
+    if has_external:
+        for r in range(6):
+            b[r] = b[r] + external_wrench[r]
+    n = joint_lower.shape[0]
+    lo, up, bias = np.empty(n), np.empty(n), np.empty(n)
+    for j in range(n):
+        lo[j] = min(max(kl * (joint_lower[j] - q[7 + j]) - bl * v[6 + j], -amax), amax)
+        up[j] = max(min(kl * (joint_upper[j] - q[7 + j]) - bl * v[6 + j], amax), lo[j])
+        bias[j] = nle[6 + j] + damping[j] * v[6 + j] if has_damping else nle[6 + j]
+    return b, lo, up, bias
