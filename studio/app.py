@@ -17,6 +17,7 @@ import viser
 from engine import protocol as msg
 from engine.robot.config import load_robot_config
 from engine.robot.model import load_robot
+from studio.accessible_labels import label_text_fields
 from studio.engine_link import EngineLink
 from studio.overlays import Overlays
 from studio.panels.drive_panel import GHOST_OFFSETS, DrivePanel
@@ -34,6 +35,7 @@ STATUS_PERIOD_S = 0.25
 PLOT_EVERY_TICKS = 2  # plots redraw at 2 Hz: each redraw costs the browser's main thread (typing, 3D)
 GRAPH_OFFSET = (-2.4, 0.6, 0.15)  # the curve graph stands well left of the robot: nothing occludes it
 LIMIT_RED = np.array([230, 40, 40])
+PANEL_WIDTH_PX = 384  # 24 em: six tabs (Robot … Plots, Mocap) fit one row
 NOTICE_COLORS: dict[str, Literal["red", "yellow", "blue"]] = {"error": "red", "warning": "yellow", "info": "blue"}
 
 
@@ -75,18 +77,26 @@ class Studio:
         self._limit_bodies: list[str] = []
         self._shade_cache: dict[str, tuple[str, float]] = {}
 
-        tabs = self.server.gui.add_tab_group()  # text only: the tabs fit one row even in a narrow panel
-        quadruped_first = load_robot_config(robot).kind == "quadruped"  # quadrupeds open on the Retarget workspace
+        # The panel has one explicit width (24 em, the theme's "large"), so a reload never narrows it, and six
+        # top-level tabs fit one row in it: the two mocap workspaces (Retarget, Puppet) share the *Mocap* tab
+        # as sub-tabs. Quadrupeds open on it (the Retarget workspace).
+        self.server.gui.main_panel.set_width(PANEL_WIDTH_PX)
+        label_text_fields(self.server)  # text fields reachable by their label (e.g. the Style tab's *New name*)
+        tabs = self.server.gui.add_tab_group()
+        quadruped_first = load_robot_config(robot).kind == "quadruped"
         if quadruped_first:
-            self.tab_retarget = tabs.add_tab("Retarget")
+            self.tab_mocap = tabs.add_tab("Mocap")
         self.tab_robot = tabs.add_tab("Robot")
         self.tab_style = tabs.add_tab("Style")
         self.tab_sample = tabs.add_tab("Sample")
         self.tab_curves = tabs.add_tab("Curves")
         self.tab_plots = tabs.add_tab("Plots")
         if not quadruped_first:
-            self.tab_retarget = tabs.add_tab("Retarget")
-        self.tab_puppet = tabs.add_tab("Puppet")
+            self.tab_mocap = tabs.add_tab("Mocap")
+        with self.tab_mocap:
+            mocap_tabs = self.server.gui.add_tab_group()
+            self.tab_retarget = mocap_tabs.add_tab("Retarget")
+            self.tab_puppet = mocap_tabs.add_tab("Puppet")
         with self.tab_robot:
             self.robot_panel = RobotPanel(self.server, self)
             self.drive = DrivePanel(self.server, self)

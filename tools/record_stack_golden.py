@@ -22,6 +22,7 @@ import numpy as np
 from engine.atomic_io import atomic_write_bytes
 from engine.control.wbc import WbcReference
 from engine.control.walking_controller import WalkingController
+from engine.control.walking_parameters import WalkingParameters
 from engine.gait.command_schedule import preset
 from engine.gait.style import load_style, styles_dir
 from engine.robot.model import load_robot
@@ -36,7 +37,9 @@ def record(robot_name: str = "g1", ticks: int = TICKS) -> dict[str, np.ndarray]:
     robot = load_robot(robot_name)
     style = load_style(styles_dir(robot_name) / "neutral.json")
     schedule = preset("sweep", style.velocities)
-    ctrl = WalkingController(robot, style)
+    # The recording's parameters (the dataclass defaults, G1's tuning at the time): robot-level tuning in
+    # robots/<name>.toml [control.walking] changes the walk, not the numerics this golden guards.
+    ctrl = WalkingController(robot, style, params=WalkingParameters())
     sim = Simulation(robot, ctrl)
     out: dict[str, list] = {k: [] for k in ("q_des", "qd_des", "tau_ff", "plan_t", "plan_waypoints", "plan_com",
                                             "ref_foot_pos", "ref_pelvis_z", "ref_upper_q", "id_q", "id_v", "id_qdd",

@@ -1,13 +1,16 @@
-"""Push recovery on the recorded run: where the robot ends up and how fast it goes afterwards,
-not only "did not fall" (issue 16 item 0: a push from standing used to start a walk that never
-ended). The full matrix (4 directions × 16 phases while walking, and standing) is
-`studio bench push`."""
+"""Push recovery on the recorded run (issue 16): where the robot ends up and how fast it goes afterwards,
+not only "did not fall". The issue's check: a 1 s push at the pelvis of 1.5 N/kg and of 1 N/kg from each
+of four sides — from standing the robot comes back to rest within 3 s after the push ends and has moved
+< 0.6 m; from walking it is back at the commanded velocity within 3 s. The same matrix with 16 phases of
+the gait cycle while walking is `studio bench push`.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from engine.bench.push import DIRECTIONS
 from engine.gait.command_schedule import parse_command
 from engine.gait.style import load_style
 from engine.robot.model import load_robot
@@ -17,9 +20,23 @@ from tests.conftest import REPO
 
 pytestmark = pytest.mark.slow
 
-N_PER_KG = 1.5
 PUSH_S = 1.0
 SETTLE_S = 3.0  # back at rest / at the commanded velocity this long after the push ends
+MAX_DISPLACEMENT_M = 0.6  # from standing: CoM from the push's start to SETTLE_S after its end
+AT_REST_MPS = 0.05  # mean CoM velocity over the second after SETTLE_S (stepping in place sways)
+WALK_MPS = 0.15
+
+# Cases measured outside the issue's goal (G1 neutral, push at t = 3.0 s): kept as strict xfails so a fix
+# shows up as an unexpected pass. Figures: README "Style space, feasibility check and push recovery".
+NOT_MET: dict[tuple[str, float], str] = {
+    ("left", 1.5): "comes to rest within 3 s but 0.90 m away: during the push it steps sideways twice "
+                   "(the outer foot's step is capped at 0.35 m) and after it once more",
+}
+
+WALK_NOT_MET: dict[str, str] = {
+    "back": "walks at 0.10 m/s over the fourth second after the push (0.05 m/s short of 0.15)",
+    "left": "walks at 0.21 m/s over the fourth second after the push (0.06 m/s over 0.15; 0.27 m/s off before)",
+}
 
 
 @pytest.fixture(scope="module")
@@ -27,32 +44,48 @@ def g1():
     return load_robot("g1"), load_style(REPO / "styles/g1/neutral.json")
 
 
-def test_a_push_from_standing_ends_at_rest(g1):
-    """The reported case: 1.5 N/kg from the front for 1 s while standing (it used to walk
-    backwards at 0.8 m/s for good: 8 m in 15 s)."""
+def _push(robot, style, command: str, t_push: float, side: str, n_per_kg: float):
+    ux, uy = DIRECTIONS[side]
+    force = (ux * n_per_kg * robot.mass_kg, uy * n_per_kg * robot.mass_kg, 0.0)
+    t_end = t_push + PUSH_S
+    summary, rec = run_walk(robot, style, parse_command(command, style.velocities), t_end + SETTLE_S + 1.1,
+                            pushes=[PushSpec(t_push, force, PUSH_S)])
+    return summary, rec, t_end
+
+
+def _standing_cases():
+    for n_per_kg in (1.5, 1.0):
+        for side in DIRECTIONS:
+            reason = NOT_MET.get((side, n_per_kg))
+            marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+            yield pytest.param(side, n_per_kg, marks=marks, id=f"{side}-{n_per_kg:g}N/kg")
+
+
+@pytest.mark.parametrize(("side", "n_per_kg"), list(_standing_cases()))
+def test_a_push_from_standing_ends_at_rest_nearby(g1, side, n_per_kg):
+    """Standing (command 0): it used to walk away for good (8 m in 15 s from the front)."""
     robot, style = g1
     t_push = 3.0
-    force = (-N_PER_KG * robot.mass_kg, 0.0, 0.0)
-    t_end = t_push + PUSH_S
-    summary, rec = run_walk(robot, style, parse_command("0,0,0", style.velocities), t_end + SETTLE_S + 1.1,
-                            pushes=[PushSpec(t_push, force, PUSH_S)])
+    summary, rec, t_end = _push(robot, style, "0,0,0", t_push, side, n_per_kg)
     assert not summary["fell"], summary
     v = window_velocity(rec, t_end + SETTLE_S, t_end + SETTLE_S + 1.0)
-    assert v is not None and np.linalg.norm(v) < 0.05, v  # at rest (stepping in place)
+    assert v is not None and np.linalg.norm(v) < AT_REST_MPS, f"still moving {SETTLE_S} s after the push: {v} m/s"
     moved = float(np.linalg.norm(com_at(rec, t_end + SETTLE_S) - com_at(rec, t_push)))
-    assert moved < 1.0, moved  # issue 16 asks < 0.6 m: measured 0.6-0.7 m (see README, not met yet)
-    assert com_at(rec, t_end + SETTLE_S)[0] < com_at(rec, t_push)[0]  # it gave way in the push's direction
+    assert moved < MAX_DISPLACEMENT_M, f"moved {moved:.2f} m"
 
 
-def test_a_side_push_while_walking_returns_to_the_commanded_velocity(g1):
+def _walking_cases():
+    for side in DIRECTIONS:
+        reason = WALK_NOT_MET.get(side)
+        yield pytest.param(side, marks=[pytest.mark.xfail(strict=True, reason=reason)] if reason else [], id=side)
+
+
+@pytest.mark.parametrize("side", list(_walking_cases()))
+def test_a_push_while_walking_returns_to_the_commanded_velocity(g1, side):
+    """1.5 N/kg while walking at 0.15 m/s (the body-frame command: a push that turns the robot a little
+    changes the heading, so the speed is compared)."""
     robot, style = g1
-    t_push = 4.5
-    force = (0.0, -N_PER_KG * robot.mass_kg, 0.0)  # from the left
-    t_end = t_push + PUSH_S
-    summary, rec = run_walk(robot, style, parse_command("0.15,0,0", style.velocities), t_end + SETTLE_S + 1.1,
-                            pushes=[PushSpec(t_push, force, PUSH_S)])
+    summary, rec, t_end = _push(robot, style, f"{WALK_MPS},0,0", 4.5, side, 1.5)
     assert not summary["fell"], summary
     v = window_velocity(rec, t_end + SETTLE_S, t_end + SETTLE_S + 1.0)
-    assert v is not None
-    # The command is in the body frame and the push may turn the robot a little: compare the speed.
-    assert abs(np.linalg.norm(v) - 0.15) < 0.05, v
+    assert v is not None and abs(np.linalg.norm(v) - WALK_MPS) < 0.05, v

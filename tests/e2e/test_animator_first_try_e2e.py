@@ -80,6 +80,15 @@ def test_an_animators_first_try(tmp_path, artifacts):
                 except Exception:  # noqa: BLE001 - it may have closed by itself
                     pass
 
+            # ---- The side panel: its tabs on one row; a text field found by its label (the Style tab's name)
+            tabs = page.get_by_role("tab")
+            rows = {round(tabs.nth(i).bounding_box()["y"]) for i in range(tabs.count())}
+            assert tabs.count() >= 6 and len(rows) == 1, f"the tabs wrap onto {len(rows)} rows"
+            page.get_by_role("tab", name="Style").click()
+            page.get_by_label("New name", exact=True).fill("first_try")
+            _wait(lambda: studio.style_browser.name.value == "first_try", 30, "the typed name to reach the studio", page)
+            page.get_by_role("tab", name="Robot").click()
+
             # ---- Test mode: the ghost overlays the robot (a labelled control offers "beside")
             page.get_by_role("button", name="Test").click()
             wait_for_text(page, "test mode", timeout_ms=60_000)

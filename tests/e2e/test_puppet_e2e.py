@@ -22,6 +22,7 @@ def test_puppeteer_drives_g1_arms_from_a_clip(artifacts):
     studio = ServedStudio("g1")
     try:
         with open_page(studio.url, 1000, 760) as page:
+            page.get_by_role("tab", name="Mocap").click()  # the mocap workspaces share one tab (one row of tabs)
             page.get_by_role("tab", name="Puppet").click()
             wait_for_text(page, "Puppet: idle")
             page.get_by_role("button", name="Start puppet").click()

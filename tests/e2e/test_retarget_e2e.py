@@ -60,7 +60,7 @@ def test_retarget_workspace(tmp_path, monkeypatch, artifacts):
             page.screenshot(path=str(artifacts / "retarget_running.png"))
             wait_for_text(page, f"Result: go1/{stem}_smr.npz written", 300_000)
             assert (motions / "go1" / f"{stem}_smr.npz").is_file()
-            assert "contact IoU" in page.inner_text("body")
+            wait_for_text(page, "contact IoU", 120_000)  # the metrics show once the result's meshes are loaded
             first, state = clock(page)
             assert state == "playing"
             page.wait_for_function(  # the result plays: the frame advances
