@@ -13,7 +13,9 @@ from engine.robot.config import RobotConfigError, load_robot_config
 
 def test_defaults_and_overrides() -> None:
     cfg = load_robot_config("g1")
-    assert WalkingParameters.from_config(cfg) == WalkingParameters()
+    # G1's file overrides exactly what its [control.walking] table names; every other field is the default
+    assert WalkingParameters.from_config(cfg) == replace(WalkingParameters(), **dict(cfg.walking))
+    assert WalkingParameters.from_config(replace(cfg, walking={})) == WalkingParameters()
     custom = replace(cfg, walking={"cop_margin_m": 0.02, "command_accel_limits": [0.5, 0.5, 2.0],
                                    "relatch_after_plan_ticks": 3, "restart_when_thrown": True})
     params = WalkingParameters.from_config(custom)
