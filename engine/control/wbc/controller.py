@@ -274,7 +274,11 @@ class TaskSpaceInverseDynamics:
             else:  # heel/toe contact (firm) or swing: follow the planned pose
                 task.kp[:] = g.swing_foot_kp
                 task.kd[:] = g.swing_foot_kd
-                task.weight[:] = g.contact_foot_weight if contact[i].any() else g.swing_foot_weight
+                if contact[i].any():
+                    task.weight[:] = g.contact_foot_weight
+                else:
+                    task.weight[:3] = g.swing_foot_weight
+                    task.weight[3:] = g.swing_foot_rotation_weight
         self.pelvis_task.set_target(ref.pelvis_height_m, ref.pelvis_rotation, ref.pelvis_height_rate_mps,
                                     ref.pelvis_ang_vel_radps)
         com = self.com_task  # targets written in place (the task owns its 3-vectors)

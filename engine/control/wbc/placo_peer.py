@@ -157,7 +157,7 @@ class PlacoWbc:
                 ori.omega_world = np.zeros(3)
             else:
                 cont.active = False
-                task.configure(f"{SIDES[i]}_foot", "soft", g.swing_foot_weight, g.swing_foot_weight)
+                task.configure(f"{SIDES[i]}_foot", "soft", g.swing_foot_weight, g.swing_foot_rotation_weight)
                 pos.kp, pos.kd, ori.kp, ori.kd = g.swing_foot_kp, g.swing_foot_kd, g.swing_foot_kp, g.swing_foot_kd
                 pos.dtarget_world = np.asarray(ref.foot_lin_vel_mps[i], dtype=float)
                 ori.omega_world = np.asarray(ref.foot_ang_vel_radps[i], dtype=float)

@@ -49,6 +49,9 @@ class WbcGains:
     swing_foot_kp: float = 400.0
     swing_foot_kd: float = 40.0
     swing_foot_weight: float = 50.0
+    # ... of the swing foot's orientation rows (its style's heel/toe pitch, roll, yaw): near an ankle
+    # limit only the rest of the body can turn the foot further, at the cost of the CoM (issue 13).
+    swing_foot_rotation_weight: float = 50.0
     contact_foot_kd: float = 20.0
     contact_foot_weight: float = 1000.0
     # Upper-body joints.
