@@ -141,7 +141,7 @@ class TaskSpaceInverseDynamics:
         self._task_gains = np.array([g.swing_foot_kp, g.swing_foot_kd, g.swing_foot_weight, g.contact_foot_kd,
                                      g.contact_foot_weight, g.pelvis_height_kp, g.pelvis_height_kd, g.pelvis_rot_kp,
                                      g.pelvis_rot_kd, g.com_kp, g.com_kd, g.com_z_weight, g.upper_body_kp,
-                                     g.upper_body_kd, g.angular_momentum_kd], dtype=float)
+                                     g.upper_body_kd, g.angular_momentum_kd, g.swing_foot_rotation_weight], dtype=float)
         self._zeros_2x3 = np.zeros((n_feet, 3))
         self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
         self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()

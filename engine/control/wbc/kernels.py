@@ -259,7 +259,7 @@ def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac
     (rows 0–11: damping only when flat on the ground, else PD on the planned pose), pelvis height and
     orientation, CoM, upper-body joints, angular-momentum damping. ``gains``: swing kp, kd, weight,
     contact kd, weight, pelvis height kp, kd, rotation kp, kd, CoM kp, kd, z weight, upper-body kp,
-    kd, angular-momentum kd. ``com_z``: NaN when the CoM height is not tracked. The constant
+    kd, angular-momentum kd, swing rotation weight. ``com_z``: NaN when the CoM height is not tracked. The constant
     Jacobian rows (upper body) are written only when ``fill_constant``."""
     nv = jac.shape[1]
     swing_kp, swing_kd, swing_w, contact_kd, contact_w = gains[0], gains[1], gains[2], gains[3], gains[4]
@@ -282,7 +282,7 @@ def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac
         else:
             err = _rotation_error(foot_rot[s], frame_rot[s])
             for r in range(6):
-                w[6 * s + r] = contact_w if touching else swing_w
+                w[6 * s + r] = contact_w if touching else (swing_w if r < 3 else gains[15])
                 if r < 3:
                     vel, acc, e = foot_lin_vel[s, r], foot_lin_acc[s, r], foot_pos[s, r] - frame_pos[s, r]
                 else:
