@@ -38,8 +38,10 @@ class JoystickState:
     The browser sends a hold message when a button is pressed and then about 20 times a second while it
     stays down, and a click when it is released. Under software WebGL the repeats can be a second apart, so
     a hold lasts until its release (the click) — the timeout is only a safety net for a lost release. A
-    release within ``TAP_MAX_S`` of the press is a tap: it latches that direction until ■ Stop, a tap on
-    the same button again, or a tap in the opposite direction. Axes: 0 forward, 1 left, 2 turn left.
+    release within ``TAP_MAX_S`` of the press is a tap, and so is a release with no repeat between (a slow
+    browser delivers a quick click's press and release up to a frame, ~0.7 s, apart): it latches that
+    direction until ■ Stop, a tap on the same button again, or a tap in the opposite direction. Axes: 0
+    forward, 1 left, 2 turn left.
     """
 
     def __init__(self, clock: Callable[[], float] = time.monotonic):
@@ -47,6 +49,7 @@ class JoystickState:
         self._lock = threading.Lock()
         self._pressed_at: dict[tuple[int, float], float] = {}  # (axis, sign) → time the press began
         self._last_repeat: dict[tuple[int, float], float] = {}
+        self._repeats: dict[tuple[int, float], int] = {}  # hold messages after the press
         self.latched = np.zeros(3)
         self.pad = np.zeros(3)
 
@@ -56,6 +59,9 @@ class JoystickState:
         with self._lock:
             if now - self._last_repeat.get(key, -np.inf) > HOLD_TIMEOUT_S:
                 self._pressed_at[key] = now  # a new press (or one whose release was lost)
+                self._repeats[key] = 0
+            else:
+                self._repeats[key] = self._repeats.get(key, 0) + 1
             self._last_repeat[key] = now
 
     def release(self, axis: int, sign: float) -> None:
@@ -64,7 +70,8 @@ class JoystickState:
         with self._lock:
             began = self._pressed_at.pop((axis, sign), None)
             self._last_repeat.pop((axis, sign), None)
-            tap = began is None or now - began <= TAP_MAX_S
+            repeats = self._repeats.pop((axis, sign), 0)
+            tap = began is None or now - began <= TAP_MAX_S or (repeats == 0 and now - began <= HOLD_TIMEOUT_S)
             self.latched[axis] = (0.0 if self.latched[axis] == sign else sign) if tap else 0.0
 
     def set_pad(self, axes: slice | int, values) -> None:
@@ -75,6 +82,7 @@ class JoystickState:
         with self._lock:
             self._pressed_at.clear()
             self._last_repeat.clear()
+            self._repeats.clear()
             self.latched[:] = 0.0
             self.pad[:] = 0.0
 

@@ -230,6 +230,25 @@ def test_joystick_tap_latches_and_toggles():
     np.testing.assert_allclose(joy.unit_command(), 0.0)
 
 
+def test_joystick_quick_click_seen_late_by_a_slow_browser_is_a_tap():
+    """Software WebGL: a click's press and release reach the server a frame (~0.7 s) apart, with no
+    hold repeat between — still a tap (it latches); a hold with repeats that long is not."""
+    clock = FakeClock()
+    joy = JoystickState(clock)
+    joy.hold(0, 1.0)
+    clock.t += 0.8
+    joy.release(0, 1.0)
+    np.testing.assert_allclose(joy.unit_command(), [1.0, 0.0, 0.0])
+    joy.stop()
+    joy.hold(0, 1.0)
+    clock.t += 0.4
+    joy.hold(0, 1.0)  # one repeat: the button was held
+    clock.t += 0.4
+    joy.release(0, 1.0)
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+    assert not joy.latched_any
+
+
 def test_recovery_is_offered_only_for_edits_this_session_does_not_hold(session):
     from dataclasses import replace
 
