@@ -69,14 +69,19 @@ def budget(name: str) -> None:
     kp = KeypointSet.for_robot(rb)
     pts = kp.positions(d)
     lim = m.actuator_ctrlrange[:, 1]
-    fmax = []
-    for leg in range(4):
+
+    def leg_torque_map(leg: int) -> tuple[int, np.ndarray, np.ndarray]:
+        """(foot keypoint, Jᵀ of the foot point on the leg's 3 joints, their torque limits)."""
         fi = kp.foot_index[leg]
         jp = np.zeros((3, m.nv))
         mujoco.mj_jac(m, d, jp, None, pts[fi], int(kp.body[fi]))
         joints = kp.joint[4 * leg: 4 * leg + 3]
         JT = jp[:, [int(m.jnt_dofadr[j]) for j in joints]].T
-        tl = lim[[int(np.flatnonzero(m.actuator_trnid[:, 0] == j)[0]) for j in joints]]
+        return fi, JT, lim[[int(np.flatnonzero(m.actuator_trnid[:, 0] == j)[0]) for j in joints]]
+
+    fmax = []
+    for leg in range(4):
+        _, JT, tl = leg_torque_map(leg)
         A = np.vstack([JT, -JT, [[1, 0, -MU], [-1, 0, -MU], [0, 1, -MU], [0, -1, -MU]]])
         res = linprog([0, 0, -1], A_ub=A, b_ub=np.concatenate([tl, tl, np.zeros(4)]), bounds=[(None, None)] * 3)
         fmax.append(res.x[2] if res.success else float("nan"))
@@ -105,12 +110,7 @@ def budget(name: str) -> None:
     # make the landing look easier than it is.
     rows_A, rows_b, r_feet = [], [], []
     for i, leg in enumerate((2, 3)):
-        fi = kp.foot_index[leg]
-        jp = np.zeros((3, m.nv))
-        mujoco.mj_jac(m, d, jp, None, pts[fi], int(kp.body[fi]))
-        joints = kp.joint[4 * leg: 4 * leg + 3]
-        JT = jp[:, [int(m.jnt_dofadr[j]) for j in joints]].T
-        tl = lim[[int(np.flatnonzero(m.actuator_trnid[:, 0] == j)[0]) for j in joints]]
+        fi, JT, tl = leg_torque_map(leg)
         block = np.vstack([JT, -JT, [[1, 0, -MU], [-1, 0, -MU], [0, 1, -MU], [0, -1, -MU]], [[0, 0, -1]]])
         full = np.zeros((len(block), 6))
         full[:, 3 * i: 3 * i + 3] = block
