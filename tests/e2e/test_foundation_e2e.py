@@ -27,7 +27,7 @@ def test_robot_stands_in_the_browser_and_survives_an_engine_kill(served_studio, 
         old_pid = int(re.search(r"pid (\d+)", text).group(1))
         assert old_pid in served_studio.engine_pids()
         os.kill(old_pid, signal.SIGKILL)
-        wait_for_text(page, "stopped", timeout_ms=10_000)  # the notification tells the user
+        wait_for_text(page, "stopped", timeout_ms=30_000)  # the notification tells the user
         page.wait_for_function(
             "old => { const m = document.body.innerText.match(/Engine running · pid (\\d+)/);"
             " return m && Number(m[1]) !== old; }", arg=old_pid, timeout=30_000)
