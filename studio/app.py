@@ -41,7 +41,7 @@ NOTICE_COLORS: dict[str, Literal["red", "yellow", "blue"]] = {"error": "red", "w
 
 class Studio:
     def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None,
-                 token: str | None = None):
+                 token: str | None = None, shadows: bool = False):
         load_robot_config(robot)  # fail fast, before any server or process starts
         self.robot_name = robot
         self.styles_folder = styles_folder
@@ -55,6 +55,8 @@ class Studio:
         self.server.gui.configure_theme(control_layout="fixed", control_width="large", dark_mode=False, show_logo=False)
         self.server.initial_camera.position = (2.0, -2.2, 1.3)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.6)
+        self.shadows = shadows
+        self.set_shadows(shadows)
         self.server.scene.add_grid("/ground", width=40.0, height=40.0, plane="xy", cell_size=0.25,
                                    section_size=1.0, shadow_opacity=0.2)
         self.view = RobotView(self.server)
@@ -377,6 +379,12 @@ class Studio:
             self.curve_editor.root_frame.visible = mode == "edit"  # the graph is for editing a walking sample
         self.drive.camera.recentre()
 
+    def set_shadows(self, on: bool) -> None:
+        """Shadow maps from the default lights for every browser. Off by default: under software WebGL (no GPU)
+        they divide the frame rate several times over (`studio bench render`); the environment light stays either way."""
+        self.shadows = bool(on)
+        self.server.scene.configure_default_lights(enabled=True, cast_shadow=self.shadows)
+
     def set_ghost_visible(self, visible: bool) -> None:
         self.ghost_visible = visible
         self.ghost_root.visible = visible and self.mode != "stand"
@@ -461,10 +469,10 @@ class Studio:
                 pass
 
 
-def serve(robot: str, host: str, port: int, token: str | None = None) -> None:
+def serve(robot: str, host: str, port: int, token: str | None = None, shadows: bool = False) -> None:
     from studio.access import browser_url
 
-    studio = Studio(robot, host, port, token=token).start()
+    studio = Studio(robot, host, port, token=token, shadows=shadows).start()
     url = browser_url(host, studio.server.get_port(), token) if token or host != "127.0.0.1" else studio.url
     print(f"Motion Studio: {url}  (robot {robot}; Ctrl+C to stop)", flush=True)
 

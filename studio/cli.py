@@ -34,6 +34,8 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--robot", default=None, help="robot to open (default: g1)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     serve.add_argument("--port", type=int, default=8080)
+    serve.add_argument("--shadows", action="store_true",
+                       help="draw shadows (needs a GPU: with software WebGL the page draws several times fewer frames: studio bench render)")
     serve.add_argument("--token", default=None, help="require this access token from browsers (env MOTION_STUDIO_TOKEN)")
 
     sub.add_parser("robots", help="list the robot library")
@@ -163,7 +165,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if not is_loopback(args.host) and not token:
         print(f"studio: warning: --host {args.host}: anyone on the network can read and write styles and motions; "
               "pass --token TOKEN (or set MOTION_STUDIO_TOKEN) to require an access token", file=sys.stderr)
-    serve(robot, args.host, args.port, token=token)
+    serve(robot, args.host, args.port, token=token, shadows=args.shadows)
     return 0
 
 
@@ -330,10 +332,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from engine.bench.options import run_section
     from studio.bench_edit import bench_edit_latency
     from studio.bench_engine import bench_engine
+    from studio.bench_render import bench_render
     from studio.bench_soak import bench_soak
 
-    SECTIONS: dict[str, Callable[..., list[dict]]] = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak}  # noqa: N806 - the studio's on top
-    sections = args.sections or [s for s in SECTIONS if s != "soak" and s not in BATCH_SECTIONS]
+    SECTIONS: dict[str, Callable[..., list[dict]]] = {**ENGINE_SECTIONS, "edit": bench_edit_latency, "engine": bench_engine, "soak": bench_soak, "render": bench_render}  # noqa: N806 - the studio's on top
+    sections = args.sections or [s for s in SECTIONS if s not in ("soak", "render") and s not in BATCH_SECTIONS]
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")

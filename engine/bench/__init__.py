@@ -7,8 +7,8 @@ problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``ret
 (LWL2 against per-frame IK and a feed-forward baseline) and ``puppet`` (LWL2 driving a standing robot's arms
 live at 60 Hz in physics; only when asked for). The studio
 adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`), ``engine`` (the engine process's pacing
-and restart through the studio's link, :mod:`studio.bench_engine`) and ``soak`` (:mod:`studio.bench_soak`, not
-in the default run): the engine never imports the studio.
+and restart through the studio's link, :mod:`studio.bench_engine`) ``soak`` (:mod:`studio.bench_soak`) and ``render`` (a browser tab's frame rate with and without shadows,
+:mod:`studio.bench_render`), the last two not in the default run: the engine never imports the studio.
 """
 
 from __future__ import annotations

@@ -120,6 +120,9 @@ class DrivePanel:
                                                     initial_value="on robot",
                                                     hint="draw the reference ghost on the robot or beside it")
         self.show_overlays = server.gui.add_checkbox("Ground overlays", initial_value=True)
+        self.shadows = server.gui.add_checkbox("Shadows", initial_value=studio.shadows,
+                                               hint="shadow maps: fine on a GPU; without one (software WebGL) the "
+                                                    "page draws several times fewer frames (studio bench render)")
         self.readout = server.gui.add_markdown("Command: stopped")
         with server.gui.add_folder("Joystick (test mode)"):
             self.fwd = server.gui.add_button("▲ forward")
@@ -142,6 +145,7 @@ class DrivePanel:
         self.show_ghost.on_update(lambda _: studio.set_ghost_visible(self.show_ghost.value))
         self.ghost_offset.on_update(lambda _: studio.set_ghost_offset(self.ghost_offset.value))
         self.show_overlays.on_update(lambda _: studio.overlays.set_visible(self.show_overlays.value))
+        self.shadows.on_update(lambda _: studio.set_shadows(self.shadows.value))
         self.pads_root = server.scene.add_frame("/joystick", show_axes=False)
         self.pads = [self._make_pad("move", (0.0, 0.0)), self._make_pad("turn", (0.0, -0.45))]
         self._stop = threading.Event()

@@ -87,3 +87,22 @@ def test_edits_survive_an_engine_crash(studio):
     wait(lambda: studio.style_revision > revision)  # the edited style went to the new engine
     assert session.style.samples["in_place"].attributes.stance_width_m == 0.28 and session.dirty
     wait(lambda: studio.view.last_frame is not None and studio.view.last_frame.mode == "edit", 30)
+
+
+def test_shadows_are_off_by_default_and_the_checkbox_turns_them_on(studio, monkeypatch):
+    """Shadow maps cost a browser without a GPU several times its frame rate (``studio bench render``): the
+    studio starts without them; the Robot tab's checkbox sends the lights' setting to every browser."""
+    from viser import _messages
+
+    sent: list = []
+    original = studio.server._websock_server.queue_message
+    monkeypatch.setattr(studio.server._websock_server, "queue_message",
+                        lambda m: (sent.append(m), original(m))[1])
+    assert studio.shadows is False and studio.drive.shadows.value is False
+    studio.drive.shadows.value = True
+    wait(lambda: any(isinstance(m, _messages.EnableLightsMessage) and m.cast_shadow for m in sent), 10)
+    assert studio.shadows is True
+    studio.drive.shadows.value = False
+    wait(lambda: isinstance(lights := [m for m in sent if isinstance(m, _messages.EnableLightsMessage)][-1],
+                            _messages.EnableLightsMessage) and not lights.cast_shadow, 10)
+    assert studio.shadows is False
