@@ -1,6 +1,7 @@
 """``studio bench render``: what the studio's display settings cost a browser, measured side by side.
 
-One studio (a real engine process behind it) in Test mode, one headless Chromium tab (Debian's, software
+One studio (a real engine process behind it) in Test mode walking forward (the joystick's forward held the
+whole run), one headless Chromium tab (Debian's, software
 WebGL: the case of a machine without a GPU) rendering it. The shadow setting is switched back and forth
 ``rounds`` times; in each window of ``window_s`` seconds the tab's drawn frames (requestAnimationFrame) and
 the engine's simulated time against the wall clock are counted. Printed per setting: the median frames per
@@ -33,6 +34,12 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
     shutil.copytree(styles_dir(robot), scratch / robot, ignore=shutil.ignore_patterns(".autosave"))
     studio = Studio(robot, port=_free_port(), styles_folder=scratch).start()
     samples: dict[bool, list[tuple[float, float]]] = {True: [], False: []}
+
+    def hold_forward(duration_s: float) -> None:
+        end = time.monotonic() + duration_s
+        while time.monotonic() < end:
+            studio.drive.hold(0, 1.0)  # as a held ▲ forward button repeats
+            time.sleep(0.1)
     try:
         if not studio.loaded.wait(180):
             raise RuntimeError("the studio did not load its robot within 180 s")
@@ -47,10 +54,10 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
             for _ in range(rounds):
                 for shadows in (True, False):
                     studio.set_shadows(shadows)
-                    time.sleep(settle_s)
+                    hold_forward(settle_s)
                     frames0, wall0 = int(page.evaluate(FRAMES_JS)), time.monotonic()
                     sim0 = studio.view.last_frame.sim_time_s if studio.view.last_frame else 0.0
-                    time.sleep(window_s)
+                    hold_forward(window_s)
                     frames1, wall1 = int(page.evaluate(FRAMES_JS)), time.monotonic()
                     sim1 = studio.view.last_frame.sim_time_s if studio.view.last_frame else 0.0
                     samples[shadows].append(((frames1 - frames0) / (wall1 - wall0), (sim1 - sim0) / (wall1 - wall0)))
