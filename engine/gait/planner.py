@@ -530,6 +530,9 @@ class GaitPlanner:
         prev_phi = self.phi
         # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
         hold = _remaining_ease_delay(self.hold_s)
+        length = self.sole_length_m - 2.0 * self.preview_margin_m
+        width = self.sole_width_m - 2.0 * self.preview_margin_m
+        stances: dict[str, np.ndarray] = {}  # p_stance per side (the blend is fixed during the call)
         for b in boundaries:
             t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
             t1 = (blend.event_time(b) - t_now) / kappa
@@ -537,8 +540,6 @@ class GaitPlanner:
                 t0 += hold
             t1 += hold
             down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
-            length = self.sole_length_m - 2.0 * self.preview_margin_m
-            width = self.sole_width_m - 2.0 * self.preview_margin_m
             if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
                 polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
             else:
@@ -555,7 +556,9 @@ class GaitPlanner:
                     if side in swinging:
                         swinging.discard(side)
                     else:
-                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds)}
+                        if side not in stances:
+                            stances[side] = self.stance(side)
+                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds, stances[side])}
             prev_phi = b
         return phases
 
@@ -593,19 +596,20 @@ class GaitPlanner:
         if hull is None:
             if len(self._hull_cache) >= 64:
                 self._hull_cache.clear()
-            hull = convex_hull_2d(np.vstack([_edge_strip(h.corners(length, width), length, e)
-                                             for h, e in zip(holds, edges)]))
+            hull = convex_hull_2d(np.concatenate([_edge_strip(h.corners(length, width), length, e)
+                                                  for h, e in zip(holds, edges)]))
             hull.flags.writeable = False  # shared between calls
             self._hull_cache[key] = hull
         return hull
 
-    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
+    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold],
+                            stance: np.ndarray | None = None) -> Foothold:
         blend = self.blend
         lo, _ = SWING_PHASES[side]
         phi_next_lo = math.floor(phi_td - lo) + 1 + lo
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
         pose = self.path_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self.stance(side))
+        target = foothold_from_path(pose, self.stance(side) if stance is None else stance)
         other = "right" if side == "left" else "left"
         return project_to_safe_region(footholds[other], target, side, self.region)
 

@@ -75,3 +75,31 @@ def test_cached_halfplanes_equal_fresh_ones(points) -> None:  # noqa: ANN001
         np.testing.assert_array_equal(normals, want_n)
         np.testing.assert_array_equal(offsets, want_o)
         np.testing.assert_array_equal(bound, want_o + 1e-9)
+
+
+def project_reference(support, target, swing_side, region):  # noqa: ANN001, ANN201
+    """footsteps.project_to_safe_region before the speed-up (to_local array, np.clip)."""
+    local = support.to_local(target)
+    sign = 1.0 if swing_side == "left" else -1.0
+    x, y_own = float(local[0]), float(sign * local[1])
+    candidates = [(x, max(y_own, region.side_m)), (max(x, region.front_m), max(y_own, region.cross_m)),
+                  (min(x, -region.front_m), max(y_own, region.cross_m))]
+    best = min(candidates, key=lambda p: (p[0] - x) ** 2 + (p[1] - y_own) ** 2)
+    yaw = float(np.clip(local[2], -region.max_yaw_rad, region.max_yaw_rad))
+    if best == (x, y_own) and yaw == local[2]:
+        return target
+    return support.from_local(np.array([best[0], sign * best[1], yaw]))
+
+
+def test_safe_region_projection_equals_the_array_version() -> None:
+    from engine.gait.footsteps import Foothold, SafeRegion, project_to_safe_region
+
+    rng = np.random.default_rng(5)
+    region = SafeRegion.for_sole(0.2, 0.08)
+    for _ in range(2000):
+        support = Foothold(*rng.uniform(-1, 1, 2), float(rng.uniform(-4, 4)))
+        offset = rng.normal(0, 0.25, 2)
+        target = Foothold(support.x + offset[0], support.y + offset[1], float(support.yaw + rng.normal(0, 1.0)))
+        for side in ("left", "right"):
+            got, want = project_to_safe_region(support, target, side, region), project_reference(support, target, side, region)
+            assert (got.x, got.y, got.yaw) == (want.x, want.y, want.yaw)
