@@ -24,7 +24,7 @@ from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedb
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
 from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
-from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
+from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
 from engine.gait.offline_plan import planner_for
 from engine.gait.planner import PLANNER_RATE_HZ, GaitReference, PlannerFeedback
 from engine.gait.style import SIDES, Style, StyleContext
@@ -567,8 +567,8 @@ def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
 
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
-    normals, offsets = polygon_halfplanes(polygon)
-    return len(offsets) == 0 or bool(np.all(normals @ p <= offsets + 1e-9))
+    normals, offsets, bound = halfplanes_cached(polygon)
+    return len(offsets) == 0 or bool(np.all(normals @ p <= bound))
 
 
 def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:

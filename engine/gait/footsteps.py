@@ -80,17 +80,19 @@ class SafeRegion:
 
 def project_to_safe_region(support: Foothold, target: Foothold, swing_side: str, region: SafeRegion) -> Foothold:
     """The paper's conservative heuristic for a foothold overlapping the support foot."""
-    local = support.to_local(target)
+    # support.to_local(target) on floats (the same numbers, without the array)
+    c, s = math.cos(support.yaw), math.sin(support.yaw)
+    dx, dy = float(target.x - support.x), float(target.y - support.y)
+    local_yaw = float(wrap_angle(target.yaw - support.yaw))
     sign = 1.0 if swing_side == "left" else -1.0
-    x, y_own = float(local[0]), float(sign * local[1])  # y_own > 0: on the swing foot's own side
-    candidates = []
-    # beside
-    candidates.append((x, max(y_own, region.side_m)))
-    # in front / behind (still not crossing)
-    candidates.append((max(x, region.front_m), max(y_own, region.cross_m)))
-    candidates.append((min(x, -region.front_m), max(y_own, region.cross_m)))
+    x, y_own = c * dx + s * dy, sign * (-s * dx + c * dy)  # y_own > 0: on the swing foot's own side
+    candidates = (
+        (x, max(y_own, region.side_m)),  # beside
+        (max(x, region.front_m), max(y_own, region.cross_m)),  # in front / behind (still not crossing)
+        (min(x, -region.front_m), max(y_own, region.cross_m)),
+    )
     best = min(candidates, key=lambda p: (p[0] - x) ** 2 + (p[1] - y_own) ** 2)
-    yaw = float(np.clip(local[2], -region.max_yaw_rad, region.max_yaw_rad))
-    if best == (x, y_own) and yaw == local[2]:
+    yaw = min(max(local_yaw, -region.max_yaw_rad), region.max_yaw_rad)  # np.clip's order: max, then min
+    if best == (x, y_own) and yaw == local_yaw:
         return target
     return support.from_local(np.array([best[0], sign * best[1], yaw]))

@@ -343,35 +343,15 @@ class GaitPlanner:
         """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
 
         The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then
-        evaluated at once and chained by cumulative sums (rebuilt every planner tick)."""
+        evaluated at once and chained by cumulative sums: the poses are rebuilt every planner tick, the
+        ramp (:func:`_command_ramp`) only when the command, its goal or its rate limits change."""
         command_goal, command_rate_limits = self.command_goal, self.command_rate_limits
         assert command_goal is not None and command_rate_limits is not None, "path_ahead builds it with a goal only"
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
-        h = PATH_TABLE_STEP_S
-        n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
-        times = np.arange(n) * PATH_TABLE_STEP_S
-        vels = np.empty((n, 3))
-        for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
-            g, lim, v = float(goal[j]), abs(float(command_rate_limits[j])) * h, float(self.command[j])
-            column = vels[:, j]
-            for i in range(n):
-                dv = min(max(g - v, -lim), lim)
-                column[i] = v + 0.5 * dv  # the piece's mean velocity
-                if dv == 0.0:
-                    column[i + 1:] = v
-                    break
-                v = v + dv
-        # Exact arcs of every piece (path_frame.arc_displacement, vectorised) chained from the path pose.
-        w = vels[:, 2]
-        th = w * h
-        small = np.abs(th) < 1e-9
-        w_safe = np.where(small, 1.0, w)
-        sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
-        cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
-        dx = vels[:, 0] * sinc - vels[:, 1] * cosc
-        dy = vels[:, 0] * cosc + vels[:, 1] * sinc
+        times, vels, th, dx, dy = _command_ramp(self.command, goal, command_rate_limits)
+        n = len(times)
         poses = np.empty((n, 3))
         poses[0] = (self.path.x, self.path.y, self.path.yaw)
         np.cumsum(th[:-1], out=poses[1:, 2])
@@ -550,6 +530,9 @@ class GaitPlanner:
         prev_phi = self.phi
         # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
         hold = _remaining_ease_delay(self.hold_s)
+        length = self.sole_length_m - 2.0 * self.preview_margin_m
+        width = self.sole_width_m - 2.0 * self.preview_margin_m
+        stances: dict[str, np.ndarray] = {}  # p_stance per side (the blend is fixed during the call)
         for b in boundaries:
             t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
             t1 = (blend.event_time(b) - t_now) / kappa
@@ -557,8 +540,6 @@ class GaitPlanner:
                 t0 += hold
             t1 += hold
             down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
-            length = self.sole_length_m - 2.0 * self.preview_margin_m
-            width = self.sole_width_m - 2.0 * self.preview_margin_m
             if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
                 polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
             else:
@@ -575,7 +556,9 @@ class GaitPlanner:
                     if side in swinging:
                         swinging.discard(side)
                     else:
-                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds)}
+                        if side not in stances:
+                            stances[side] = self.stance(side)
+                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds, stances[side])}
             prev_phi = b
         return phases
 
@@ -613,21 +596,67 @@ class GaitPlanner:
         if hull is None:
             if len(self._hull_cache) >= 64:
                 self._hull_cache.clear()
-            hull = convex_hull_2d(np.vstack([_edge_strip(h.corners(length, width), length, e)
-                                             for h, e in zip(holds, edges)]))
+            hull = convex_hull_2d(np.concatenate([_edge_strip(h.corners(length, width), length, e)
+                                                  for h, e in zip(holds, edges)]))
             hull.flags.writeable = False  # shared between calls
             self._hull_cache[key] = hull
         return hull
 
-    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
+    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold],
+                            stance: np.ndarray | None = None) -> Foothold:
         blend = self.blend
         lo, _ = SWING_PHASES[side]
         phi_next_lo = math.floor(phi_td - lo) + 1 + lo
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
         pose = self.path_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self.stance(side))
+        target = foothold_from_path(pose, self.stance(side) if stance is None else stance)
         other = "right" if side == "left" else "left"
         return project_to_safe_region(footholds[other], target, side, self.region)
+
+
+#: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
+#: rebuilds only the poses.
+_RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
+
+
+def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The path table's velocity part: piece times, mean piece velocities (the rate-limited ramp
+    toward ``goal``, then the goal held), turn angles and the pieces' arcs in their start frame
+    (shared read-only arrays)."""
+    key = tuple(np.asarray(a, dtype=float).tobytes() for a in (command, goal, rate_limits))  # bytes: −0.0 ≠ 0.0
+    hit = _RAMP_CACHE.get(key)
+    if hit is not None:
+        return hit
+    h = PATH_TABLE_STEP_S
+    n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
+    times = np.arange(n) * PATH_TABLE_STEP_S
+    vels = np.empty((n, 3))
+    for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
+        g, lim, v = float(goal[j]), abs(float(rate_limits[j])) * h, float(command[j])
+        column = vels[:, j]
+        for i in range(n):
+            dv = min(max(g - v, -lim), lim)
+            column[i] = v + 0.5 * dv  # the piece's mean velocity
+            if dv == 0.0:
+                column[i + 1:] = v
+                break
+            v = v + dv
+    # Exact arcs of every piece (path_frame.arc_displacement, vectorised).
+    w = vels[:, 2]
+    th = w * h
+    small = np.abs(th) < 1e-9
+    w_safe = np.where(small, 1.0, w)
+    sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
+    cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
+    dx = vels[:, 0] * sinc - vels[:, 1] * cosc
+    dy = vels[:, 0] * cosc + vels[:, 1] * sinc
+    hit = (times, vels, th, dx, dy)
+    for a in hit:
+        a.flags.writeable = False
+    if len(_RAMP_CACHE) >= 32:
+        _RAMP_CACHE.clear()
+    _RAMP_CACHE[key] = hit
+    return hit
 
 
 def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:

@@ -148,6 +148,28 @@ def polygon_halfplanes(polygon: ArrayLike) -> tuple[FloatArray, FloatArray]:
     return normals, offsets
 
 
+#: Half-planes of recently seen polygons, by value (support polygons recur tick after tick).
+_HALFPLANE_CACHE: dict[tuple, tuple[FloatArray, FloatArray, FloatArray]] = {}
+_HALFPLANE_CACHE_SIZE = 64
+
+
+def halfplanes_cached(polygon: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`polygon_halfplanes` ``(normals, offsets)`` and ``offsets + 1e-9``, kept by the polygon's
+    values (the same numbers as computing them; the arrays are shared: read-only)."""
+    v = np.asarray(polygon, dtype=float)
+    key = (v.shape, v.tobytes())
+    hit = _HALFPLANE_CACHE.get(key)
+    if hit is None:
+        if len(_HALFPLANE_CACHE) >= _HALFPLANE_CACHE_SIZE:
+            _HALFPLANE_CACHE.clear()
+        normals, offsets = polygon_halfplanes(v)
+        hit = (normals, offsets, offsets + 1e-9)
+        for a in hit:
+            a.flags.writeable = False
+        _HALFPLANE_CACHE[key] = hit
+    return hit
+
+
 def clip_convex_polygons(subject: ArrayLike, clip: ArrayLike, tol_m: float = 1e-9) -> FloatArray:
     """Intersection of two convex polygons (Sutherland-Hodgman); (0, 2) if empty.
 
@@ -206,8 +228,7 @@ def clip_into_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """``p`` if inside the convex polygon, else its centroid-ward projection onto it: the point
     c + s (p − c) with s the largest multiple of 2⁻³⁰ inside (what a 30-step bisection on the
     segment finds), computed from the half-planes directly."""
-    normals, offsets = polygon_halfplanes(polygon)
-    bound = offsets + 1e-9
+    normals, offsets, bound = halfplanes_cached(polygon)
     if len(offsets) == 0 or np.all(normals @ p <= bound):
         return p
     c = polygon_centroid(polygon)

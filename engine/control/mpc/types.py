@@ -166,9 +166,14 @@ class ComMpcSolution:
 
     def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""
-        times, wps = self.waypoint_times_s, self.waypoints_xy_m
+        lists = self.__dict__.get("_float_lists")
+        if lists is None:  # the arrays as Python floats, once per solution (the same numbers)
+            lists = (self.waypoint_times_s.tolist(), self.waypoints_xy_m.tolist(),
+                     self.waypoint_com_xy_m.tolist(), self.waypoint_com_vel_xy_mps.tolist())
+            object.__setattr__(self, "_float_lists", lists)
+        times, wps, coms, vels = lists
         n_seg = len(times) - 1
-        t_first, t_last = float(times[0]), float(times[-1])
+        t_first, t_last = times[0], times[-1]
         j = min(max(bisect.bisect_right(times, t) - 1, 0), n_seg - 1)
         if t > t_last:
             anchor, sx, sy = n_seg, 0.0, 0.0
@@ -177,17 +182,17 @@ class ComMpcSolution:
             if t < t_first:
                 sx = sy = 0.0
             else:
-                h = max(float(times[j + 1] - times[j]), 1e-12)
-                sx = float(wps[j + 1, 0] - wps[j, 0]) / h
-                sy = float(wps[j + 1, 1] - wps[j, 1]) / h
-        s = t - float(times[anchor])
+                h = max(times[j + 1] - times[j], 1e-12)
+                sx = (wps[j + 1][0] - wps[j][0]) / h
+                sy = (wps[j + 1][1] - wps[j][1]) / h
+        s = t - times[anchor]
         omega = self.omega_rps
         ch, sh = math.cosh(omega * s), math.sinh(omega * s)
-        px, py = float(wps[anchor, 0]), float(wps[anchor, 1])
-        cx, cy = self.waypoint_com_xy_m[anchor]
-        vx, vy = self.waypoint_com_vel_xy_mps[anchor]
-        ex, ey = float(cx) - px, float(cy) - py
-        dex, dey = float(vx) - sx, float(vy) - sy
+        px, py = wps[anchor]
+        cx, cy = coms[anchor]
+        vx, vy = vels[anchor]
+        ex, ey = cx - px, cy - py
+        dex, dey = vx - sx, vy - sy
         errx, erry = ex * ch + dex * sh / omega, ey * ch + dey * sh / omega
         pos = np.array([px + sx * s + errx, py + sy * s + erry])
         vel = np.array([sx + ex * omega * sh + dex * ch, sy + ey * omega * sh + dey * ch])
