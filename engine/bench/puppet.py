@@ -12,7 +12,8 @@ Why the wall-clock p99 is what it is, measured side by side in the same run: eve
 real-time section (SCHED_FIFO for the call, :mod:`engine.retarget.humanoid_arm.realtime`), the others as an
 ordinary process (``p99_us_ordinary`` / ``p99_us_realtime``); ``cpu_*`` is the thread's CPU time per call
 and ``preempted`` the share of calls with an involuntary context switch (the scheduler gave the core to
-another process mid-call).
+another process mid-call); ``calls_over_2ms`` / ``of_them_preempted`` / ``gc_during_calls`` say what made the
+slow calls slow.
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ def bench_puppet(duration_s: float = 60.0, robot: str = "g1") -> list[dict]:
                "p99_us_ordinary": r["inference_us_p99_ordinary"], "p99_us_realtime": r["inference_us_p99_realtime"],
                "cpu_median_us": r["inference_cpu_us_median"], "cpu_p99_us": r["inference_cpu_us_p99"],
                "preempted": round(r["preempted"] / max(r["frames"], 1), 4),
+               "calls_over_2ms": r["slow_calls"], "of_them_preempted": r["slow_calls_preempted"],
+               "gc_during_calls": r["gc_during_calls"],
                "realtime": "every other period" if not r["realtime_error"] else r["realtime_error"],
                "over_budget": round(float(np.mean(np.array(r["inference_s_all"]) > budget_us * 1e-6)), 4),
                "budget_us": round(budget_us, 1), "goal_p99_us": 2000,

@@ -57,3 +57,20 @@ def test_the_statistics_split_real_time_and_ordinary_calls():
     assert s["inference_cpu_us_p99"] == 900.0
     empty = PuppetStats().summary()
     assert empty["inference_us_p99"] == 0.0 and empty["realtime_calls"] == 0
+
+
+def test_a_garbage_collection_during_a_call_is_counted():
+    import gc
+
+    section = RealtimeSection()
+    with section.run(False):
+        gc.collect()
+    assert section.last is not None and section.last.gc
+    with section.run(False):
+        _busy(10)
+    assert not section.last.gc
+    stats = PuppetStats()
+    stats.add(CallTiming(0.003, 0.001, True, False, True))
+    stats.add(CallTiming(0.001, 0.001, False, False, False))
+    s = stats.summary()
+    assert (s["slow_calls"], s["slow_calls_preempted"], s["gc_during_calls"]) == (1, 1, 1)

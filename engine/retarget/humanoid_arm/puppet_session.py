@@ -88,6 +88,7 @@ class UdpSource:
 
 
 WINDOW = 8192  # the statistics cover the latest this many calls
+SLOW_CALL_S = 0.002  # the live goal's p99: calls slower than this are counted (and how many were preempted)
 
 
 @dataclass
@@ -99,6 +100,7 @@ class PuppetStats:
     cpu_s: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
     preempted: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
     realtime: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
+    gc: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
     transitions: dict = field(default_factory=lambda: {"direct": 0, "graph": 0, "hold": 0})
 
     def add(self, timing: CallTiming) -> None:
@@ -106,6 +108,7 @@ class PuppetStats:
         self.cpu_s.append(timing.cpu_s)
         self.preempted.append(timing.preempted)
         self.realtime.append(timing.realtime)
+        self.gc.append(timing.gc)
 
     def summary(self) -> dict:
         t = np.array(self.inference_s) if self.inference_s else np.zeros(1)
@@ -115,6 +118,10 @@ class PuppetStats:
         return {"frames": self.frames, "inference_us_median": us(t, 50), "inference_us_p99": us(t, 99),
                 "inference_cpu_us_median": us(cpu, 50), "inference_cpu_us_p99": us(cpu, 99),
                 "preempted": int(np.sum(np.array(self.preempted, dtype=bool))) if self.preempted else 0,
+                "gc_during_calls": int(np.sum(np.array(self.gc, dtype=bool))) if self.gc else 0,
+                "slow_calls": int(np.sum(t > SLOW_CALL_S)) if self.inference_s else 0,
+                "slow_calls_preempted": int(np.sum((t > SLOW_CALL_S) & np.array(self.preempted, dtype=bool)))
+                if self.inference_s else 0,
                 "realtime_calls": int(np.sum(rt)),
                 "inference_us_p99_realtime": us(t[rt], 99), "inference_us_p99_ordinary": us(t[~rt], 99),
                 **self.transitions}

@@ -12,12 +12,23 @@ capability); without it the call runs normally and :attr:`RealtimeSection.availa
 
 from __future__ import annotations
 
+import gc
 import os
 import resource
 import time
 from dataclasses import dataclass
 
 RT_PRIORITY = 10  # low among real-time priorities (1..99): above every ordinary process, below the kernel's own
+_gc_runs = [0]  # garbage collections started in this process (any thread), counted by the hook below
+
+
+def _count_gc(phase: str, info: dict) -> None:
+    if phase == "start":
+        _gc_runs[0] += 1
+
+
+if _count_gc not in gc.callbacks:
+    gc.callbacks.append(_count_gc)
 
 
 @dataclass
@@ -26,6 +37,7 @@ class CallTiming:
     cpu_s: float  # the calling thread's CPU time
     preempted: bool  # an involuntary context switch happened during the call
     realtime: bool  # ran in a real-time section
+    gc: bool = False  # a garbage collection ran during the call
 
 
 class RealtimeSection:
@@ -64,13 +76,14 @@ class _Timed:
     def __enter__(self) -> None:
         self.previous = self.section._enter() if self.enabled else None
         self.switches = resource.getrusage(resource.RUSAGE_THREAD).ru_nivcsw
+        self.gc_runs = _gc_runs[0]
         self.cpu0, self.wall0 = time.thread_time(), time.perf_counter()
 
     def __exit__(self, *exc) -> None:
         wall, cpu = time.perf_counter() - self.wall0, time.thread_time() - self.cpu0
         preempted = resource.getrusage(resource.RUSAGE_THREAD).ru_nivcsw > self.switches
         self.section._leave(self.previous)
-        self.section.last = CallTiming(wall, cpu, preempted, self.previous is not None)
+        self.section.last = CallTiming(wall, cpu, preempted, self.previous is not None, _gc_runs[0] > self.gc_runs)
 
 
 __all__ = ["RealtimeSection", "CallTiming", "RT_PRIORITY"]
