@@ -217,7 +217,8 @@ class EngineCore:
         source = open_source(options)
         self._close_puppet()
         assert self.ctx is not None  # a walking robot has its style context
-        self.puppet = PuppetSession(arms, source, tuple(self.ctx.upper_joints))
+        self.puppet = PuppetSession(arms, source, tuple(self.ctx.upper_joints),
+                                    realtime=options.get("realtime") is True)  # LWL2 calls under SCHED_FIFO
         self._puppet_bad_seen, self._puppet_notice_t = 0, -1e9
         self.mode = "puppet"
         self._start_walking()
@@ -239,6 +240,9 @@ class EngineCore:
             x = session.step(t)
             if x is not None:
                 walker.set_arm_target(session.index, x, t, 1.0 / session.rate_hz)
+            if session.realtime and session.section.available is False:
+                session.realtime = False  # asked for, not permitted here: said once, then run normally
+                self.emit(msg.Notice("warning", f"Puppeteer: {session.realtime_error}"))
             bad = getattr(session.source, "bad", 0)
             if bad > self._puppet_bad_seen and t - self._puppet_notice_t >= 2.0:  # at most one notice per 2 s
                 self._puppet_bad_seen, self._puppet_notice_t = bad, t
@@ -417,7 +421,8 @@ class EngineCore:
         src = session.source
         signals["puppet"] = np.array([st["frames"], st["inference_us_median"], st["inference_us_p99"],
                                       getattr(src, "received", st["frames"]), getattr(src, "bad", 0),
-                                      st["graph"], st["hold"]])
+                                      st["graph"], st["hold"], st["inference_cpu_us_p99"], st["preempted"],
+                                      float(session.realtime and session.section.available is True)])
         if session.pose15 is not None:
             signals["puppet_pose15"] = session.pose15
         if session.x is not None:

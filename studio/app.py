@@ -371,6 +371,7 @@ class Studio:
             self._notify("warning", f"{self.robot_name} has no walking style: it can only stand")
             return
         self.mode = mode
+        self.puppet.on_mode(mode)
         sample = self.sample_editor.sample_name if self.sample_editor else "in_place"
         self.link.send(msg.SetMode(mode, {"sample": sample}))
         self.overlays.set_visible(mode != "stand" and self.drive.show_overlays.value)

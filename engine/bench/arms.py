@@ -58,6 +58,7 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
         for group, paths in groups.items():
             stats: dict[str, dict[str, list[float]]] = {
                 m: {"hand": [], "elbow": [], "free": [], "t": []} for m in ("lwl2", "lwl2-paper", "ik+fix", "feed-forward")}
+            stages: dict[str, dict[str, list[float]]] = {"lwl2": {}, "lwl2-paper": {}, "ik+fix": {}}
             fallbacks = holds = frames = 0
             for path in paths:
                 pts = bvh_points(load_bvh(path))
@@ -76,10 +77,18 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
                         s["elbow"].append(e)
                         s["free"].append(cm.is_free(step.x))
                         s["t"].append(step.inference_s)
+                        for stage, dt in step.stages_s.items():
+                            stages[method].setdefault(stage, []).append(dt)
+                    # ik.solve(p, x_ik) (Gauss–Newton to 1e-4 rad, then the fixer), its two stages timed apart
                     t0 = time.perf_counter()
-                    x_ik, ok = ik.solve(p, x_ik)
+                    x_ik = ik.gauss_newton(p, x_ik)
+                    t1 = time.perf_counter()
+                    x_ik, ok = cm.fix(x_ik)
+                    t2 = time.perf_counter()
+                    stages["ik+fix"].setdefault("gauss_newton", []).append(t1 - t0)
+                    stages["ik+fix"].setdefault("fix", []).append(t2 - t1)
                     s = stats["ik+fix"]
-                    s["t"].append(time.perf_counter() - t0)
+                    s["t"].append(t2 - t0)
                     h, e = arm_errors_m(ub, x_ik, p)
                     s["hand"].append(h)
                     s["elbow"].append(e)
@@ -109,6 +118,9 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
                     row.update({"graph_steps": fallbacks, "holds": holds, "goal_p99_us": 2000,
                                 "refine_iters": arms.refine_iters})
                 rows.append(row)
+            for method, per_stage in stages.items():  # where the time goes (medians per frame, µs)
+                rows.append({"section": "arms", "robot": robot, "method": f"{method} stages", "clips": group,
+                             **{f"{k}_us": round(float(np.median(v)) * 1e6, 1) for k, v in per_stage.items()}})
             ik_median = float(np.median(stats["ik+fix"]["t"]))
             hand = {m: float(np.mean(stats[m]["hand"])) for m in ("lwl2", "lwl2-paper", "ik+fix")}
             rows.append({"section": "arms", "robot": robot, "method": "LWL2 vs IK", "clips": group,

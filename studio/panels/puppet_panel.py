@@ -57,6 +57,9 @@ class PuppetPanel:
             self.start = gui.add_button("Start puppet", icon=viser.Icon.PLAYER_PLAY)
             self.stop_button = gui.add_button("Stop puppet", icon=viser.Icon.PLAYER_STOP, disabled=True)
             self.show_skeleton = gui.add_checkbox("Show source skeleton", True)
+            self.realtime = gui.add_checkbox("Real-time priority", False,
+                                             hint="Run each LWL2 call under SCHED_FIFO, so other processes cannot "
+                                                  "preempt it (needs CAP_SYS_NICE); applies at Start puppet")
             self.status = gui.add_markdown("Puppet: idle")
         with gui.add_folder("Gesture → walking style"):
             self.record_s = gui.add_slider("Record seconds", min=0.5, max=10.0, step=0.5, initial_value=2.0)
@@ -87,11 +90,12 @@ class PuppetPanel:
             self.status.content = f"Puppet: {robot} has no trained arms (robots: {', '.join(ARM_ROBOTS)})"
             return
         if self.source.value == LIVE:
-            options = {"source": "udp", "port": int(self.port.value)}
+            options: dict = {"source": "udp", "port": int(self.port.value)}
             where = f"udp://127.0.0.1:{int(self.port.value)} (send with `studio stream-bvh FILE --to udp://127.0.0.1:{int(self.port.value)}`)"
         else:
             options = {"source": "clip", "clip": self.source.value}
             where = f"`{self.source.value}`"
+        options["realtime"] = bool(self.realtime.value)
         self.options = options
         self.studio.mode = "puppet"
         self.studio.link.send(msg.SetMode("puppet", options))
@@ -107,6 +111,15 @@ class PuppetPanel:
         self.studio.set_mode("stand")
         self.status.content = "Puppet: idle"
         self._skeleton_visible()
+
+    def on_mode(self, mode: str) -> None:
+        """The studio chose another mode (Stand, Edit or Test): the engine leaves puppet mode."""
+        if mode != "puppet" and self.active:
+            self.active, self.options = False, None
+            self._recording = None
+            self.stop_button.disabled = self.record.disabled = True
+            self.status.content = f"Puppet: idle (the robot is in {mode} mode)"
+            self._skeleton_visible()
 
     # ------------------------------------------------------------------ gesture → style
     def start_recording(self) -> None:
@@ -175,12 +188,16 @@ class PuppetPanel:
         s = signals.get("puppet")
         if s is None or not self.active:
             return
-        frames, med, p99, received, bad, graph, hold = (float(v) for v in s)
+        frames, med, p99, received, bad, graph, hold, *timing = (float(v) for v in s)
         dist = signals.get("puppet_capsule_distance")
         colliding = int(np.sum(dist < 0)) if dist is not None else 0
         col = (f"<span style='color:#d00'>**{colliding} capsule pairs colliding**</span>" if colliding
                else "no capsule pair colliding")
-        text = (f"Puppet: **{int(frames)} frames** · LWL2 {med / 1000:.1f} ms median, {p99 / 1000:.1f} ms p99 · "
+        cpu = ""
+        if len(timing) >= 3:  # the thread's CPU time, preempted calls (of the latest 8192), real-time section
+            cpu_p99, preempted, realtime = timing[:3]
+            cpu = f" (CPU {cpu_p99 / 1000:.1f} ms p99; {int(preempted)} preempted{'; real-time' if realtime else ''})"
+        text = (f"Puppet: **{int(frames)} frames** · LWL2 {med / 1000:.1f} ms median, {p99 / 1000:.1f} ms p99{cpu} · "
                 f"datagrams {int(received)} ({int(bad)} bad) · graph steps {int(graph)}, holds {int(hold)} · {col}")
         if text != self.status.content:
             self.status.content = text

@@ -1,27 +1,170 @@
 """The Puppeteer workspace in the browser: G1 stands under the whole-body controller while a held-out CMU clip
 drives its arms (LWL2); the status counts frames and capsule collisions; two seconds of the arms become the
-in_place sample's arm curves and are undone; Stop returns to standing."""
+in_place sample's arm curves; in Edit mode the simulated robot walks in_place with its arm joints following
+those curves; Undo restores the previous curves and the walk follows them again.
+
+Everything is checked on the engine's clock: frames (simulated joint angles, the style revision they were
+computed with) and telemetry (the gait phase) as the studio receives them, compared with the curves at the
+same phase. No wait depends on machine speed (wall-clock limits are only generous caps)."""
 
 from __future__ import annotations
 
+import threading
+import time
+
+import numpy as np
 import pytest
 
 from engine.retarget.humanoid_arm.puppet_session import puppet_clips
-from tests.conftest import ServedStudio
-from tests.e2e.browser import open_page, wait_for_text
+from tests.conftest import free_port
+from tests.e2e.browser import copy_styles, open_page, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
 FRAMES_RE = r"Puppet: (\d+) frames"
+SETTLE_S = 0.6  # after an edit shows in the frames, the arms reach the new reference (tracking transient)
+WINDOW_S = 1.5  # then this much simulated walking is compared with the curves (> one in_place cycle)
+LAGS_S = np.arange(0.0, 0.105, 0.01)  # the simulated arms trail their reference by the controller's delay (≈ 40 ms)
+CURVE = "joints.right_shoulder_pitch_joint"
 
 
-def test_puppeteer_drives_g1_arms_from_a_clip(artifacts):
+def _wait(predicate, timeout_s: float, what: str, page=None, poll_ms: int = 250):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        if page is not None:
+            page.wait_for_timeout(poll_ms)
+        else:
+            time.sleep(poll_ms / 1000)
+    pytest.fail(f"timed out waiting for {what}")
+
+
+class EngineTap:
+    """What the studio receives from the engine: Edit mode's frames (time, style revision, the arm joints'
+    simulated angles) and walking telemetry (time, gait phase, the tracked arm joint's reference)."""
+
+    def __init__(self, studio, joints: list[str]):
+        from engine.robot.model import load_robot
+
+        names = load_robot("g1").joint_names
+        self.idx = np.array([names.index(j) for j in joints])
+        self.lock = threading.Lock()
+        self.frames: list[tuple[float, int, np.ndarray]] = []  # Edit mode's frames only
+        self.phases: list[tuple[float, float]] = []
+        self.tracked: list[tuple[float, float, float]] = []  # (time, phase, the tracked arm joint's reference)
+        view_update, on_telemetry = studio.view.update, studio._on_telemetry
+
+        def frame(event):
+            view_update(event)
+            if len(event.joint_q) and event.mode == "edit":
+                with self.lock:
+                    self.frames.append((float(event.sim_time_s), int(event.style_revision),
+                                        np.asarray(event.joint_q, dtype=float)[self.idx]))
+
+        def telemetry(event):
+            on_telemetry(event)
+            if "phase" in event.signals:
+                with self.lock:
+                    self.phases.append((float(event.sim_time_s), float(event.signals["phase"][0])))
+                    if "arm_joint" in event.signals:
+                        self.tracked.append((float(event.sim_time_s), float(event.signals["phase"][0]),
+                                             float(event.signals["arm_joint"][0])))
+
+        studio.view.update = frame
+        studio._on_telemetry = telemetry
+
+    def shown_at(self, revision: int) -> float | None:
+        """Simulated time of the first Edit-mode frame computed with style ``revision`` (or later)."""
+        with self.lock:
+            return next((t for t, rev, _ in self.frames if rev >= revision), None)
+
+    def latest_time(self) -> float:
+        with self.lock:
+            return self.frames[-1][0] if self.frames else 0.0
+
+    def references(self, t0: float, t1: float) -> np.ndarray:
+        """(N, 3) time, phase and reference angle of the tracked arm joint (the engine's Plots signal)."""
+        with self.lock:
+            return np.array([r for r in self.tracked if t0 <= r[0] <= t1]).reshape(-1, 3)
+
+    def window(self, t0: float, t1: float, sample, cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(cycle times, simulated arm angles) of the frames in [t0, t1]: each frame's gait time from the
+        nearest telemetry phase (gait time advances with simulated time)."""
+        pm = sample.intervals.phase_map()
+        with self.lock:
+            frames = [(t, q) for t, _, q in self.frames if t0 <= t <= t1]
+            tel = np.array([p for p in self.phases if t0 - 0.1 <= p[0] <= t1 + 0.1])
+        times, angles = [], []
+        for t, q in frames:
+            k = int(np.argmin(np.abs(tel[:, 0] - t)))
+            if abs(tel[k, 0] - t) > 0.05:
+                continue
+            times.append((float(pm.time_at(tel[k, 1] % 1.0)) + t - tel[k, 0]) % cycle_s)
+            angles.append(q)
+        return np.array(times), np.array(angles)
+
+
+def _curve_values(sample, joints: list[str], standing: dict[str, float], times: np.ndarray) -> np.ndarray:
+    """(T, K) the sample's joint curves at cycle times (a joint without a curve holds its standing angle)."""
+    cols = []
+    for j in joints:
+        curve = sample.curve(f"joints.{j}")
+        cols.append(np.asarray(curve.evaluate(times), dtype=float) if curve is not None else np.full(len(times), standing[j]))
+    return np.stack(cols, axis=1)
+
+
+def _lagged_rms(q: np.ndarray, sample, joints, standing, times: np.ndarray, cycle_s: float) -> float:
+    """RMS (rad) of simulated angles against the curves, at the controller's delay that fits best (≤ 0.1 s)."""
+    return min(float(np.sqrt(np.mean((q - _curve_values(sample, joints, standing, (times - lag) % cycle_s)) ** 2)))
+               for lag in LAGS_S)
+
+
+def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, joints) -> tuple[float, float]:
+    """Wait (simulated time) until the walk has run the edit ``revision`` for SETTLE_S + WINDOW_S; the engine's
+    reference of the tracked arm joint is the curve's value at the walk's phase; returns the RMS (rad) of the
+    simulated arm angles against the sample it should follow and against the other one."""
+    shown = _wait(lambda: tap.shown_at(revision), 300, f"style revision {revision} in the engine's frames", page)
+    _wait(lambda: tap.latest_time() >= shown + SETTLE_S + WINDOW_S, 600,
+          f"{SETTLE_S + WINDOW_S} s of simulated walking with revision {revision}", page)
+    cycle_s = follows.intervals.cycle_s
+    times, q = tap.window(shown + SETTLE_S, shown + SETTLE_S + WINDOW_S, follows, cycle_s)
+    assert len(times) >= 10, f"only {len(times)} frames with a gait phase in the window"
+    ctx = studio.session.ctx
+    standing = ctx.standing_angles
+    # the walk's reference is the curve: the tracked joint's reference (telemetry) at the phase it was planned for
+    tracked = next(j for j in ctx.upper_joints if "elbow" in j)
+    refs = tap.references(shown + SETTLE_S, shown + SETTLE_S + WINDOW_S)
+    assert len(refs) >= 5, f"only {len(refs)} telemetry samples of the tracked arm joint"
+    pm = follows.intervals.phase_map()
+    curve_at = _curve_values(follows, [tracked], standing, np.array([pm.time_at(p % 1.0) for p in refs[:, 1]]))[:, 0]
+    assert np.max(np.abs(refs[:, 2] - curve_at)) < 1e-3, f"{tracked}: the walk's reference is not the sample's curve"
+    return (_lagged_rms(q, follows, joints, standing, times, cycle_s),
+            _lagged_rms(q, other, joints, standing, times, cycle_s))
+
+
+def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, artifacts):
+    from engine.retarget.humanoid_arm.style_curves import gesture_curves
+    from engine.retarget.humanoid_arm.upper_body import SPECS
+    from studio.app import Studio
+
     clips = puppet_clips()
     if not clips:
         pytest.skip("shared mocap clips absent (set MOTION_STUDIO_SHARED)")
-    studio = ServedStudio("g1")
+    joints = list(SPECS["g1"]().joints)
+    studio = Studio("g1", port=free_port(), styles_folder=copy_styles(tmp_path)).start()
+    tap = EngineTap(studio, joints)
     try:
+        assert studio.loaded.wait(240)
         with open_page(studio.url, 1000, 760) as page:
+            wait_for_text(page, "Engine running", 240_000)
+            notice = page.locator(".mantine-Notification-root", has_text="Software WebGL").locator("button")
+            if notice.count():
+                try:  # the notice covers the canvas's top-left corner
+                    notice.first.click(timeout=10_000)
+                except Exception:  # noqa: BLE001 - it may have closed by itself
+                    pass
             page.get_by_role("tab", name="Mocap").click()  # the mocap workspaces share one tab (one row of tabs)
             page.get_by_role("tab", name="Puppet").click()
             wait_for_text(page, "Puppet: idle")
@@ -33,15 +176,54 @@ def test_puppeteer_drives_g1_arms_from_a_clip(artifacts):
             text = page.inner_text("body")
             assert "LWL2" in text and "datagrams" in text
             page.screenshot(path=str(artifacts / "puppet_running.png"))
-            # two seconds of the arms become the in_place sample's arm curves (one undoable edit), then undo
+
+            # ---- two seconds of the arms become the in_place sample's arm curves (one undoable edit)
+            before = studio.session.style
             page.get_by_role("button", name="Record gesture").click()
             wait_for_text(page, "Recorded", 240_000)
             page.get_by_role("button", name="Use as arm curves").click()
             wait_for_text(page, "in_place: 11 arm curves with 8 knots", 60_000)
-            page.screenshot(path=str(artifacts / "puppet_gesture_applied.png"))
-            page.get_by_role("button", name="Undo style edit").click()
-            wait_for_text(page, "undid gesture → in_place arm curves", 60_000)
+            t_rec, q_rec = studio.puppet._recorded
+            assert t_rec[-1] - t_rec[0] >= 2.0 - 1e-6, "the recording spans two simulated seconds"
+            gesture = studio.session.style.sample("in_place")
+            expected = gesture_curves(t_rec, q_rec, joints, gesture.intervals.cycle_s, 8,
+                                      dict(studio.session.ctx.joint_limits))
+            assert {c: gesture.curve(c) for c in expected} == expected, "the style holds the recording's curves"
+            assert studio.session.undo_labels()[-1] == "gesture → in_place arm curves"
             page.get_by_role("button", name="Stop puppet").click()
             wait_for_text(page, "Puppet: idle")
+
+            # ---- Edit mode walks in_place: the simulated arms follow the recorded curves
+            page.get_by_role("tab", name="Robot").click()
+            page.get_by_role("button", name="Edit", exact=True).click()
+            wait_for_text(page, "edit mode (in_place)", 120_000)
+            rms_gesture, rms_previous = _walk_follows(studio, tap, page, studio.style_revision,
+                                                      gesture, before.sample("in_place"), joints)
+            print(f"walk with the gesture curves: RMS {rms_gesture:.3f} rad to them, {rms_previous:.3f} to the previous")
+            assert rms_gesture < 0.12, f"the simulated arms do not follow the recorded curves (RMS {rms_gesture:.3f} rad)"
+            assert rms_gesture < 0.4 * rms_previous, (rms_gesture, rms_previous)
+            page.screenshot(path=str(artifacts / "puppet_gesture_walk_robot.png"))  # the robot walking in_place
+            page.get_by_text("Curves", exact=True).first.click()
+            studio.curve_editor.set_active_channel(CURVE)
+            studio.curve_editor.frame_all()
+            client = next(iter(studio.server.get_clients().values()))
+            t_asked = time.time()
+            page.get_by_role("button", name="Camera to graph").click()
+            # cosmetic (the screenshot): let the browser apply a camera update after the click, if it does in time
+            deadline = time.monotonic() + 30
+            while client.camera.update_timestamp <= t_asked and time.monotonic() < deadline:
+                page.wait_for_timeout(250)
+            page.screenshot(path=str(artifacts / "puppet_gesture_walk.png"))
+
+            # ---- Undo (the Style tab's, like any edit): the previous curves, and the walk follows them again
+            page.get_by_role("tab", name="Style", exact=True).click()
+            page.get_by_role("button", name="Undo", exact=True).click()
+            _wait(lambda: studio.session.style == before, 60, "the undo to restore the previous style", page)
+            assert not studio.session.can_undo
+            rms_previous, rms_gesture = _walk_follows(studio, tap, page, studio.style_revision,
+                                                      before.sample("in_place"), gesture, joints)
+            print(f"walk after undo: RMS {rms_previous:.3f} rad to the previous curves, {rms_gesture:.3f} to the gesture")
+            assert rms_previous < 0.12 and rms_previous < 0.4 * rms_gesture, (rms_previous, rms_gesture)
+            page.screenshot(path=str(artifacts / "puppet_gesture_undone.png"))
     finally:
         studio.stop()

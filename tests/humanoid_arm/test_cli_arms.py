@@ -12,7 +12,7 @@ from engine.retarget.humanoid_arm import sources
 from engine.retarget.humanoid_arm.ik import arm_errors_m
 from engine.retarget.humanoid_arm.live import DatagramError, parse_datagram
 from engine.retarget.humanoid_arm.pose15 import bvh_points
-from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+from engine.retarget.humanoid_arm.puppeteer import STAGES, ArmRetargeter
 from engine.retarget.humanoid_arm.wae import SharedLatentWAE
 from engine.retarget.importers.bvh import load_bvh
 from tests.conftest import free_port, run_studio
@@ -173,6 +173,9 @@ def test_refinement_brings_lwl2_near_ik_and_stays_collision_free(shipped_g1):
             step = arms.retarget(p)
             assert arms.capsules.is_free(step.x)
             hand[name].append(arm_errors_m(arms.ub, step.x, p)[0])
+            # the per-call profile (bench arms) accounts for the whole call, stage by stage
+            assert tuple(step.stages_s) == STAGES and min(step.stages_s.values()) >= 0.0
+            assert sum(step.stages_s.values()) == pytest.approx(step.inference_s, rel=1e-6, abs=1e-9)
         x_ik, _ = ik.solve(p, x_ik)
         hand["ik"].append(arm_errors_m(refined.ub, x_ik, p)[0])
     mean = {k: float(np.mean(v)) for k, v in hand.items()}

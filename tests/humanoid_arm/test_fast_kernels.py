@@ -246,3 +246,65 @@ def test_distances_read_through_held_results_follow_every_new_pose(robot):
         np.testing.assert_array_equal(d, fresh)
         assert cm.min_signed_distance(x) == fresh.min()
 
+
+
+def test_compiled_encoder_equals_the_numpy_and_torch_forward():
+    """LWL2's run-time encoder (normalisation folded into the first layer, one numba call per sample) answers
+    as the numpy forward of the same weights (to rounding) and the torch network (to float32 rounding)."""
+    from engine.retarget.humanoid_arm.wae import SharedLatentWAE
+
+    rng = np.random.default_rng(11)
+    model = SharedLatentWAE({"mocap": 15, "robot": 11}, latent_dim=8, hidden=32, seed=3)
+    model.set_normalisation("mocap", rng.normal(0.3, 0.5, (500, 15)))
+    enc = model.numpy_encoder("mocap")
+    mean, std = model.normalisation_of("mocap")
+    xs = rng.normal(0.3, 0.7, (50, 15))
+    for x in xs:
+        one = enc(x)
+        assert one.shape == (1, 8)
+        np.testing.assert_allclose(one[0], enc.net(((x - mean) / std)[None, :])[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(enc(x[None, :]), one, rtol=0, atol=0)
+    batch = enc(xs)
+    np.testing.assert_allclose(batch, np.vstack([enc(x) for x in xs]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(batch, model.encode("mocap", xs), rtol=0, atol=1e-4)
+
+
+@pytest.mark.parametrize("n, dims, scale", [(1, 4, 1.0), (7, 3, 1.0), (300, 8, 1.0), (5000, 8, 0.01), (2000, 8, 50.0)])
+def test_lwr_scan_finds_the_k_d_trees_neighbours(n, dims, scale):
+    """The compiled k-NN scan (float32 prefilter, float64 re-rank) returns the exact float64 neighbours and
+    distances of scipy's k-d tree, for queries near and far from the table."""
+    from engine.retarget.humanoid_arm.lwr import LatentLWR
+
+    rng = np.random.default_rng(n)
+    latents = scale * rng.standard_normal((n, dims))
+    lwr = LatentLWR(latents, rng.uniform(-1, 1, (n, 2)), lambda x: True, k_max=3)
+    for far in (0.0, 1.0, 10.0):
+        for _ in range(30):
+            z = scale * (rng.standard_normal(dims) + far)
+            dist, idx = lwr.neighbours(z)
+            ref_d, ref_i = lwr.neighbours_kdtree(z)
+            k = min(3, n)
+            assert len(dist) == len(idx) == k
+            np.testing.assert_allclose(dist, ref_d[:k], rtol=1e-12, atol=0)
+            np.testing.assert_array_equal(idx, ref_i[:k])
+            np.testing.assert_allclose(dist, np.linalg.norm(latents[idx] - z, axis=1), rtol=1e-12)
+
+
+def test_lwr_scan_on_the_shipped_table_equals_the_k_d_tree():
+    """On G1's shipped LWR table with held-out mocap codes (where the k-d tree prunes poorly)."""
+    from engine.retarget.humanoid_arm import sources
+    from engine.retarget.humanoid_arm.metadata import weights_path
+    from engine.retarget.humanoid_arm.pose15 import bvh_points
+    from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+    from engine.retarget.importers.bvh import load_bvh
+
+    clips = sources.evaluation_clips()
+    if not clips or not weights_path("g1").with_suffix(".json").is_file():
+        pytest.skip("shared mocap clips or shipped g1 weights absent")
+    arms = ArmRetargeter.load("g1", refine_iters=0)
+    for p in bvh_points(load_bvh(clips[0])).pose15()[::6]:
+        z = arms.encode_mocap(p)[0]
+        dist, idx = arms.lwr.neighbours(z)
+        ref_d, ref_i = arms.lwr.neighbours_kdtree(z)
+        np.testing.assert_array_equal(idx, ref_i)
+        np.testing.assert_allclose(dist, ref_d, rtol=1e-12, atol=0)

@@ -22,6 +22,7 @@ import numpy as np
 from engine.control.walking_controller import WalkingController
 from engine.retarget.humanoid_arm.live import DatagramError, parse_datagram
 from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
+from engine.retarget.humanoid_arm.realtime import CallTiming, RealtimeSection
 
 RATE_HZ = 60.0
 LIVE_CLEARANCE_M = 0.01  # targets keep 1 cm between capsules: the simulated arm lags its target by a few mm
@@ -86,24 +87,56 @@ class UdpSource:
         self.sock.close()
 
 
+WINDOW = 8192  # the statistics cover the latest this many calls
+SLOW_CALL_S = 0.002  # the live goal's p99: calls slower than this are counted (and how many were preempted)
+
+
 @dataclass
 class PuppetStats:
+    """Per LWL2 call (latest :data:`WINDOW`): wall time, the thread's CPU time, whether the scheduler preempted
+    it, whether it ran in a real-time section (:mod:`realtime`)."""
     frames: int = 0
-    inference_s: deque = field(default_factory=lambda: deque(maxlen=8192))
+    inference_s: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
+    cpu_s: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
+    preempted: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
+    realtime: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
+    gc: deque = field(default_factory=lambda: deque(maxlen=WINDOW))
     transitions: dict = field(default_factory=lambda: {"direct": 0, "graph": 0, "hold": 0})
+
+    def add(self, timing: CallTiming) -> None:
+        self.inference_s.append(timing.wall_s)
+        self.cpu_s.append(timing.cpu_s)
+        self.preempted.append(timing.preempted)
+        self.realtime.append(timing.realtime)
+        self.gc.append(timing.gc)
 
     def summary(self) -> dict:
         t = np.array(self.inference_s) if self.inference_s else np.zeros(1)
-        return {"frames": self.frames, "inference_us_median": round(float(np.median(t)) * 1e6, 1),
-                "inference_us_p99": round(float(np.percentile(t, 99)) * 1e6, 1), **self.transitions}
+        cpu = np.array(self.cpu_s) if self.cpu_s else np.zeros(1)
+        rt = np.array(self.realtime, dtype=bool) if self.realtime else np.zeros(1, dtype=bool)
+        us = lambda v, q: round(float(np.percentile(v, q)) * 1e6, 1) if len(v) else 0.0  # noqa: E731
+        return {"frames": self.frames, "inference_us_median": us(t, 50), "inference_us_p99": us(t, 99),
+                "inference_cpu_us_median": us(cpu, 50), "inference_cpu_us_p99": us(cpu, 99),
+                "preempted": int(np.sum(np.array(self.preempted, dtype=bool))) if self.preempted else 0,
+                "gc_during_calls": int(np.sum(np.array(self.gc, dtype=bool))) if self.gc else 0,
+                "slow_calls": int(np.sum(t > SLOW_CALL_S)) if self.inference_s else 0,
+                "slow_calls_preempted": int(np.sum((t > SLOW_CALL_S) & np.array(self.preempted, dtype=bool)))
+                if self.inference_s else 0,
+                "realtime_calls": int(np.sum(rt)),
+                "inference_us_p99_realtime": us(t[rt], 99), "inference_us_p99_ordinary": us(t[~rt], 99),
+                **self.transitions}
 
 
 class PuppetSession:
     """Source → LWL2 at ``rate_hz``; :meth:`step` is called on the simulation clock."""
 
     def __init__(self, arms: ArmRetargeter, source: ClipSource | UdpSource, upper_joints: tuple[str, ...],
-                 rate_hz: float = RATE_HZ):
+                 rate_hz: float = RATE_HZ, realtime: bool = False):
+        """``realtime``: run each LWL2 call in a real-time section (:mod:`realtime`; ignored where the
+        process may not raise its priority — :attr:`realtime_error` says why)."""
         self.arms, self.source, self.rate_hz = arms, source, float(rate_hz)
+        self.realtime = bool(realtime)
+        self.section = RealtimeSection()
         self.upper_joints = tuple(upper_joints)
         missing = [j for j in arms.joint_names if j not in self.upper_joints]
         if missing:
@@ -124,12 +157,18 @@ class PuppetSession:
         pose = self.source.pose_at(t_s) if isinstance(self.source, ClipSource) else self.source.poll()
         if pose is None:
             return None
-        result = self.arms.retarget(pose)
+        with self.section.run(self.realtime):
+            result = self.arms.retarget(pose)
         self.pose15, self.x = pose, result.x
         self.stats.frames += 1
-        self.stats.inference_s.append(result.inference_s)
+        assert self.section.last is not None
+        self.stats.add(self.section.last)
         self.stats.transitions[result.transition] += 1
         return result.x
+
+    @property
+    def realtime_error(self) -> str:
+        return self.section.error
 
     def close(self) -> None:
         self.source.close()
@@ -186,11 +225,12 @@ SETTLE_S = 0.5  # the robot starts in its standing pose, whose arms the (conserv
 
 
 def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s: float,
-                          feed=None, progress=None, settle_s: float = SETTLE_S) -> dict:
+                          feed=None, progress=None, settle_s: float = SETTLE_S, realtime: bool | str = False) -> dict:
     """Stand ``robot`` under the whole-body controller in MuJoCo while LWL2 drives its arms from ``source``
     for ``duration_s`` simulated seconds. ``feed(t_s)`` is called before each puppet period (e.g. to send the
-    datagram of that instant). Returns fell, the measured (simulated) arms' capsule check at every period
-    after ``settle_s`` and the timing stats."""
+    datagram of that instant). ``realtime``: LWL2 calls in a real-time section (:mod:`realtime`); "alternate":
+    every other period, so both are measured side by side under the same load. Returns fell, the measured
+    (simulated) arms' capsule check at every period after ``settle_s`` and the timing stats."""
     from engine.gait.style import StyleContext, load_style, styles_dir
     from engine.robot.model import load_robot
     from engine.sim import CONTROL_PERIOD_S, Simulation
@@ -202,7 +242,7 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
     walker = puppet_walking_controller(model, style, ctx)
     walker.set_command(np.zeros(3))
     sim = Simulation(model, walker)
-    session = PuppetSession(arms, source, tuple(ctx.upper_joints))
+    session = PuppetSession(arms, source, tuple(ctx.upper_joints), realtime=bool(realtime))
     ub, cm = arms.ub, arms.capsules
     mj_index = np.array([model.joint_names.index(j) for j in ub.joint_names])  # into sim.joint_positions()
     worst = np.inf
@@ -216,6 +256,8 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
         if session.due(t):
             if feed is not None:
                 feed(t)
+            if realtime == "alternate":
+                session.realtime = session.stats.frames % 2 == 1
             x = session.step(t)
             if x is not None:
                 walker.set_arm_target(session.index, x, t, 1.0 / session.rate_hz)
@@ -236,7 +278,8 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
             "standing_pose_distance_mm": round(standing * 1000, 1),
             "measured_collision_checks": checks, "measured_colliding": int(collided),
             "min_measured_distance_mm": round(float(worst) * 1000, 1), "wall_s": round(wall, 1),
-            "inference_s_all": list(session.stats.inference_s), **session.stats.summary()}
+            "inference_s_all": list(session.stats.inference_s), "realtime_error": session.realtime_error,
+            **session.stats.summary()}
 
 
 __all__ = ["ClipSource", "UdpSource", "PuppetSession", "PuppetStats", "puppet_walking_controller",

@@ -39,6 +39,9 @@ from engine.retarget.humanoid_arm.upper_body import UpperBody
 
 REFINE_ITERS = 3
 REFINE_TOLERANCE_RAD = 1e-3  # the refinement stops once its largest joint step is below this
+# per-call profile (RetargetStep.stages_s): check + encode, k-NN, refinement (blend + Gauss–Newton), the capsule
+# fixer, LWR's k → 1 checks (only when the fixer failed or without refinement), the transition check / graph step
+STAGES = ("encode", "knn", "refine", "fix", "lwr_checks", "transition")
 
 
 @dataclass
@@ -50,6 +53,7 @@ class RetargetStep:
     inference_s: float
     refined: bool = False  # the refinement's pose was used (else the LWR pose)
     joint_names: list[str] = field(default_factory=list)
+    stages_s: dict[str, float] = field(default_factory=dict)  # where the time went (see :data:`STAGES`)
 
     @property
     def targets(self) -> dict[str, float]:
@@ -124,22 +128,28 @@ class ArmRetargeter:
 
     def retarget(self, pose15: np.ndarray) -> RetargetStep:
         """One control period: collision-free joint targets for a 15-d pose (ValueError on a bad pose)."""
-        t0 = time.perf_counter()
+        clock = time.perf_counter
+        t0 = clock()
         p = check_pose15(np.asarray(pose15, dtype=float).ravel(), "pose15")
         z = self.encode_mocap(p)[0]
+        t_encode = clock()
         neighbours = self.lwr.neighbours(z)
+        t_knn = t_refine = t_fix = clock()
         refined = False
         if self.refine_iters > 0:
             # the k_max blend starts the refinement whether or not it collides: only the refined pose is checked
             # (LWR's k → 1 checks run only when the fixer cannot free it)
             start = self.lwr.blend(*neighbours, self.lwr.k_max)
             y = self.ik.gauss_newton(p, start, self.refine_iters, self.refine_tolerance_rad)
+            t_refine = clock()
             y, free = self.capsules.fix(y, clearance_m=self.clearance_m)
+            t_fix = clock()
             if free:
                 target, lwr_x, k, refined = y, start, self.lwr.k_max, True
         if not refined:
             res = self.lwr.query(z, neighbours)
             target, lwr_x, k = res.x, res.x, res.k
+        t_lwr = clock()
         transition = "direct"
         # the target itself is collision-free (LWR's check or the fixer's): only the poses in between are checked
         if self.current is None or self.capsules.interpolation_free(self.current, target, end_free=True):
@@ -147,8 +157,11 @@ class ArmRetargeter:
         else:
             out, transition = self._graph_step(target)
         self.current = out
-        return RetargetStep(out.copy(), k, lwr_x, transition, time.perf_counter() - t0,
-                            refined=refined and transition == "direct", joint_names=self.joint_names)
+        t_end = clock()
+        stages = dict(zip(STAGES, (t_encode - t0, t_knn - t_encode, t_refine - t_knn, t_fix - t_refine, t_lwr - t_fix,
+                                   t_end - t_lwr)))
+        return RetargetStep(out.copy(), k, lwr_x, transition, t_end - t0,
+                            refined=refined and transition == "direct", joint_names=self.joint_names, stages_s=stages)
 
     def _graph_step(self, target: np.ndarray) -> tuple[np.ndarray, str]:
         assert self.current is not None
@@ -173,4 +186,4 @@ class ArmRetargeter:
         return self.ub.clip(self.feed_forward(np.atleast_2d(pose15))[0])
 
 
-__all__ = ["ArmRetargeter", "RetargetStep", "REFINE_ITERS", "REFINE_TOLERANCE_RAD", "check_metadata", "weights_path"]
+__all__ = ["ArmRetargeter", "RetargetStep", "STAGES", "REFINE_ITERS", "REFINE_TOLERANCE_RAD", "check_metadata", "weights_path"]

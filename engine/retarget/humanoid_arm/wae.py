@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import numba
 import numpy as np
 import torch
 from torch import nn
@@ -39,6 +40,59 @@ class ResNetMLP(nn.Module):
         for block in self.blocks:
             h = h + torch.tanh(block(h))
         return self.out(h)
+
+
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+def _mlp_forward(x: np.ndarray, w_in_t: np.ndarray, b_in: np.ndarray, w_blocks_t: np.ndarray, b_blocks: np.ndarray,
+                 w_out_t: np.ndarray, b_out: np.ndarray, h: np.ndarray, out: np.ndarray) -> None:
+    """One sample through the ResNet MLP: h = tanh(W_in x + b); h += tanh(W h + b) per block; out = W_out h + b.
+    Weights transposed (out, in) so every dot product runs over contiguous memory; ``h`` is scratch."""
+    hidden, d_in = w_in_t.shape
+    for j in range(hidden):
+        acc = b_in[j]
+        for i in range(d_in):
+            acc += w_in_t[j, i] * x[i]
+        h[0, j] = np.tanh(acc)
+    cur = 0
+    for b in range(w_blocks_t.shape[0]):
+        nxt = 1 - cur
+        for j in range(hidden):
+            acc = b_blocks[b, j]
+            for i in range(hidden):
+                acc += w_blocks_t[b, j, i] * h[cur, i]
+            h[nxt, j] = h[cur, j] + np.tanh(acc)
+        cur = nxt
+    for j in range(w_out_t.shape[0]):
+        acc = b_out[j]
+        for i in range(hidden):
+            acc += w_out_t[j, i] * h[cur, i]
+        out[j] = acc
+
+
+class CompiledEncoder:
+    """A trained encoder for one sample at a time (the run-time path of LWL2): the input normalisation folded
+    into the first layer, one numba call (:func:`_mlp_forward`) — equal to :class:`NumpyMLP` on normalised
+    input to rounding (tested); batches go through :class:`NumpyMLP`."""
+
+    def __init__(self, net: "NumpyMLP", mean: np.ndarray, std: np.ndarray):
+        self.net, self.mean, self.std = net, mean, std
+        w_in = net.w_in / std[:, None]  # ((x − m) / s) W + b = x (W / s) + (b − (m / s) W)
+        self.w_in_t = np.ascontiguousarray(w_in.T)
+        self.b_in = net.b_in - (mean / std) @ net.w_in
+        self.w_blocks_t = np.ascontiguousarray(np.stack([w.T for w, _ in net.blocks]))
+        self.b_blocks = np.ascontiguousarray(np.stack([b for _, b in net.blocks]))
+        self.w_out_t, self.b_out = np.ascontiguousarray(net.w_out.T), net.b_out.copy()
+        self._h = np.empty((2, self.w_in_t.shape[0]))
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """(N, D) or (D,) raw input → (N, latent) (N = 1 for one sample)."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 2 and len(x) != 1:
+            return self.net((x - self.mean) / self.std)
+        out = np.empty((1, len(self.b_out)))
+        _mlp_forward(x.ravel(), self.w_in_t, self.b_in, self.w_blocks_t, self.b_blocks, self.w_out_t, self.b_out,
+                     self._h, out[0])
+        return out
 
 
 class NumpyMLP:
@@ -98,13 +152,13 @@ class SharedLatentWAE(nn.Module):
         t = torch.as_tensor(np.atleast_2d(z), dtype=torch.float32)
         return self.denormalise(domain, self.decoders[domain](t).numpy().astype(np.float64))
 
-    def numpy_encoder(self, domain: str):
-        """A numpy callable (N, D) raw → (N, latent) equal to :meth:`encode` (to float32 rounding)."""
+    def numpy_encoder(self, domain: str) -> CompiledEncoder:
+        """A callable (N, D) raw → (N, latent) equal to :meth:`encode` (to float32 rounding), without torch:
+        one compiled call per sample (:class:`CompiledEncoder`), numpy for batches."""
         encoder = self.encoders[domain]
         assert isinstance(encoder, ResNetMLP)
-        net = NumpyMLP(encoder)
         mean, std = self.normalisation_of(domain)
-        return lambda x: net((np.atleast_2d(x) - mean) / std)
+        return CompiledEncoder(NumpyMLP(encoder), mean, std)
 
     def transfer(self, src: str, dst: str, x: np.ndarray) -> np.ndarray:
         """The feed-forward map P^dst(Q^src(x)) (no LWR)."""
@@ -290,4 +344,4 @@ def load_weights(path: Path) -> tuple[SharedLatentWAE, dict[str, np.ndarray], di
     return model, extra, meta
 
 
-__all__ = ["ResNetMLP", "NumpyMLP", "SharedLatentWAE", "TrainConfig", "DomainData", "train_wae", "save_weights", "load_weights"]
+__all__ = ["ResNetMLP", "NumpyMLP", "CompiledEncoder", "SharedLatentWAE", "TrainConfig", "DomainData", "train_wae", "save_weights", "load_weights"]
