@@ -13,7 +13,7 @@ import numpy as np
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every kernel with the argument types the controller
-    passes, by running them once: a standing G1 whole-body tick in double and partial support, and a hull."""
+    passes, by running them once: a standing G1 whole-body tick in double and partial support, a hull, and LWL2's encoder and k-NN."""
     from engine.constants import SIDES
     from engine.control.controller import RobotState
     from engine.control.wbc.controller import TaskSpaceInverseDynamics
@@ -31,3 +31,21 @@ def warm_up() -> None:
         if not wbc.diagnostics.ok:
             raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
     convex_hull_2d(np.random.default_rng(0).random((8, 2)))
+    _warm_up_lwl2()
+
+
+def _warm_up_lwl2() -> None:
+    """LWL2's run-time kernels (the encoder's forward, the latent k-NN scan) on small arrays of the dtypes and
+    layouts the retargeter passes."""
+    from engine.retarget.humanoid_arm.lwr import nearest_k
+    from engine.retarget.humanoid_arm.wae import _mlp_forward
+
+    rng = np.random.default_rng(0)
+    latents = rng.random((16, 4))
+    k, m = 3, 8
+    nearest_k(latents, np.ascontiguousarray(latents.T, dtype=np.float32), rng.random(4), k, m,
+              np.empty(16, dtype=np.float32), np.empty(k), np.empty(k, dtype=np.int64))
+    hidden, d_in, d_out = 8, 15, 4
+    _mlp_forward(rng.random(d_in), rng.random((hidden, d_in)), rng.random(hidden), rng.random((2, hidden, hidden)),
+                 rng.random((2, hidden)), rng.random((d_out, hidden)), rng.random(d_out), np.empty((2, hidden)),
+                 np.empty(d_out))
