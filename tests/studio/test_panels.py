@@ -128,6 +128,7 @@ class FakeStudio:
         self.link = FakeLink()
         self.mode = "stand"
         self.modes = []
+        self.shadows = False
 
         class O:
             def set_visible(self, v):
