@@ -28,11 +28,7 @@ WALK_MPS = 0.15
 
 # Cases measured outside the goal (G1 neutral, push at t = 3.0 s): kept as strict xfails so a fix
 # shows up as an unexpected pass. Figures: README "Style space, feasibility check and push recovery".
-NOT_MET: dict[tuple[str, float], str] = {
-    ("left", 1.5): "comes to rest within 3 s but 0.66 m away (0.90 m before the stance-foot capture): the push "
-                   "comes as the inner foot lifts; it lands between the feet and the outer foot steps out 0.5 m, "
-                   "twice during the push",
-}
+NOT_MET: dict[tuple[str, float], str] = {}
 
 WALK_NOT_MET: dict[str, str] = {}
 
