@@ -87,7 +87,7 @@ def test_a_push_while_walking_returns_to_the_commanded_velocity(g1, side):
 
 # TALOS (its defaults: no [control.walking] push tuning), 1.5 N/kg from standing. Measured: from the side it
 # falls (the outer foot's step is held to max_step_adjust_m = 0.35 m from its nominal foothold while the CoM
-# runs sideways at 1.5 m/s; G1's stance-foot capture with 0.6 m steps falls too).
+# runs sideways at 1.5 m/s; G1's stance-foot capture with 0.6 m steps and κ ≤ 1.6 falls too).
 TALOS_NOT_MET: dict[str, str] = {
     "left": "falls at 4.4 s (0.4 s after the push ends): two sideways steps, the outer one capped at 0.35 m",
     "right": "falls at 5.3 s: the same, mirrored, one step later",
