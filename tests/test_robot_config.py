@@ -99,7 +99,7 @@ def test_local_source_is_read_next_to_the_config(tmp_path):
 def test_gait_feedback_gains_come_from_the_config(tmp_path, monkeypatch):
     from engine.control.gait_feedback import GaitFeedbackGains
 
-    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
+    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains(kappa_single=(0.75, 1.6))  # g1.toml's one gain
     dino = GaitFeedbackGains.for_robot("dino")
     assert dino.velocity_cutoff_hz == load_robot_config("dino").gait_feedback["velocity_cutoff_hz"] == 0.5
     assert dino.step_max_m == load_robot_config("dino").gait_feedback["step_max_m"] == 0.2

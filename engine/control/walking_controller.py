@@ -175,6 +175,7 @@ class WalkingController:
         self._init_com = (com[:2].copy(), np.zeros(2), mid.copy())
         self.observer.reset(data.vcom[0][:2].copy())
         self._mpc_shift = np.zeros(2)
+        self._pushed_at_s = -math.inf  # planner time the observer last saw a push
         self._ground_force: np.ndarray | None = None  # horizontal ground force of the last WBC tick
 
     # ------------------------------------------------------------------ one tick
@@ -334,6 +335,10 @@ class WalkingController:
         dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
         err = float(np.linalg.norm(dcm_error))  # ordinary tracking error is the MPC's to handle
         dcm_error *= max(err - self.params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
+        if self.observer.force_n.any():
+            self._pushed_at_s = planner.t_s
+        from_stance = (self.params.capture_from_stance_foot
+                       and planner.t_s - self._pushed_at_s < self.params.stance_capture_after_push_s)
         for side in SIDES:
             t_td = planner.time_to_touchdown_s(side, fb.kappa)
             if t_td is None:
@@ -342,6 +347,8 @@ class WalkingController:
             pos, vel, _ = plan.com_at(planner.t_s + t_td)
             growth = min(math.exp(omega * t_td), self.params.dcm_error_growth_cap)
             dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
+            if from_stance:  # pushed: where the stance foot says ξ goes, whatever the plan says
+                dcm = self._xi_at_touchdown(side, com, com_vel, omega, t_td)
             rel = np.array([nominal.x, nominal.y]) + adjust - dcm
             ahead = float(rel @ forward)
             # Under a push the CoP must hold ξ against it for the whole step: land with ξ near
@@ -357,12 +364,35 @@ class WalkingController:
                 adjust += (self.params.lateral_xi_inset_m - outward) * (left if side == "left" else -left)
             elif outward > self.params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
                 adjust -= (outward - self.params.lateral_xi_max_out_m) * (left if side == "left" else -left)
+            if from_stance:  # within the legs' reach of the stance foot
+                stance = planner.latched["right" if side == "left" else "left"]
+                rel = np.array([nominal.x - stance.x, nominal.y - stance.y]) + adjust
+                along, lateral = float(rel @ forward), float(rel @ left)
+                sign = 1.0 if side == "left" else -1.0
+                along_c = min(max(along, -self.params.max_step_length_m), self.params.max_step_length_m)
+                lateral_c = sign * min(sign * lateral, self.params.max_step_width_m)
+                adjust += (along_c - along) * forward + (lateral_c - lateral) * left
         norm = float(np.linalg.norm(adjust))
-        if norm > self.params.max_step_adjust_m:  # within the legs' reach
+        if norm > self.params.max_step_adjust_m and not from_stance:  # within the legs' reach
             adjust *= self.params.max_step_adjust_m / norm
         if np.array_equal(adjust, fb.step_adjust_m):
             return fb
         return dataclasses.replace(fb, step_adjust_m=adjust)
+
+    def _xi_at_touchdown(self, swing_side: str, com: np.ndarray, com_vel: np.ndarray, omega: float,
+                         t_td: float) -> np.ndarray:
+        """The robot's ξ at the swing foot's touchdown, against the real soles: the measured ξ less
+        the push's shift (a steady push f moves the LIP's equilibrium by f/(m ω²)) diverging for
+        ``t_td`` from the CoP that best holds it on the stance foot (ξ clipped into the CoP's reach).
+        Nothing of the MPC plan enters: a plan restarted from the robot's state cannot hide the error."""
+        foot = self.planner.latched["right" if swing_side == "left" else "left"]
+        chi = com + com_vel / omega - self._mpc_shift
+        c, s_ = math.cos(foot.yaw), math.sin(foot.yaw)
+        rel = chi - np.array([foot.x, foot.y])
+        x = min(max(c * rel[0] + s_ * rel[1], -self._reach_back_m), self._reach_forward_m)
+        y = min(max(-s_ * rel[0] + c * rel[1], -self._reach_side_m), self._reach_side_m)
+        cop = np.array([foot.x + c * x - s_ * y, foot.y + s_ * x + c * y])
+        return cop + (chi - cop) * math.exp(omega * t_td)
 
     def _feet_feedforward(self, ref: GaitReference) -> None:
         """Swing-foot acceleration feed-forward from consecutive reference rates."""

@@ -47,6 +47,18 @@ class WalkingParameters:
     # deadband are left to the MPC (a push is larger).
     dcm_error_growth_cap: float = 2.5
     dcm_error_deadband_m: float = 0.04
+    # Where a swing foot's ξ at touchdown comes from: the MPC plan's ξ plus the grown error against
+    # the plan (False, and always when undisturbed; a plan restart hides the error), or, under a push,
+    # the robot's measured ξ (less the push's shift) diverging from the best CoP on the stance foot for
+    # the time left (True: the standard DCM step adjustment, from the foot the robot stands on) ...
+    capture_from_stance_foot: bool = False
+    # ... while the observer sees a push and this long after (undisturbed, the plan's ξ, whose CoP rolls
+    # heel to toe, places the steps: the stance-foot prediction holds the CoP still and differs a little).
+    stance_capture_after_push_s: float = 3.0
+    # With it, a step lands at most this far sideways outward / fore-aft from the stance foot (in the
+    # path frame; the legs' reach) instead of max_step_adjust_m from the nominal foothold.
+    max_step_width_m: float = 0.45
+    max_step_length_m: float = 0.45
     # Share of the CoP's reach a step may rely on (rest: margin for tracking), and while pushed.
     step_reach_share: float = 0.8
     pushed_reach_share: float = 0.25

@@ -28,15 +28,9 @@ WALK_MPS = 0.15
 
 # Cases measured outside the issue's goal (G1 neutral, push at t = 3.0 s): kept as strict xfails so a fix
 # shows up as an unexpected pass. Figures: README "Style space, feasibility check and push recovery".
-NOT_MET: dict[tuple[str, float], str] = {
-    ("left", 1.5): "comes to rest within 3 s but 0.90 m away: during the push it steps sideways twice "
-                   "(the outer foot's step is capped at 0.35 m) and after it once more",
-}
+NOT_MET: dict[tuple[str, float], str] = {}
 
-WALK_NOT_MET: dict[str, str] = {
-    "back": "walks at 0.10 m/s over the fourth second after the push (0.05 m/s short of 0.15)",
-    "left": "walks at 0.21 m/s over the fourth second after the push (0.06 m/s over 0.15; 0.27 m/s off before)",
-}
+WALK_NOT_MET: dict[str, str] = {}
 
 
 @pytest.fixture(scope="module")
@@ -89,3 +83,30 @@ def test_a_push_while_walking_returns_to_the_commanded_velocity(g1, side):
     assert not summary["fell"], summary
     v = window_velocity(rec, t_end + SETTLE_S, t_end + SETTLE_S + 1.0)
     assert v is not None and abs(np.linalg.norm(v) - WALK_MPS) < 0.05, v
+
+
+# TALOS (its defaults: no [control.walking] push tuning), 1.5 N/kg from standing. Measured: from the side it
+# falls (the outer foot's step is held to max_step_adjust_m = 0.35 m from its nominal foothold while the CoM
+# runs sideways at 1.5 m/s; G1's stance-foot capture with 0.6 m steps and κ ≤ 1.6 falls too).
+TALOS_NOT_MET: dict[str, str] = {
+    "left": "falls at 4.4 s (0.4 s after the push ends): two sideways steps, the outer one capped at 0.35 m",
+    "right": "falls at 5.3 s: the same, mirrored, one step later",
+}
+
+
+def _talos_cases():
+    for side in DIRECTIONS:
+        reason = TALOS_NOT_MET.get(side)
+        yield pytest.param(side, marks=[pytest.mark.xfail(strict=True, reason=reason)] if reason else [], id=side)
+
+
+@pytest.mark.parametrize("side", list(_talos_cases()))
+def test_talos_pushed_from_standing_ends_at_rest_nearby(side):
+    robot, style = load_robot("talos"), load_style(REPO / "styles/talos/neutral.json")
+    t_push = 3.0
+    summary, rec, t_end = _push(robot, style, "0,0,0", t_push, side, 1.5)
+    assert not summary["fell"], summary
+    v = window_velocity(rec, t_end + SETTLE_S, t_end + SETTLE_S + 1.0)
+    assert v is not None and np.linalg.norm(v) < AT_REST_MPS, f"still moving {SETTLE_S} s after the push: {v} m/s"
+    moved = float(np.linalg.norm(com_at(rec, t_end + SETTLE_S) - com_at(rec, t_push)))
+    assert moved < MAX_DISPLACEMENT_M, f"moved {moved:.2f} m"

@@ -39,7 +39,7 @@ def test_bad_field_is_a_config_error_naming_it(table: dict, message: str) -> Non
 def test_talos_gait_feedback_comes_from_its_config() -> None:
     gains = GaitFeedbackGains.for_robot("talos")
     assert (gains.time_kp_per_m, gains.time_kd_s_per_m, gains.step_gain) == (3.0, 0.9, 0.7)
-    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains()
+    assert GaitFeedbackGains.for_robot("g1") == GaitFeedbackGains(kappa_single=(0.75, 1.6))  # g1.toml's one gain
 
 
 def test_mpc_rate_parameter_solves_every_other_planner_tick() -> None:
