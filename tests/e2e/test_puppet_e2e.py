@@ -106,6 +106,9 @@ class EngineTap:
         return np.array(times), np.array(angles)
 
 
+PHASE_SKEW_S = 2 / 125.0  # two planner ticks
+
+
 def _curve_values(sample, joints: list[str], standing: dict[str, float], times: np.ndarray) -> np.ndarray:
     """(T, K) the sample's joint curves at cycle times (a joint without a curve holds its standing angle)."""
     cols = []
@@ -138,8 +141,12 @@ def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, j
     refs = tap.references(shown + SETTLE_S, shown + SETTLE_S + WINDOW_S)
     assert len(refs) >= 5, f"only {len(refs)} telemetry samples of the tracked arm joint"
     pm = follows.intervals.phase_map()
-    curve_at = _curve_values(follows, [tracked], standing, np.array([pm.time_at(p % 1.0) for p in refs[:, 1]]))[:, 0]
-    assert np.max(np.abs(refs[:, 2] - curve_at)) < 1e-3, f"{tracked}: the walk's reference is not the sample's curve"
+    # the telemetry's phase and the reference it carries may come from planner ticks up to two periods apart
+    # (8 ms each at 125 Hz; at the curve's slope that is mrad): the reference must be the curve within that skew
+    at = np.array([pm.time_at(p % 1.0) for p in refs[:, 1]])
+    gap = np.min([np.abs(refs[:, 2] - _curve_values(follows, [tracked], standing, (at + skew) % cycle_s)[:, 0])
+                  for skew in np.linspace(-PHASE_SKEW_S, PHASE_SKEW_S, 9)], axis=0)
+    assert np.max(gap) < 1e-3, f"{tracked}: the walk's reference is not the sample's curve (off by {np.max(gap):.4f} rad)"
     return (_lagged_rms(q, follows, joints, standing, times, cycle_s),
             _lagged_rms(q, other, joints, standing, times, cycle_s))
 
@@ -201,7 +208,7 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
                                                       gesture, before.sample("in_place"), joints)
             print(f"walk with the gesture curves: RMS {rms_gesture:.3f} rad to them, {rms_previous:.3f} to the previous")
             assert rms_gesture < 0.12, f"the simulated arms do not follow the recorded curves (RMS {rms_gesture:.3f} rad)"
-            assert rms_gesture < 0.4 * rms_previous, (rms_gesture, rms_previous)
+            assert rms_gesture < 0.4 * rms_previous, (rms_gesture, rms_previous, studio.notices[-5:])
             page.screenshot(path=str(artifacts / "puppet_gesture_walk_robot.png"))  # the robot walking in_place
             page.get_by_text("Curves", exact=True).first.click()
             studio.curve_editor.set_active_channel(CURVE)
@@ -223,7 +230,7 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
             rms_previous, rms_gesture = _walk_follows(studio, tap, page, studio.style_revision,
                                                       before.sample("in_place"), gesture, joints)
             print(f"walk after undo: RMS {rms_previous:.3f} rad to the previous curves, {rms_gesture:.3f} to the gesture")
-            assert rms_previous < 0.12 and rms_previous < 0.4 * rms_gesture, (rms_previous, rms_gesture)
+            assert rms_previous < 0.12 and rms_previous < 0.4 * rms_gesture, (rms_previous, rms_gesture, studio.notices[-5:])
             page.screenshot(path=str(artifacts / "puppet_gesture_undone.png"))
     finally:
         studio.stop()
