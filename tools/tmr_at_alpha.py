@@ -58,6 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--alpha", type=float, default=1.0)
     parser.add_argument("--window-iterations", type=int, default=TMRSettings().window_iterations)
     parser.add_argument("--crop-s", type=float, default=None, help="track only the first seconds of the clip")
+    parser.add_argument("--pd-only", action="store_true",
+                        help="no iLQR: the robot's PD servo on the (re-timed) kinematic joints plus the stance "
+                             "feed-forward, replayed the same way (the motion without TMR's optimal control)")
     args = parser.parse_args(argv)
     if not 0.25 <= args.alpha <= 4.0:
         print(f"--alpha: expected 0.25..4, got {args.alpha}", file=sys.stderr)
@@ -85,13 +88,17 @@ def main(argv: list[str] | None = None) -> int:
     deformation = TemporalDeformation.from_log2(np.array([np.log2(args.alpha)]), (n - 1) / fps)
     target = deformed_target(robot, qpos, contact, fps, deformation, tracker)
     t0 = time.perf_counter()
-    res = tracker.track(target)
+    if args.pd_only:
+        res = tracker.replay(target.qpos[0], target.qvel[0],
+                             tracker.pd_initial_controls(target, tracker.stance_torques(target)))
+    else:
+        res = tracker.track(target)
     lo, hi = tracker.dyn.u_lower, tracker.dyn.u_upper
     saturated = (np.abs(res.ctrl - hi) < 1e-6) | (np.abs(res.ctrl - lo) < 1e-6)
     H = target.horizon
     k_end = int(res.fall_fraction * H) if res.fell else H
     print(json.dumps({
-        "clip": args.clip, "robot": motion.robot, "alpha": args.alpha, "window_iterations": args.window_iterations,
+        "clip": args.clip, "robot": motion.robot, "alpha": args.alpha, "window_iterations": None if args.pd_only else args.window_iterations,
         "duration_s": {"before": round((n - 1) / fps, 3), "after": round(H * tracker.dt_s, 3)},
         "replay_fell": bool(res.fell), "fell_at_s": round(k_end * tracker.dt_s, 2) if res.fell else None,
         "dtw_keypoint_l1_pct": round(dtw_keypoint_l1_pct(res.keypoints, keypoint_trajectory(robot, qpos)), 3),
