@@ -137,7 +137,7 @@ def sample_contact(contact: np.ndarray, fps: float, t_source_s: np.ndarray) -> n
     T = contact.shape[0]
     x = np.clip(np.asarray(t_source_s, dtype=float) * fps, 0.0, T - 1)
     out = contact[np.clip(np.rint(x).astype(int), 0, T - 1)].copy()
-    air = ~contact.any(axis=1)
+    air = np.asarray(~contact.any(axis=1), dtype=bool)
     i0 = np.minimum(np.floor(x).astype(int), T - 1)
     i1 = np.minimum(i0 + 1, T - 1)
     between = (x - i0) > 1e-9
