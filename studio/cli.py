@@ -343,6 +343,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not (0 < args.minutes <= 24 * 60) or not (1 <= args.clients <= 64) or not (0 <= args.tabs <= 8):
         raise CliError(f"--minutes/--clients/--tabs: expected 0 < M ≤ 1440, 1 ≤ C ≤ 64 and 0 ≤ T ≤ 8, "
                        f"got {args.minutes}, {args.clients}, {args.tabs}")
+    from engine.bench.tmr import check_clip_options
+
+    problem = check_clip_options(args.clips, args.budget)
+    if problem:
+        raise CliError(problem)
     rows: list[dict] = []
     for section in sections:
         rows.extend(run_section(SECTIONS[section], args))

@@ -142,3 +142,15 @@ def test_batch_takes_source_clips_through_smr_then_tmr(tmp_path) -> None:  # noq
     assert [r["status"] for r in rows] == ["done"] and rows[0]["robot"] == "go1"
     m = RobotMotion.load(out_dir / rows[0]["file"])
     assert m.method == "stmr" and m.source["kinematic_method"] == "smr" and "pd_targets" in m.extra
+
+
+@pytest.mark.parametrize("extra, expected", [
+    (["--clips", "trot0,nosuch"], "--clips: unknown clip 'nosuch'"),
+    (["--clips", ","], "--clips: unknown clip"),
+    (["--budget", "0"], "--budget: expected ≥ 1"),
+])
+def test_bench_tmr_clips_bad_options_exit_2_with_one_line(extra, expected) -> None:  # noqa: ANN001
+    out = run_studio("bench", "tmr-clips", *extra, timeout=120)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0]

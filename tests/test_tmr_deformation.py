@@ -95,3 +95,34 @@ def test_re_timed_flights_are_ballistic_between_take_off_and_landing(z0, z1, dx,
     np.testing.assert_allclose(np.diff(out[a: b + 1, 2], 2), -9.81 * dt**2, atol=1e-9)  # gravity only
     np.testing.assert_allclose(np.diff(out[a: b + 1, 0], 2), 0.0, atol=1e-12)  # constant horizontal velocity
     np.testing.assert_array_equal(out[:, 3:], q[:, 3:])  # orientation and joints untouched
+
+
+@settings(max_examples=40, deadline=None)
+@given(before=st.integers(2, 6), air=st.integers(1, 8), after=st.integers(2, 6), log2_alpha=st.floats(-1.0, 1.0))
+def test_re_timed_flights_take_off_and_land_on_the_sources_stance_frames(before, air, after, log2_alpha) -> None:  # noqa: ANN001
+    """A sample interpolated between a stance frame and a flight frame is airborne, so the deformed flight's
+    take-off and landing samples carry the source's stance configurations (no jump of the base at take-off)."""
+    from engine.retarget.quadruped.tmr.deformation import ballistic_flights, flight_intervals, sample_contact
+
+    fps, dt = 10.0, 0.01
+    n = before + air + after
+    contact = np.ones((n, 4), dtype=bool)
+    contact[before: before + air] = False
+    contact[0, 1] = False  # a swing foot keeps its nearest-frame state
+    q = np.zeros((n, 19))
+    q[:, 3] = 1.0
+    q[:, 2] = 0.3
+    q[before: before + air, 2] = 0.8  # the source's arc
+    d = TemporalDeformation.from_log2([log2_alpha], (n - 1) / fps)
+    src = d(np.arange(int(np.floor(d.duration_s / dt + 1e-9)) + 1) * dt)
+    c = sample_contact(contact, fps, src)
+    x = src * fps
+    stance_frame = np.isclose(x, np.rint(x)) & contact[np.clip(np.rint(x).astype(int), 0, n - 1)].any(axis=1)
+    inside = (x > before - 1 + 1e-9) & (x < before + air - 1e-9)
+    assert not c[inside].any()  # strictly between the last and first stance frames: airborne
+    (a, b), = flight_intervals(c)
+    assert x[a] <= before - 1 + 1e-9 and x[b] >= before + air - 1e-9
+    assert stance_frame[a] or x[a] < before - 1  # take-off at (or before) the last stance frame
+    out = ballistic_flights(interpolate_qpos(q, fps, src), c, dt)
+    assert out[a, 2] == pytest.approx(0.3) and out[b, 2] == pytest.approx(0.3)
+    assert not c[0, 1] and c[0, 0]  # outside the flight, each foot keeps its nearest frame's state

@@ -20,6 +20,8 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-per-kg", type=float, default=1.5, help="push: force per kg of robot mass")
     parser.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray)")
     parser.add_argument("--out-dir", default=None, help="results folder (resumable; default under ~/.cache/motion-studio)")
+    parser.add_argument("--clips", default=None, help="tmr-clips: comma-separated clips (default: all six)")
+    parser.add_argument("--budget", type=int, default=None, help="tmr-clips: BO evaluations per clip (default 6)")
 
 
 def call_with_known(function: Callable[..., list[dict]], options: dict) -> list[dict]:
@@ -35,5 +37,6 @@ def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) ->
     """Call a section with the command-line options it declares as keyword parameters."""
     mapping = {"minutes": args.minutes, "clients": args.clients, "tabs": getattr(args, "tabs", 2), "robot": args.robot,
                "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
-               "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir}
+               "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir,
+               "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None)}
     return call_with_known(section, mapping)

@@ -95,12 +95,33 @@ def _warm() -> int:
     return 0
 
 
+def check_clip_options(clip_names: str | None, bo_budget: int | None) -> str | None:
+    """The one-line complaint about ``--clips`` / ``--budget``, or None."""
+    if clip_names is not None:
+        names = [c.strip() for c in clip_names.split(",") if c.strip()]
+        unknown = [c for c in names if c not in CLIPS] or ([] if names else [clip_names])
+        if unknown:
+            return f"--clips: unknown clip {unknown[0]!r}; expected some of {', '.join(CLIPS)}"
+    if bo_budget is not None and bo_budget < 1:
+        return f"--budget: expected ≥ 1 BO evaluations, got {bo_budget}"
+    return None
+
+
 def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CLIP_ROBOTS, budget: int = CLIP_BUDGET,
-                    address: str | None = None, parallel: int = 1, robot: str | None = None) -> list[dict]:
+                    address: str | None = None, parallel: int = 1, robot: str | None = None,
+                    clip_names: str | None = None, bo_budget: int | None = None) -> list[dict]:
     """SMR (tracked at α = 1) against STMR on the paper's clips; see the module docstring. ``robot`` (the
-    bench's ``--robot``) picks one of ``CLIP_ROBOTS``; any other value (the bench's default g1) keeps them all."""
+    bench's ``--robot``) picks one of ``CLIP_ROBOTS``; any other value (the bench's default g1) keeps them all.
+    ``clip_names`` (``--clips a,b``) picks clips among ``CLIPS``, ``bo_budget`` (``--budget``) the BO budget."""
     if robot in CLIP_ROBOTS:
         robots = (robot,)
+    problem = check_clip_options(clip_names, bo_budget)
+    if problem:
+        raise ValueError(problem)
+    if clip_names:
+        clips = tuple(c.strip() for c in clip_names.split(",") if c.strip())
+    if bo_budget is not None:
+        budget = bo_budget
     from engine.bench.retarget import clip_path, shared_dir
     from engine.retarget.importers import import_source
     from engine.retarget.quadruped.pipeline import retarget_detailed

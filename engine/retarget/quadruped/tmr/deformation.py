@@ -127,10 +127,22 @@ def interpolate_points(points: np.ndarray, fps: float, t_source_s: np.ndarray) -
 
 
 def sample_contact(contact: np.ndarray, fps: float, t_source_s: np.ndarray) -> np.ndarray:
-    """Contact schedule at source times (nearest frame)."""
+    """Contact schedule at source times: each foot from the nearest frame, except that a sample lying strictly
+    between a frame with a foot on the ground and a frame with none is airborne. Such a sample's configuration is
+    interpolated towards the flight (LI), so its base is already in the air: calling it stance made a take-off
+    (or landing) sample from which ``ballistic_flights`` started the arc — HopTurn on go1 at α = 0.5 had its base
+    target jump 0.33 → 0.53 m in 20 ms at take-off and land 0.5 → 0.3 m in 20 ms, ahead of the robot. With this
+    rule a flight runs from the source's last stance frame to its first stance frame after, as the source has it."""
     contact = np.asarray(contact, dtype=bool)
-    idx = np.clip(np.rint(np.asarray(t_source_s) * fps).astype(int), 0, contact.shape[0] - 1)
-    return contact[idx]
+    T = contact.shape[0]
+    x = np.clip(np.asarray(t_source_s, dtype=float) * fps, 0.0, T - 1)
+    out = contact[np.clip(np.rint(x).astype(int), 0, T - 1)].copy()
+    air = np.asarray(~contact.any(axis=1), dtype=bool)
+    i0 = np.minimum(np.floor(x).astype(int), T - 1)
+    i1 = np.minimum(i0 + 1, T - 1)
+    between = (x - i0) > 1e-9
+    out[between & (air[i0] | air[i1])] = False
+    return out
 
 
 GRAVITY_MPS2 = 9.81
