@@ -12,6 +12,7 @@ within those tolerances (0.1 mm, ≈ 0.01°: invisible), tested by a headless cl
 from __future__ import annotations
 
 import threading
+from typing import Any
 
 import numpy as np
 import viser
@@ -99,35 +100,19 @@ class RobotView:
     @staticmethod
     def _send(handle: viser.FrameHandle, prop: str, value: np.ndarray) -> None:
         """Queue one pose property of one node, already known to differ from what the browsers have."""
-        impl = getattr(handle, "_impl", None)
+        impl: Any = getattr(handle, "_impl", None)
         queue = getattr(getattr(impl, "api", None), "_queue_scene_message", None)
-        if queue is None:  # not viser 1.1.1's layout: the public setter (checks the value again)
+        if impl is None or queue is None:  # not viser 1.1.1's layout: the public setter (checks the value again)
             setattr(handle, prop, value)
             return
         value_cast = tuple(float(v) for v in value)
         getattr(impl, prop)[:] = value_cast  # the handle reads back what was sent
+        message: viser_messages.Message
         if prop == "position":
             message = viser_messages.SetPositionMessage(impl.name, value_cast)  # type: ignore[arg-type]
         else:
             message = viser_messages.SetOrientationMessage(impl.name, value_cast)  # type: ignore[arg-type]
         queue(_serialised_once(message))
-
-
-def _serialised_once(message):
-    """``message`` converting itself to its wire dict once for all browsers: viser converts each queued
-    message for every connection (≈ 6 µs per pose message here, the largest per-client cost of a frame);
-    a pose message has no binary buffers, so one dict serves every connection. Computed on first use,
-    after :meth:`_queue_scene_message` stamped the message's owner."""
-    convert = message.as_serializable_dict
-    done: list[dict] = []
-
-    def once(binary_buffers=None) -> dict:
-        if not done:
-            done.append(convert(binary_buffers))
-        return done[0]
-
-    object.__setattr__(message, "as_serializable_dict", once)
-    return message
 
     def tint(self, body: str, color: tuple[int, int, int] | None) -> None:
         """Recolour one body (None: back to its own colour) — one small message."""
@@ -135,3 +120,20 @@ def _serialised_once(message):
             mesh = self.meshes.get(body)
             if mesh is not None:
                 mesh.color = color if color is not None else self.base_colors[body]
+
+
+def _serialised_once(message: viser_messages.Message) -> viser_messages.Message:
+    """``message`` converting itself to its wire dict once for all browsers: viser converts each queued
+    message for every connection (≈ 6 µs per pose message here, the largest per-client cost of a frame);
+    a pose message has no binary buffers, so one dict serves every connection. Computed on first use,
+    after :meth:`_queue_scene_message` stamped the message's owner."""
+    convert = message.as_serializable_dict
+    done: list[dict] = []
+
+    def once(binary_buffers: Any = None) -> dict:
+        if not done:
+            done.append(convert(binary_buffers))
+        return done[0]
+
+    object.__setattr__(message, "as_serializable_dict", once)
+    return message

@@ -127,3 +127,26 @@ def test_a_frame_that_did_not_move_sends_nothing(n_frames):
         assert view.poses_sent == 2 * len(BODIES) and view.frames_shown == n_frames
     finally:
         server.stop()
+
+
+def test_a_loaded_robot_streams_and_tints():
+    """The view of a real robot (meshes under the body frames): a frame is shown, a body recolours."""
+    from engine.robot.model import load_robot
+
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        model = load_robot("g1")
+        names = tuple(model.mj_model.body(i).name for i in range(1, model.mj_model.nbody))
+        view = RobotView(server)
+        view.load("g1", names)
+        pos = np.arange(3 * len(names), dtype=float).reshape(-1, 3) * 0.01
+        wxyz = np.tile([1.0, 0.0, 0.0, 0.0], (len(names), 1))
+        view.update(_frame(0, pos, wxyz))
+        assert np.allclose(view.frames[-1].position, pos[-1], atol=1e-6) and view.frames_shown == 1
+        body = next(iter(view.meshes))
+        view.tint(body, (230, 40, 40))
+        assert tuple(view.meshes[body].color) == (230, 40, 40)
+        view.tint(body, None)
+        assert tuple(view.meshes[body].color) == view.base_colors[body]
+    finally:
+        server.stop()
