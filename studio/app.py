@@ -294,14 +294,15 @@ class Studio:
     def _on_telemetry(self, event: msg.Telemetry) -> None:
         self.last_telemetry = event
         s = event.signals
-        if "support_polygon" in s:
-            self.overlays.update(s)
+        with self.server.atomic():  # one wake-up of viser's sender for the overlays, the ghost and the tints
+            if "support_polygon" in s:
+                self.overlays.update(s)
+            if "ghost_body_pos" in s and self.ghost_visible:
+                self._place_ghost()
+                self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
+                                                 np.zeros(0), False, False, 0.0))
+            self._shade_joint_limits(s.get("joint_limit_proximity"))
         self.plots.add(event.sim_time_s, s)
-        if "ghost_body_pos" in s and self.ghost_visible:
-            self._place_ghost()
-            self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
-                                             np.zeros(0), False, False, 0.0))
-        self._shade_joint_limits(s.get("joint_limit_proximity"))
         if "puppet" in s:
             self.puppet.on_telemetry(s, self._root_pos, event.sim_time_s)
         style = self.session.style if self.session is not None else None

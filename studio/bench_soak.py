@@ -37,24 +37,57 @@ def _rss_mb(pid: int | None) -> float:
     return float("nan")
 
 
+def _decode_window(data: bytes) -> list[dict]:
+    """The messages of one viser 1.1.1 WebSocket message (a "window"): 8-byte msgpack length, 8-byte
+    compressed length, zstd-compressed msgpack ``{"messages": [...]}``, then raw binary buffers."""
+    import msgspec
+    import zstandard
+
+    inner_len = int.from_bytes(data[0:8], "little")
+    compressed_len = int.from_bytes(data[8:16], "little")
+    inner = zstandard.ZstdDecompressor().decompress(data[16:16 + compressed_len], max_output_size=inner_len)
+    return list(msgspec.msgpack.decode(inner).get("messages", ()))
+
+
+POSE_TYPES = {"SetPositionMessage": "position", "SetOrientationMessage": "wxyz"}
+
+
 class _Client(threading.Thread):
-    def __init__(self, url: str, stop: threading.Event):
+    """A headless viser client: counts WebSocket messages (viser's windows of messages) and robot-pose
+    frames (windows that carry a pose of a body under ``/robot/``), and keeps the last pose of each node."""
+
+    def __init__(self, url: str, stop: threading.Event, robot_root: str = "/robot/"):
         super().__init__(daemon=True, name="soak-client")
         self.url, self.stop = url, stop
+        self.robot_root = robot_root
         self.messages = 0
         self.bytes = 0
+        self.robot_frames = 0
+        self.poses: dict[str, dict[str, tuple[float, ...]]] = {}  # node name → {"position"|"wxyz": value}
         self.error = ""
-        self.window: tuple[int, int, float] | None = None  # (messages, bytes, t) at the start of the measurement
+        self.window: tuple[int, int, int, float] | None = None  # (messages, bytes, frames, t) at the start
 
     def mark(self) -> None:
-        self.window = (self.messages, self.bytes, time.monotonic())
+        self.window = (self.messages, self.bytes, self.robot_frames, time.monotonic())
 
-    def rates(self) -> tuple[float, float]:
+    def rates(self) -> tuple[float, float, float]:
+        """WebSocket messages/s, KiB/s and robot-pose frames/s since :meth:`mark`."""
         if self.window is None:
-            return float("nan"), float("nan")
-        m0, b0, t0 = self.window
+            return float("nan"), float("nan"), float("nan")
+        m0, b0, f0, t0 = self.window
         dt = time.monotonic() - t0
-        return (self.messages - m0) / dt, (self.bytes - b0) / dt / 1024.0
+        return (self.messages - m0) / dt, (self.bytes - b0) / dt / 1024.0, (self.robot_frames - f0) / dt
+
+    def _take(self, data: bytes) -> None:
+        robot = False
+        for m in _decode_window(data):
+            key = POSE_TYPES.get(m.get("type", ""))
+            if key is None:
+                continue
+            name = m.get("name", "")
+            self.poses.setdefault(name, {})[key] = tuple(m[key])
+            robot = robot or name.startswith(self.robot_root)
+        self.robot_frames += robot
 
     def run(self) -> None:
         import msgspec
@@ -78,8 +111,49 @@ class _Client(threading.Thread):
                         continue
                     self.messages += 1
                     self.bytes += len(data)
+                    if isinstance(data, bytes):
+                        self._take(data)
         except Exception as exc:  # noqa: BLE001 - reported
             self.error = f"{type(exc).__name__}: {exc}"
+
+
+THREAD_GROUPS = (  # thread name prefix → what it does (the studio's threads, then the bench's own)
+    ("engine-link", "frame path (robot, ghost, overlays, plots buffer)"),
+    ("studio-status", "status text + plots"),
+    ("joystick", "joystick + camera follow"),
+    ("ThreadPoolExecutor", "viser callbacks"),
+    ("soak-client", "bench: headless clients"),
+    ("soak-tab", "bench: tab drivers"),
+    ("MainThread", "bench: driver"),
+)
+
+
+def _thread_cpu_s() -> dict[str, float]:
+    """CPU seconds (user + system) of this process's threads, summed per :data:`THREAD_GROUPS` entry;
+    every other thread (viser's event loop: message windows, serialisation, WebSocket sends) is "viser"."""
+    names = {t.native_id: t.name for t in threading.enumerate()}
+    tick = os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    for task in Path("/proc/self/task").iterdir():
+        try:
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        cpu = (int(fields[11]) + int(fields[12])) / tick
+        name = names.get(int(task.name), "")
+        group = next((g for prefix, g in THREAD_GROUPS if name.startswith(prefix)), "viser event loop + other")
+        out[group] = out.get(group, 0.0) + cpu
+    return out
+
+
+def _process_cpu_s(pid: int | None) -> float:
+    if pid is None:
+        return float("nan")
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 class _Tab(threading.Thread):
@@ -224,6 +298,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             if not marked and now - t0 >= warmup_s:
                 marked = True
                 rss0 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
+                cpu0, engine_cpu0, cpu_t0 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
                 for c in pool:
                     c.mark()
                 marked_event.set()
@@ -234,6 +309,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         for b in browsers:
             b.finished.wait(60)
         rss1 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
+        cpu1, engine_cpu1, cpu_t1 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
         window = frames[frame_mark:] if marked else frames
         (w0, s0), (w1, s1) = window[0], window[-1]
         drift = (s1 - s0) / (w1 - w0) - 1.0
@@ -251,9 +327,27 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             "tabs": tabs, "tab_fps": ", ".join(f"{b.fps():.1f}" for b in browsers) or "-",
             "exceptions": len(exceptions), "load_avg_1min": round(os.getloadavg()[0], 1), "cpus": os.cpu_count(),
         }]
-        for i, (m, kb) in enumerate(rates):
-            rows.append({"section": "soak clients", "what": f"client {i}", "ws_messages_per_s": round(m, 1),
-                         "ws_kib_per_s": round(kb, 1)})
+        if rates:
+            rows[0]["min_client_robot_frames_per_s"] = round(min(r[2] for r in rates), 1)
+        for i, (m, kb, f) in enumerate(rates):
+            rows.append({"section": "soak clients", "what": f"client {i}", "robot_frames_per_s": round(f, 1),
+                         "ws_messages_per_s": round(m, 1), "ws_kib_per_s": round(kb, 1)})
+        if marked:  # where the CPU went, per frame the studio received from the engine
+            n_frames = max(len(window) - 1, 1)
+            span_s = cpu_t1 - cpu_t0
+            groups = sorted(set(cpu0) | set(cpu1), key=lambda g: -(cpu1.get(g, 0.0) - cpu0.get(g, 0.0)))
+            for group in groups:
+                used = cpu1.get(group, 0.0) - cpu0.get(group, 0.0)
+                rows.append({"section": "soak cpu", "what": group, "cpu_ms_per_frame": round(1e3 * used / n_frames, 2),
+                             "cpu_pct_of_core": round(100 * used / span_s, 1)})
+            studio_used = sum(cpu1.get(g, 0.0) - cpu0.get(g, 0.0) for g in groups if not g.startswith("bench"))
+            rows.append({"section": "soak cpu", "what": "studio total (not bench)",
+                         "cpu_ms_per_frame": round(1e3 * studio_used / n_frames, 2),
+                         "cpu_pct_of_core": round(100 * studio_used / span_s, 1)})
+            if studio.link.pid == engine_pid0:
+                used = engine_cpu1 - engine_cpu0
+                rows.append({"section": "soak cpu", "what": "engine process", "cpu_ms_per_frame": round(1e3 * used / n_frames, 2),
+                             "cpu_pct_of_core": round(100 * used / span_s, 1)})
         for text in exceptions[:20]:
             rows.append({"section": "soak exceptions", "what": "exception", "text": text})
         return rows

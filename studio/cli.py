@@ -340,8 +340,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
         raise CliError(f"unknown bench section {unknown[0]!r}; sections: {', '.join(SECTIONS)}")
-    if not (0 < args.minutes <= 24 * 60) or not (1 <= args.clients <= 64) or not (0 <= args.tabs <= 8):
-        raise CliError(f"--minutes/--clients/--tabs: expected 0 < M ≤ 1440, 1 ≤ C ≤ 64 and 0 ≤ T ≤ 8, "
+    if not (0 < args.minutes <= 24 * 60) or not (0 <= args.clients <= 64) or not (0 <= args.tabs <= 8):
+        raise CliError(f"--minutes/--clients/--tabs: expected 0 < M ≤ 1440, 0 ≤ C ≤ 64 and 0 ≤ T ≤ 8, "
                        f"got {args.minutes}, {args.clients}, {args.tabs}")
     from engine.bench.tmr import check_clip_options
 

@@ -17,6 +17,8 @@ ACHIEVED = (30, 30, 30)
 COM_COLOR = (255, 255, 255)
 COP_COLOR = (0, 170, 170)
 SUPPORT_COLOR = (255, 170, 0)
+SEGMENT_BLOCK = 32  # line-segment nodes hold a multiple of this many segments
+_NOTHING = np.zeros((0, 2, 3), dtype=np.float32)
 
 
 def _loop_segments(polygon: np.ndarray, z: float = GROUND_Z) -> np.ndarray:
@@ -37,6 +39,7 @@ class Overlays:
         self.visible = True
         self.sole = (0.17, 0.055)
         self.handles: dict[str, Any] = {}  # viser scene-node handles of several kinds
+        self._drawn: dict[str, np.ndarray] = {}  # the segments each line node shows
 
     def set_sole(self, length_m: float, width_m: float) -> None:
         self.sole = (length_m, width_m)
@@ -45,6 +48,7 @@ class Overlays:
         for handle in self.handles.values():
             handle.remove()
         self.handles.clear()
+        self._drawn.clear()
 
     def set_visible(self, visible: bool) -> None:
         self.visible = visible
@@ -52,17 +56,27 @@ class Overlays:
             handle.visible = visible
 
     def _segments(self, name: str, segments: np.ndarray, color: tuple[int, int, int], width: float = 2.0) -> None:
+        """Draw ``segments`` as the node ``name``: nothing is sent when they did not change, and the node is
+        made for a capacity (a multiple of :data:`SEGMENT_BLOCK`, padded with copies of the last segment,
+        which draw nothing new), so a path that grows by a point updates its points instead of re-creating
+        the node every telemetry tick."""
         if len(segments) == 0:
             segments = np.zeros((1, 2, 3))
+        segments = segments.astype(np.float32)
+        if np.array_equal(self._drawn.get(name, _NOTHING), segments):
+            return
+        self._drawn[name] = segments
+        capacity = -(-len(segments) // SEGMENT_BLOCK) * SEGMENT_BLOCK
+        padded = np.concatenate([segments, np.repeat(segments[-1:], capacity - len(segments), axis=0)])
         handle = self.handles.get(name)
-        if handle is not None and getattr(handle, "_n", None) == len(segments):
-            handle.points = segments.astype(np.float32)
+        if handle is not None and getattr(handle, "_n", None) == capacity:
+            handle.points = padded
         else:
             if handle is not None:
                 handle.remove()
-            handle = self.server.scene.add_line_segments(f"{self.root}/{name}", segments.astype(np.float32),
+            handle = self.server.scene.add_line_segments(f"{self.root}/{name}", padded,
                                                           colors=color, thickness=width, thickness_units="screen", visible=self.visible)
-            handle._n = len(segments)  # type: ignore[attr-defined]
+            handle._n = capacity  # type: ignore[attr-defined]
             self.handles[name] = handle
 
     def _path(self, name: str, xy: np.ndarray, color: tuple[int, int, int], width: float = 3.0) -> None:
