@@ -63,6 +63,33 @@ def wait_until(predicate, timeout_s: float, what: str, poll_s: float = 0.1) -> N
     pytest.fail(f"timed out after {timeout_s:g} s waiting for {what}")
 
 
+def close_software_webgl_notice(page) -> None:
+    """Close viser's "Software WebGL rendering detected" notice (it covers the canvas's top-left corner)."""
+    notice = page.locator(".mantine-Notification-root", has_text="Software WebGL").locator("button")
+    if notice.count():
+        try:
+            notice.first.click(timeout=10_000)
+        except Exception:  # noqa: BLE001 - it may have closed by itself
+            pass
+
+
+def wait_value(predicate, timeout_s: float, what: str, page=None, poll_ms: int = 250):
+    """Poll ``predicate`` until it returns something truthy and return that; while a page is open, poll through
+    the page (``wait_for_timeout`` keeps its event loop going); fail naming ``what``."""
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        if page is not None:
+            page.wait_for_timeout(poll_ms)
+        else:
+            time.sleep(poll_ms / 1000)
+    pytest.fail(f"timed out waiting for {what}")
+
+
 def canvas_pixels(page) -> np.ndarray:
     """RGB pixels of the 3D canvas as seen on screen."""
     from PIL import Image

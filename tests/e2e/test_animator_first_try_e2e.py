@@ -10,13 +10,13 @@ and neither the camera nor the graph moves under the pointer.
 from __future__ import annotations
 
 import re
-import time
 
 import numpy as np
 import pytest
 
 from tests.conftest import free_port
-from tests.e2e.browser import copy_styles, open_page, wait_for_text
+from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, wait_for_text
+from tests.e2e.browser import wait_value as _wait
 
 pytestmark = pytest.mark.e2e
 
@@ -30,19 +30,6 @@ def _status(studio) -> dict[str, float]:
     match = STATUS.search(studio.robot_panel.status.content)
     assert match, f"no simulated time in the status line: {studio.robot_panel.status.content!r}"
     return {k: float(v) for k, v in match.groupdict().items()}
-
-
-def _wait(predicate, timeout_s: float, what: str, page=None, poll_ms: int = 250):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        if page is not None:
-            page.wait_for_timeout(poll_ms)
-        else:
-            time.sleep(poll_ms / 1000)
-    pytest.fail(f"timed out waiting for {what}")
 
 
 def _wait_simulated(studio, page, seconds: float, wall_cap_s: float = 300.0) -> dict[str, float]:
@@ -73,12 +60,7 @@ def test_an_animators_first_try(tmp_path, artifacts):
         assert studio.loaded.wait(120)
         with open_page(studio.url, 1000, 680) as page:
             wait_for_text(page, "Engine running", timeout_ms=240_000)
-            notice = page.locator(".mantine-Notification-root", has_text="Software WebGL").locator("button")
-            if notice.count():
-                try:  # the notice covers the canvas's top-left corner
-                    notice.first.click(timeout=10_000)
-                except Exception:  # noqa: BLE001 - it may have closed by itself
-                    pass
+            close_software_webgl_notice(page)
 
             # ---- The side panel: its tabs on one row; a text field found by its label (the Style tab's name)
             tabs = page.get_by_role("tab")

@@ -17,7 +17,8 @@ import pytest
 
 from engine.retarget.humanoid_arm.puppet_session import puppet_clips
 from tests.conftest import free_port
-from tests.e2e.browser import copy_styles, open_page, wait_for_text
+from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, wait_for_text
+from tests.e2e.browser import wait_value as _wait
 
 pytestmark = pytest.mark.e2e
 
@@ -26,19 +27,6 @@ SETTLE_S = 0.6  # after an edit shows in the frames, the arms reach the new refe
 WINDOW_S = 1.5  # then this much simulated walking is compared with the curves (> one in_place cycle)
 LAGS_S = np.arange(0.0, 0.105, 0.01)  # the simulated arms trail their reference by the controller's delay (≈ 40 ms)
 CURVE = "joints.right_shoulder_pitch_joint"
-
-
-def _wait(predicate, timeout_s: float, what: str, page=None, poll_ms: int = 250):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        if page is not None:
-            page.wait_for_timeout(poll_ms)
-        else:
-            time.sleep(poll_ms / 1000)
-    pytest.fail(f"timed out waiting for {what}")
 
 
 class EngineTap:
@@ -166,12 +154,7 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
         assert studio.loaded.wait(240)
         with open_page(studio.url, 1000, 760) as page:
             wait_for_text(page, "Engine running", 240_000)
-            notice = page.locator(".mantine-Notification-root", has_text="Software WebGL").locator("button")
-            if notice.count():
-                try:  # the notice covers the canvas's top-left corner
-                    notice.first.click(timeout=10_000)
-                except Exception:  # noqa: BLE001 - it may have closed by itself
-                    pass
+            close_software_webgl_notice(page)
             page.get_by_role("tab", name="Mocap").click()  # the mocap workspaces share one tab (one row of tabs)
             page.get_by_role("tab", name="Puppet").click()
             wait_for_text(page, "Puppet: idle")
