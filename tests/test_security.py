@@ -62,7 +62,7 @@ def _serve_args(monkeypatch, *argv: str, env_token: str | None = None) -> list:
     import studio.app as app
 
     calls: list = []
-    monkeypatch.setattr(app, "serve", lambda robot, host, port, token=None: calls.append((host, port, token)))
+    monkeypatch.setattr(app, "serve", lambda robot, host, port, token=None, **_: calls.append((host, port, token)))
     if env_token is None:
         monkeypatch.delenv("MOTION_STUDIO_TOKEN", raising=False)
     else:

@@ -139,8 +139,10 @@ def test_an_animators_first_try(tmp_path, artifacts):
                 return project_to_screen(editor.knot_world_position(ref), position, cam.wxyz, cam.fov, cam.aspect)
 
             for _attempt in range(3):  # a press the slow browser did not see on the knot: press again
-                uv = knot_on_screen()
-                assert uv is not None and 0 < uv[0] < 1 and 0 < uv[1] < 1, uv
+                # the camera the studio sent and the orientation the browser reports may disagree for a moment
+                # on a loaded machine: wait until both put the knot on the canvas
+                uv = _wait(lambda: (u := knot_on_screen()) is not None and 0 < u[0] < 1 and 0 < u[1] < 1 and u, 60,
+                           f"the knot on the canvas (at first {knot_on_screen()})", page)
                 x, y = box["x"] + uv[0] * box["width"], box["y"] + uv[1] * box["height"]
                 wxyz_before, graph_before = np.asarray(cam.wxyz), np.asarray(editor.root_frame.position)
                 page.screenshot(path=str(artifacts / "first_try_before_drag.png"))  # where the knot is, to debug
