@@ -383,7 +383,7 @@ class Studio:
 
     def set_shadows(self, on: bool) -> None:
         """Shadow maps from the default lights for every browser. Off by default: under software WebGL (no GPU)
-        they divide the frame rate several times over (`studio bench render`); the environment light stays either way."""
+        they cut the frame rate 1.7-5x (`studio bench render`); the environment light stays either way."""
         self.shadows = bool(on)
         self.server.scene.configure_default_lights(enabled=True, cast_shadow=self.shadows)
 

@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     serve.add_argument("--port", type=int, default=8080)
     serve.add_argument("--shadows", action="store_true",
-                       help="draw shadows (needs a GPU: with software WebGL the page draws several times fewer frames: studio bench render)")
+                       help="draw shadows (needs a GPU: with software WebGL the page draws 1.7-5x fewer frames: studio bench render)")
     serve.add_argument("--token", default=None, help="require this access token from browsers (env MOTION_STUDIO_TOKEN)")
 
     sub.add_parser("robots", help="list the robot library")

@@ -122,7 +122,7 @@ class DrivePanel:
         self.show_overlays = server.gui.add_checkbox("Ground overlays", initial_value=True)
         self.shadows = server.gui.add_checkbox("Shadows", initial_value=studio.shadows,
                                                hint="shadow maps: fine on a GPU; without one (software WebGL) the "
-                                                    "page draws several times fewer frames (studio bench render)")
+                                                    "page draws 1.7-5x fewer frames (studio bench render)")
         self.readout = server.gui.add_markdown("Command: stopped")
         with server.gui.add_folder("Joystick (test mode)"):
             self.fwd = server.gui.add_button("▲ forward")
