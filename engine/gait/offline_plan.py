@@ -42,7 +42,7 @@ def run_plan(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     out: dict[str, list] = {k: [] for k in (
         "t", "phase", "command", "command_requested", "contact", "foot_pos", "foot_quat", "sole_corners", "pelvis_z",
         "pelvis_quat", "upper_q", "sample_weights", "qpos", "footholds", "com_xy", "path_pose", "corner_contact",
-        "ik_error_m")}
+        "ik_error_m", "com_error_m")}
     for _ in range(n):
         requested = schedule(planner.t_s + dt)
         ref = planner.step(dt, requested, with_preview=False)
@@ -65,7 +65,8 @@ def run_plan(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         out["footholds"].append([ref.footholds[s].as_array() for s in ("left", "right")])
         out["com_xy"].append(com)
         out["path_pose"].append(ref.path_pose)
-        out["ik_error_m"].append(ik.last_error)
+        out["ik_error_m"].append(ik.last_error if with_preview_ik else 0.0)
+        out["com_error_m"].append(ik.last_com_error if with_preview_ik else 0.0)
     arrays = {k: np.asarray(v, dtype=bool if k in ("contact", "corner_contact") else float) for k, v in out.items()}
     arrays["upper_joint_names"] = np.array(ctx.upper_joints, dtype=str)
     arrays["sample_names"] = np.array(SAMPLE_NAMES, dtype=str)

@@ -11,18 +11,10 @@ from engine.gait.style import load_style
 from tests.conftest import REPO, run_studio
 
 SHIPPED = sorted((REPO / "styles").glob("*/*.json"))
-# Known misses of the kinematic preview (the ghost / `studio plan`), not of the closed-loop walk: the
-# corrected dino model (capsules joint to joint) carries its CoM ~4 cm ahead of the pelvis, so at 0.45 m/s
-# forward the support-centre CoM plan holds the pelvis back and the front foot is out of the leg's reach
-# (t ≈ 2.6 s: 2–4 mm short, then the IK diverges on 1.6 % of the frames). The 60 s closed-loop sweep walks
-# (slip 0.52 mm). Strict: a fix shows as an unexpected pass.
-PREVIEW_MISSES = {("dino", "neutral"): "dino's front foot out of reach at 0.45 m/s in the kinematic preview"}
 
 
 def _shipped_param(path):
-    reason = PREVIEW_MISSES.get((path.parent.name, path.stem))
-    marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
-    return pytest.param(path, marks=marks, id=f"{path.parent.name}/{path.stem}")
+    return pytest.param(path, id=f"{path.parent.name}/{path.stem}")
 
 
 @pytest.fixture(scope="module")
