@@ -4,9 +4,11 @@ One studio (a real engine process behind it) in Test mode walking forward (the j
 whole run), one headless Chromium tab (Debian's, software
 WebGL: the case of a machine without a GPU) rendering it. The shadow setting is switched back and forth
 ``rounds`` times; in each window of ``window_s`` seconds the tab's drawn frames (requestAnimationFrame) and
-the engine's simulated time against the wall clock are counted. Printed per setting: the median frames per
-second the tab drew, the median real-time factor of the simulation meanwhile, and the ratio against
-shadows on (the studio's default is off; ``studio serve --shadows`` or the Robot tab's checkbox turn
+the engine's simulated time against the wall clock are counted; then ``keys`` characters are typed into
+the Style tab's *New name* field, one at a time, each timed from the key press until the studio holds the
+new text (what an animator waits for while typing). Printed per setting: the median frames per second the
+tab drew, the median real-time factor of the simulation meanwhile, the median and worst key latency, and
+the frame ratio against shadows on (the studio's default is off; ``studio serve --shadows`` or the Robot tab's checkbox turn
 them on).
 """
 
@@ -23,7 +25,8 @@ FRAMES_JS = ("() => { if (!window.__benchFrames) { window.__benchFrames = 0; con
              "return window.__benchFrames; }")
 
 
-def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, settle_s: float = 3.0) -> list[dict]:
+def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, settle_s: float = 3.0,
+                 keys: int = 3) -> list[dict]:
     from playwright.sync_api import sync_playwright
 
     from engine.gait.style import styles_dir
@@ -34,6 +37,7 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
     shutil.copytree(styles_dir(robot), scratch / robot, ignore=shutil.ignore_patterns(".autosave"))
     studio = Studio(robot, port=_free_port(), styles_folder=scratch).start()
     samples: dict[bool, list[tuple[float, float]]] = {True: [], False: []}
+    key_latency_s: dict[bool, list[float]] = {True: [], False: []}
 
     def hold_forward(duration_s: float) -> None:
         end = time.monotonic() + duration_s
@@ -51,6 +55,8 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
             page.goto(f"http://127.0.0.1:{studio.server.get_port()}/", timeout=120_000)
             page.wait_for_selector("canvas", timeout=120_000)
             page.evaluate(FRAMES_JS)
+            if keys > 0:  # the Style tab (its New name field) stays open: the canvas draws beside it
+                page.get_by_role("tab", name="Style").click(timeout=300_000)
             for _ in range(rounds):
                 for shadows in (True, False):
                     studio.set_shadows(shadows)
@@ -61,6 +67,7 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
                     frames1, wall1 = int(page.evaluate(FRAMES_JS)), time.monotonic()
                     sim1 = studio.view.last_frame.sim_time_s if studio.view.last_frame else 0.0
                     samples[shadows].append(((frames1 - frames0) / (wall1 - wall0), (sim1 - sim0) / (wall1 - wall0)))
+                    key_latency_s[shadows] += _type_and_time(page, studio, keys)
             browser.close()
     finally:
         studio.stop()
@@ -71,6 +78,30 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
         fps = statistics.median(f for f, _ in samples[shadows])
         rows.append({"section": "render", "robot": robot, "shadows": "on" if shadows else "off (default)",
                      "tab_fps": round(fps, 2), "real_time_factor": round(statistics.median(r for _, r in samples[shadows]), 2),
+                     "key_latency_s": {"median": round(statistics.median(key_latency_s[shadows]), 2),
+                                       "max": round(max(key_latency_s[shadows]), 2)} if key_latency_s[shadows] else None,
                      "fps_vs_shadows_on": round(fps / fps_on, 1) if fps_on > 0 else float("inf"),
                      "windows": f"{rounds} x {window_s:g} s"})
     return rows
+
+
+def _type_and_time(page, studio, keys: int, timeout_s: float = 60.0) -> list[float]:
+    """Type ``keys`` letters into the Style tab's *New name* field; each one's seconds from the key press until
+    the studio holds the field's new text (the studio then shows it back: the animator's wait per key)."""
+    if keys <= 0 or studio.style_browser is None:
+        return []
+    field = page.get_by_label("New name", exact=True)  # a busy software-WebGL tab may take long to act
+    field.fill("", timeout=300_000)
+    field.click(timeout=300_000)
+    latencies, typed = [], ""
+    for i in range(keys):
+        letter = "abcdefghijklmnopqrstuvwxyz"[i % 26]
+        typed += letter
+        start = time.monotonic()
+        page.keyboard.press(letter)
+        while studio.style_browser.name.value != typed:
+            if time.monotonic() - start > timeout_s:
+                raise RuntimeError(f"the typed key {letter!r} did not reach the studio within {timeout_s:g} s")
+            time.sleep(0.005)
+        latencies.append(time.monotonic() - start)
+    return latencies

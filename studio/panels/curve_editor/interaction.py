@@ -176,28 +176,24 @@ class DragInteraction(EditorBase):
 
     def handle_knot_drag(self, ref: KnotRef, event: Any) -> None:
         """Knot drag lifecycle: ``event`` has phase, start_position, end_position (world) and client."""
-        with self._lock:
-            phase = event.phase
-            drag = self._drag
-            if phase == "start" or drag is None or drag.kind != "knot" or drag.ref != ref:
-                if phase == "end" and drag is None:
-                    return
-                self._start_knot_drag(ref, event)
-                if phase == "start":
-                    return
-            self._update_drag(event)
-            if phase == "end":
-                self._finish_drag()
+        self._drag_lifecycle(event, lambda d: d.kind == "knot" and d.ref == ref,
+                             lambda: self._start_knot_drag(ref, event))
 
     def handle_tangent_drag(self, side: str, event: Any) -> None:
         """Tangent handle drag of the primary knot (``side`` "in" / "out")."""
+        self._drag_lifecycle(event, lambda d: d.kind == "handle" and d.side == side,
+                             lambda: self._start_handle_drag(side, event))
+
+    def _drag_lifecycle(self, event: Any, continues: Callable[[Any], bool], start: Callable[[], bool]) -> None:
+        """One drag event: a "start" (or a move/end of a drag this one does not ``continues``) starts it, unless
+        ``start`` refuses; moves update it; "end" finishes it (an "end" with no drag at all is ignored)."""
         with self._lock:
             phase = event.phase
             drag = self._drag
-            if phase == "start" or drag is None or drag.kind != "handle" or drag.side != side:
+            if phase == "start" or drag is None or not continues(drag):
                 if phase == "end" and drag is None:
                     return
-                if not self._start_handle_drag(side, event):
+                if not start():
                     return
                 if phase == "start":
                     return
@@ -278,11 +274,11 @@ class DragInteraction(EditorBase):
             return False
         return True
 
-    def _start_knot_drag(self, ref: KnotRef, event: Any) -> None:
+    def _start_knot_drag(self, ref: KnotRef, event: Any) -> bool:
         self._end_drag_now()
         sample = self._sample_obj()
         if sample is None or not self._knot_exists(ref):
-            return
+            return False
         if ref not in self._selection:
             self._selection = [ref]
         else:
@@ -300,6 +296,7 @@ class DragInteraction(EditorBase):
                            UndoGroup(self.session, label, self._quiet), base, dict(moves), client, view0=self._view)
         self._draw_ghost(base)
         self._redraw()
+        return True
 
     def _start_handle_drag(self, side: str, event: Any) -> bool:
         self._end_drag_now()

@@ -1,0 +1,19 @@
+"""`studio bench render` runs end to end (one short round): both shadow settings measured, keys typed reach
+the studio."""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.mark.slow
+def test_render_smoke():
+    from studio.bench_render import bench_render
+
+    rows = bench_render(rounds=1, window_s=2.0, settle_s=1.0, keys=2)
+    assert [r["shadows"] for r in rows] == ["on", "off (default)"], rows
+    for row in rows:
+        assert row["tab_fps"] > 0, row  # the tab drew frames in both settings
+        assert row["real_time_factor"] > 0, row  # the walk ran meanwhile
+        latency = row["key_latency_s"]
+        assert latency is not None and 0 < latency["median"] <= latency["max"], row  # each key reached the studio
