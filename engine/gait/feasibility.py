@@ -10,7 +10,9 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
   ``SWING_REACH_TOLERANCE_M``) means no leg posture reaches it; the leg joints then at a
   limit name the reason ("right knee straight: lower the pelvis or shorten the stride",
   "left knee fully bent: raise the pelvis height");
-* joint speed — finite differences of that IK against the model's velocity limits;
+* joint speed — finite differences of that IK against the model's velocity limits (severity
+  "rating": the simulation models no velocity limit and walks such styles; a real motor may not
+  keep up);
 * torque — in single support, the links' gravity plus the robot's weight carried through the
   stance sole's middle, against the torque limit the controller uses (90 % of the effort);
 * swing clearance — a swing foot's sole corners below the floor, or an apex below
@@ -70,6 +72,10 @@ class Finding:
     kind: str  # reach | joint_limit | joint_speed | torque | balance | clearance | curve_rate
     side: str | None
     message: str
+    # "fall": the robot is expected to fall or stumble; "rating": beyond what the real robot is rated
+    # for, which the simulation does not model (joint speeds: MuJoCo and the controller have no
+    # velocity limit, and TALOS walks forward_fast with its knee at 8.2 rad/s, rated 7 — README).
+    severity: str = "fall"
 
     def text(self) -> str:
         return f"{self.sample}, around {self.phase_pct:.0f} % of the cycle: {self.message}"
@@ -309,8 +315,9 @@ class FeasibilityChecker:
         for j in np.flatnonzero(over):
             side, words = _joint_words(self.leg_names[j])
             self._add(findings, Finding(name, pct, "joint_speed", f"{side}:{words}",
-                                        f"{side + ' ' if side else ''}{words} would have to turn at {speed[j]:.0f} rad/s "
-                                        f"(limit {self.vel_limit[j]:.0f}): " + _hint("joint_speed", words)))
+                                        f"{side + ' ' if side else ''}{words} would have to turn at {speed[j]:.1f} rad/s, "
+                                        f"above its rated {self.vel_limit[j]:.1f} rad/s (the simulation walks it, a real "
+                                        "motor may not keep up): " + _hint("joint_speed", words), severity="rating"))
 
     def _torque(self, findings: dict, name: str, pct: float, ref, q: np.ndarray) -> None:
         """Leg torques in single support: the links' gravity plus the robot's weight carried
