@@ -93,3 +93,18 @@ def test_an_arm_faster_than_its_joint_is_flagged():
     findings = [f for f in check_style(load_robot("talos"), style, samples=("forward_slow",)) if f.kind == "curve_rate"]
     assert findings and findings[0].side == f"joints.{joint}" and 0.0 <= findings[0].phase_pct <= 20.0, \
         [f.text() for f in findings]
+
+
+def test_the_bench_judges_only_the_samples_the_sweep_reaches():
+    """The sweep walks backward at x_slow: a finding in reverse_fast says nothing about it."""
+    from engine.bench.styles import reached_samples, totals
+
+    style = load_style(styles_dir("g1") / "neutral.json")
+    assert reached_samples(style, "sweep", 8.0) == {"forward_fast", "forward_slow", "in_place"}
+    assert "reverse_fast" not in reached_samples(style, "sweep", 60.0)
+    assert {"left_turn", "right_turn", "left_strafe", "right_strafe", "reverse_slow"} <= reached_samples(style, "sweep", 60.0)
+    rows = [{"fell": True, "flagged": False}, {"fell": False, "flagged": True, "slip_mm": 1.0, "cop_in": 1.0, "over_rating": True},
+            {"fell": False, "flagged": False, "slip_mm": 3.0, "cop_in": 1.0, "over_rating": False}]
+    total = totals(rows, "g1", 0)
+    assert total["fell"] == "walked 2/3" and total["flagged"] == "silent falls 1/1, false alarms 1/2"
+    assert total["over_rating"] == "walked above a rated joint speed 1/2"
