@@ -14,7 +14,7 @@ edge). Bounds per channel kind, in curve time (what the animator authors):
   ``toe_pitch``), pelvis height and angles — ``CHANNEL_BOUNDS``.
 
 Every bound is twice the peak of the shipped styles (G1 neutral, casual, sneak, injured; TALOS
-neutral; measured by :func:`curve_peaks`, printed by ``tests/gait/test_curve_rates.py``), rounded
+neutral; measured by :func:`curve_peaks`, held by ``tests/gait/test_curve_rates.py``), rounded
 up: the shipped styles walk (60 s sweeps, slip < 2 mm), twice their peak leaves room to author
 livelier motion, while the falling random styles of ``studio bench styles`` before the generator
 was bounded were 10²–10⁴ times over them (README, *Curve rates*). The shipped peaks: foot
