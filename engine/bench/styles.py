@@ -6,7 +6,11 @@ edit-time feasibility check on each (engine/gait/feasibility.py), walks each thr
 prints per style: fell / fall time, stance slip, CoP inside, the tracking errors of pelvis
 height, pelvis yaw and an elbow (RMS), and whether the check flagged it; then the totals:
 walked, slip < 2 mm and CoP inside ≥ 99.5 % among those that walked, falls that were not
-flagged ("silent falls") and flagged styles that walked ("false alarms").
+flagged ("silent falls") and flagged styles that walked ("false alarms"); only findings in the
+samples the sweep reaches within ``duration`` count (column ``unreached``: samples with findings
+the walk never blended in). Findings of severity
+"rating" (a joint faster than its rated speed: the simulation has no velocity limit and walks them)
+are counted apart (``over_rating``), not as flags.
 Results are keyed by the style's hash in the output folder: a second call resumes.
 """
 
@@ -49,7 +53,11 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
     for i, (style, job) in enumerate(pairs):
         key = job_key(job)
         r = results.get(key, {"error": "missing"})
-        findings = check_style(model, style)
+        reached = reached_samples(style, job["command"], duration_s)
+        everything = check_style(model, style)
+        findings = [f for f in everything if f.severity == "fall" and f.sample in reached]
+        unreached = [f for f in everything if f.severity == "fall" and f.sample not in reached]
+        rating = [f for f in everything if f.severity != "fall"]
         first = findings[0] if findings else None
         row = {"section": "styles", "robot": robot, "seed": seed, "i": i, "key": key}
         if "error" in r:
@@ -61,11 +69,27 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
             "pelvis_z_rms_mm": _mm(r.get("pelvis_height_rms")), "pelvis_yaw_rms_rad": _r3(r.get("pelvis_yaw_rms")),
             "elbow_rms_rad": _r3(r.get("elbow_rms")),
             "flagged": bool(findings),
+            "over_rating": bool(rating),
+            "unreached": ",".join(sorted({f.sample for f in unreached})),
             "finding": f"{first.sample} {first.phase_pct:.0f}%: {first.message}"[:90] if first else "",
         })
         rows.append(row)
     rows.append(totals(rows, robot, seed))
     return rows
+
+
+def reached_samples(style: Any, command: str, duration_s: float, min_weight: float = 0.05) -> set[str]:
+    """The samples the command blends in with at least ``min_weight`` at some time of the walk: a
+    finding in another sample (the sweep walks backward at ``x_slow``: ``reverse_fast`` never) says
+    nothing about this walk, so it is neither a flag nor a false alarm here."""
+    from engine.gait.command_schedule import parse_command
+    from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
+
+    schedule = parse_command(command, style.velocities)
+    peak = np.zeros(len(SAMPLE_NAMES))
+    for t in np.arange(0.0, duration_s + 1e-9, 0.05):
+        peak = np.maximum(peak, sample_weights(schedule(float(t)), style.velocities, style.blend_eta))
+    return {name for name, w in zip(SAMPLE_NAMES, peak) if w >= min_weight}
 
 
 def totals(rows: list[dict], robot: str, seed: int) -> dict:
@@ -75,10 +99,12 @@ def totals(rows: list[dict], robot: str, seed: int) -> dict:
     fell = [r for r in done if r["fell"]]
     silent = [r for r in fell if not r["flagged"]]
     alarms = [r for r in walked if r["flagged"]]
+    rated = [r for r in walked if r.get("over_rating")]
     return {"section": "styles", "robot": robot, "seed": seed, "i": "total", "key": f"{len(done)} run",
             "fell": f"walked {len(walked)}/{len(done)}", "fall_s": "",
             "slip_mm": f"<2mm&CoP≥99.5%: {len(good)}/{len(walked)}", "cop_in": "",
-            "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}"}
+            "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}",
+            "over_rating": f"walked above a rated joint speed {len(rated)}/{len(walked)}"}
 
 
 def _mm(x: float | None) -> float | None:

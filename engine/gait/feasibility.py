@@ -10,11 +10,17 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
   ``SWING_REACH_TOLERANCE_M``) means no leg posture reaches it; the leg joints then at a
   limit name the reason ("right knee straight: lower the pelvis or shorten the stride",
   "left knee fully bent: raise the pelvis height");
-* joint speed — finite differences of that IK against the model's velocity limits;
+* joint speed — finite differences of that IK against the model's velocity limits (severity
+  "rating": the simulation models no velocity limit and walks such styles; a real motor may not
+  keep up);
 * torque — in single support, the links' gravity plus the robot's weight carried through the
   stance sole's middle, against the torque limit the controller uses (90 % of the effort);
 * swing clearance — a swing foot's sole corners below the floor, or an apex below
-  ``MIN_CLEARANCE_M``.
+  ``MIN_CLEARANCE_M``;
+* curve rates — each curve of the sample against the rate and acceleration its channel can
+  follow (engine/gait/curve_rates.py: a joint's velocity limit, and bounds twice the shipped
+  styles' peaks): two knots too close for the change between them are flagged with the curve
+  and the phase where its rate or acceleration peaks.
 
 Each finding names the sample, the phase (% of its cycle, from left liftoff) and what to do in
 an animator's words; findings are deduplicated per (sample, kind, joint or side): the first
@@ -32,7 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from engine.gait.style import SIDES, Style, StyleContext
+from engine.gait.curve_rates import curve_peaks, rate_bound
+from engine.gait.style import SIDES, Style, StyleContext, channel_side
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from engine.robot.model import RobotModel
 
@@ -62,9 +69,13 @@ JOINT_WORDS = {"hip_pitch": "hip", "hip_roll": "hip (sideways)", "hip_yaw": "hip
 class Finding:
     sample: str
     phase_pct: float
-    kind: str  # reach | joint_limit | joint_speed | torque | balance | clearance
+    kind: str  # reach | joint_limit | joint_speed | torque | balance | clearance | curve_rate
     side: str | None
     message: str
+    # "fall": the robot is expected to fall or stumble; "rating": beyond what the real robot is rated
+    # for, which the simulation does not model (joint speeds: MuJoCo and the controller have no
+    # velocity limit, and TALOS walks forward_fast with its knee at 8.2 rad/s, rated 7 — README).
+    severity: str = "fall"
 
     def text(self) -> str:
         return f"{self.sample}, around {self.phase_pct:.0f} % of the cycle: {self.message}"
@@ -150,6 +161,7 @@ class FeasibilityChecker:
         com_plan = SupportCenterComPlan(feed_forward=False)
         q = robot.q_standing.copy()
         findings: dict[tuple[str, str | None], Finding] = {}
+        self._curve_rates(findings, style, name)  # (first: it names the curve the animator edits)
         q_prev = None
         # Like the controller: from standing, the command ramps up at the joystick's rate limits;
         # then two cycles settle at the sample's velocity and one is checked.
@@ -211,6 +223,28 @@ class FeasibilityChecker:
         return list(findings.values())
 
     # ------------------------------------------------------------------ checks
+    def _curve_rates(self, findings: dict, style: Style, name: str) -> None:
+        """Each curve of the sample against the rate and acceleration its channel can follow."""
+        sample = style.samples[name]
+        cycle = sample.intervals.cycle_s
+        for channel, curve in sample.curves.items():
+            bound = rate_bound(channel, self.ctx.joint_velocity_limits)
+            peaks = curve_peaks(curve)
+            side = channel_side(channel)
+            start = sample.intervals.swing_s(side)[0] if side else 0.0
+            unit = bound.unit
+            if peaks.rate > bound.rate:
+                t, what = peaks.rate_t_s, (f"changes at {peaks.rate:.3g} {unit}/s (the robot follows up to "
+                                           f"{bound.rate:.3g} {unit}/s)")
+            elif peaks.accel > bound.accel:
+                t, what = peaks.accel_t_s, (f"turns too sharply: {peaks.accel:.3g} {unit}/s² (the robot follows up to "
+                                            f"{bound.accel:.3g} {unit}/s²)")
+            else:
+                continue
+            pct = 100.0 * ((start + t) % cycle) / cycle
+            self._add(findings, Finding(name, pct, "curve_rate", channel,
+                                        f"the {channel} curve {what}: move its knots further apart or make the change smaller"))
+
     @staticmethod
     def _add(findings: dict, finding: Finding) -> None:
         findings.setdefault((finding.kind, finding.side), finding)
@@ -284,8 +318,9 @@ class FeasibilityChecker:
         for j in np.flatnonzero(over):
             side, words = _joint_words(self.leg_names[j])
             self._add(findings, Finding(name, pct, "joint_speed", f"{side}:{words}",
-                                        f"{side + ' ' if side else ''}{words} would have to turn at {speed[j]:.0f} rad/s "
-                                        f"(limit {self.vel_limit[j]:.0f}): " + _hint("joint_speed", words)))
+                                        f"{side + ' ' if side else ''}{words} would have to turn at {speed[j]:.1f} rad/s, "
+                                        f"above its rated {self.vel_limit[j]:.1f} rad/s (the simulation walks it, a real "
+                                        "motor may not keep up): " + _hint("joint_speed", words), severity="rating"))
 
     def _torque(self, findings: dict, name: str, pct: float, ref, q: np.ndarray) -> None:
         """Leg torques in single support: the links' gravity plus the robot's weight carried

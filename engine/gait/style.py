@@ -233,6 +233,9 @@ class StyleContext:
     min_double_support_s: float
     max_cycle_s: float
     max_swing_height_m: float
+    # The upper-body joints' velocity limits in the robot model (rad/s): the rate a ``joints.*``
+    # curve may reach (engine/gait/curve_rates.py).
+    joint_velocity_limits: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def for_robot(cls, robot_name: str) -> "StyleContext":
@@ -244,13 +247,16 @@ class StyleContext:
             raise StyleError("robot", f"expected a biped; {robot_name} is a {robot.kind}", robot_name)
         limits = {j: (float(lo), float(hi)) for j, lo, hi in zip(robot.joint_names, robot.joint_lower, robot.joint_upper)}
         standing = {j: float(robot.q_standing[7 + i]) for i, j in enumerate(robot.joint_names)}
+        pm = robot.pin_model
+        speeds = {j: float(pm.velocityLimit[pm.joints[pm.getJointId(j)].idx_v]) for j in robot.joint_names
+                  if pm.existJointName(j)}
         return cls(
             robot=robot_name, upper_joints=tuple(robot.config.upper_body_joints), all_joints=tuple(robot.joint_names),
             joint_limits=limits, standing_angles=standing, pelvis_height_m=gait.pelvis_height_m,
             pelvis_height_range_m=gait.pelvis_height_range_m, stance_width_m=gait.stance_width_m,
             stance_width_range_m=gait.stance_width_range_m, min_single_support_s=gait.min_single_support_s,
             min_double_support_s=gait.min_double_support_s, max_cycle_s=gait.max_cycle_s,
-            max_swing_height_m=gait.max_swing_height_m,
+            max_swing_height_m=gait.max_swing_height_m, joint_velocity_limits=speeds,
         )
 
 

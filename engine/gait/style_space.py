@@ -25,6 +25,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from engine.gait.curve_rates import RateBound, over_bound, rate_bound
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.style import (
     MAX_FOOT_ANGLE_RAD,
@@ -44,6 +45,11 @@ MAX_SPLAY_RAD = 0.6  # the validator's bounds (engine/gait/style.py validate_sam
 MAX_X_BIAS_M = 0.2
 MAX_TRANSITION_S = 1.0
 EDGE = 1e-6  # stay this far inside closed bounds (rounding in the JSON round trip)
+# What an animator authors: knots at least this share of their interval apart (swing or cycle),
+# and curves that change no faster than their channel follows (engine/gait/curve_rates.py; drawn
+# to this share of the bound so a JSON round trip stays within it).
+MIN_KNOT_PHASE = 0.1
+RATE_SHARE = 0.98
 
 
 def _around(rng: np.random.Generator, centre: float, lo: float, hi: float, extent: float) -> float:
@@ -82,22 +88,47 @@ def random_attributes(rng: np.random.Generator, ctx: StyleContext, neutral: Attr
     )
 
 
-def _swing_curve(rng: np.random.Generator, duration_s: float, lo: float, hi: float, extent: float,
+def _spaced_times(rng: np.random.Generator, n: int, lo: float, hi: float, gap: float) -> np.ndarray:
+    """``n`` sorted uniform times in [lo, hi] at least ``gap`` apart (uniform over such sets)."""
+    free = (hi - lo) - (n - 1) * gap
+    if free <= 0.0:
+        return np.linspace(lo, hi, n)
+    return lo + np.sort(rng.uniform(0.0, free, n)) + gap * np.arange(n)
+
+
+def _within_rates(curve: HermiteCurve, centre: float, bound: RateBound) -> HermiteCurve:
+    """The curve with its knot values pulled toward ``centre`` until its rate and acceleration are
+    within ``bound`` (a Hermite curve's derivatives scale with its values around a constant)."""
+    over = over_bound(curve, bound)
+    if over <= RATE_SHARE:
+        return curve
+    f = RATE_SHARE / over
+    knots = [replace(k, value=centre + f * (k.value - centre), in_slope=f * k.in_slope, out_slope=f * k.out_slope)
+             for k in curve.knots]
+    return HermiteCurve(knots, curve.duration_s, curve.periodic)
+
+
+def _swing_curve(rng: np.random.Generator, duration_s: float, lo: float, hi: float, extent: float, bound: RateBound,
                  start: float = 0.0, end: float = 0.0, centre: float = 0.0) -> HermiteCurve:
-    """Flat at both ends (values ``start``/``end``), 1–2 interior knots within [lo, hi]."""
+    """Flat at both ends (values ``start``/``end``), 1–2 interior knots within [lo, hi], at least
+    ``MIN_KNOT_PHASE`` of the swing apart; rates within ``bound`` (values pulled toward 0)."""
     n = int(rng.integers(1, 3))
-    times = np.sort(rng.uniform(0.15, 0.85, n)) * duration_s
+    times = _spaced_times(rng, n, 0.15, 0.85, MIN_KNOT_PHASE) * duration_s
     knots = [Knot(0.0, start, mode=TangentMode.FLAT)]
     knots += [Knot(float(t), _around(rng, centre, lo, hi, extent)) for t in times]
     knots.append(Knot(duration_s, end, mode=TangentMode.FLAT))
-    return HermiteCurve(knots, duration_s)
+    return _within_rates(HermiteCurve(knots, duration_s), 0.0, bound)
 
 
-def _cycle_curve(rng: np.random.Generator, cycle_s: float, lo: float, hi: float, centre: float, extent: float) -> HermiteCurve:
+def _cycle_curve(rng: np.random.Generator, cycle_s: float, lo: float, hi: float, centre: float, extent: float,
+                 bound: RateBound) -> HermiteCurve:
+    """1–3 knots around the loop, at least ``MIN_KNOT_PHASE`` of the cycle apart (across the wrap
+    too); rates within ``bound`` (values pulled toward ``centre``)."""
     n = int(rng.integers(1, 4))
-    times = np.sort(rng.uniform(0.0, 1.0, n)) * cycle_s
-    times = times[np.concatenate([[True], np.diff(times) > 1e-3])]
-    return HermiteCurve([Knot(float(t), _around(rng, centre, lo, hi, extent)) for t in times], cycle_s, periodic=True)
+    phases = np.sort((_spaced_times(rng, n, 0.0, 1.0 - MIN_KNOT_PHASE, MIN_KNOT_PHASE) + rng.uniform()) % 1.0)
+    times = [float(p) * cycle_s for p in phases]
+    curve = HermiteCurve([Knot(t, _around(rng, centre, lo, hi, extent)) for t in times], cycle_s, periodic=True)
+    return _within_rates(curve, centre, bound)
 
 
 def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Intervals, attributes: Attributes,
@@ -108,11 +139,12 @@ def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Interv
         # Height: the neutral apex as the centre of the range [0, max_swing_height_m].
         apex = neutral.curves.get(f"{side}_foot.z")
         centre = apex.value_range()[1] if apex is not None else 0.5 * ctx.max_swing_height_m
-        curves[f"{side}_foot.z"] = _swing_curve(rng, d, 0.0, ctx.max_swing_height_m, extent, centre=centre)
+        curves[f"{side}_foot.z"] = _swing_curve(rng, d, 0.0, ctx.max_swing_height_m, extent, rate_bound(f"{side}_foot.z"),
+                                                centre=centre)
         for tail, bound in (("x", MAX_FOOT_OFFSET_M), ("y", MAX_FOOT_OFFSET_M), ("yaw", MAX_FOOT_ANGLE_RAD),
                             ("roll", MAX_FOOT_ANGLE_RAD)):
             if rng.random() < 0.5:
-                curves[f"{side}_foot.{tail}"] = _swing_curve(rng, d, -bound, bound, extent)
+                curves[f"{side}_foot.{tail}"] = _swing_curve(rng, d, -bound, bound, extent, rate_bound(f"{side}_foot.{tail}"))
         # Heel/toe pitch: at each contact switch the foot is on its heel or on its toe (or flat).
         lo_kind, td_kind = rng.choice(["flat", "heel", "toe"]), rng.choice(["flat", "heel", "toe"])
         half_pi = 0.5 * math.pi
@@ -121,21 +153,25 @@ def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Interv
         heel_td = _around(rng, 0.0, -half_pi, 0.0, extent) if td_kind == "heel" else 0.0
         toe_td = _around(rng, 0.0, 0.0, half_pi, extent) if td_kind == "toe" else 0.0
         if heel_lo or heel_td or rng.random() < 0.3:
-            curves[f"{side}_foot.heel_pitch"] = _swing_curve(rng, d, -half_pi, 0.0, extent, heel_lo, heel_td)
+            curves[f"{side}_foot.heel_pitch"] = _swing_curve(rng, d, -half_pi, 0.0, extent, rate_bound("left_foot.heel_pitch"),
+                                                             heel_lo, heel_td)
         if toe_lo or toe_td or rng.random() < 0.3:
-            curves[f"{side}_foot.toe_pitch"] = _swing_curve(rng, d, 0.0, half_pi, extent, toe_lo, toe_td)
+            curves[f"{side}_foot.toe_pitch"] = _swing_curve(rng, d, 0.0, half_pi, extent, rate_bound("left_foot.toe_pitch"),
+                                                            toe_lo, toe_td)
     cycle = intervals.cycle_s
     z_lo = max(-MAX_PELVIS_Z_OFFSET_M, ctx.pelvis_height_range_m[0] - attributes.pelvis_height_m)
     z_hi = min(MAX_PELVIS_Z_OFFSET_M, ctx.pelvis_height_range_m[1] - attributes.pelvis_height_m)
     if rng.random() < 0.5 and z_hi - z_lo > 4 * EDGE:
-        curves["pelvis.z"] = _cycle_curve(rng, cycle, z_lo, z_hi, 0.0, extent)
+        curves["pelvis.z"] = _cycle_curve(rng, cycle, z_lo, z_hi, 0.0, extent, rate_bound("pelvis.z"))
     for tail in ("yaw", "pitch", "roll"):
         if rng.random() < 0.5:
-            curves[f"pelvis.{tail}"] = _cycle_curve(rng, cycle, -MAX_PELVIS_ANGLE_RAD, MAX_PELVIS_ANGLE_RAD, 0.0, extent)
+            curves[f"pelvis.{tail}"] = _cycle_curve(rng, cycle, -MAX_PELVIS_ANGLE_RAD, MAX_PELVIS_ANGLE_RAD, 0.0, extent,
+                                                    rate_bound(f"pelvis.{tail}"))
     for joint in ctx.upper_joints:
         if rng.random() < 0.4:
             lo, hi = ctx.joint_limits[joint]
-            curves[f"joints.{joint}"] = _cycle_curve(rng, cycle, lo, hi, ctx.standing_angles[joint], extent)
+            curves[f"joints.{joint}"] = _cycle_curve(rng, cycle, lo, hi, ctx.standing_angles[joint], extent,
+                                                     rate_bound(f"joints.{joint}", ctx.joint_velocity_limits))
     return curves
 
 

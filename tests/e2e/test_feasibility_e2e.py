@@ -1,11 +1,13 @@
 """An edit the robot could not walk is flagged in the Sample panel (sample, phase, advice)
-before Test is pressed; undo and the warning goes."""
+before Test is pressed; undo and the warning goes. Both a pose the legs cannot reach (the pelvis
+too high) and a curve faster than the robot follows (a swing apex 10 ms before touchdown)."""
 
 from __future__ import annotations
 
 
 import pytest
 
+from engine.gait.curve_editing import KnotRef
 from tests.e2e.browser import copy_styles, open_page, wait_for_text
 
 pytestmark = pytest.mark.e2e
@@ -37,5 +39,23 @@ def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
             wait_for_text(page, "nothing in the way of walking it", timeout_ms=120_000)
             assert "knee straight" not in page.inner_text("body")
             page.screenshot(path=str(artifacts / "studio_sample_feasibility_cleared.png"))
+            # A curve faster than the robot follows (issue 13): the swing apex of the left foot moved to
+            # 10 ms before touchdown, the foot would drop 7 cm in 10 ms. The check names the curve and the phase.
+            curves = studio.curve_editor
+            assert curves is not None
+            curves.set_sample("forward_fast")
+            curves.set_active_channel("left_foot.z")
+            curves.select([KnotRef("left_foot.z", 1)])
+            swing_s = studio.session.style.sample("forward_fast").intervals.swing_duration_s("left")
+            assert curves.set_knot_values(t_s=swing_s - 0.01).ok
+            wait_for_text(page, "left_foot.z curve", timeout_ms=120_000)
+            text = page.inner_text("body")
+            assert "forward_fast" in text and "% of the cycle" in text and "further apart" in text
+            page.screenshot(path=str(artifacts / "studio_sample_feasibility_curve_rate.png"))
+            page.get_by_role("tab", name="Style").click(force=True)
+            page.get_by_role("button", name="Undo").click()
+            page.get_by_role("tab", name="Sample").click(force=True)
+            wait_for_text(page, "nothing in the way of walking it", timeout_ms=120_000)
+            assert "left_foot.z curve" not in page.inner_text("body")
     finally:
         studio.stop()

@@ -1,5 +1,6 @@
-"""The style-space benchmark's generator: every style it draws passes validation, and it
-really spreads over the validated ranges (not only around neutral)."""
+"""The style-space benchmark's generator: every style it draws passes validation, is authored
+like an animator would (knots at least a tenth of their interval apart, every curve within the
+rate and acceleration its channel follows), and really spreads over the validated ranges."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from engine.gait.style import StyleContext, load_style, styles_dir, validate_style
-from engine.gait.style_space import random_style
+from engine.gait.curve_rates import over_bound, rate_bound
+from engine.gait.style_space import MIN_KNOT_PHASE, random_style
 
 
 @lru_cache(maxsize=None)
@@ -25,6 +27,13 @@ def test_the_generator_only_produces_valid_styles(robot, seed, extent):
     ctx, neutral = robot_context(robot)
     style = random_style(np.random.default_rng(seed), ctx, neutral, extent)
     validate_style(style, ctx)  # raises StyleError on any violation
+    for sample in style.samples.values():
+        for channel, curve in sample.curves.items():
+            assert over_bound(curve, rate_bound(channel, ctx.joint_velocity_limits)) <= 1.0, channel
+            times = np.array([k.t_s for k in curve.knots])
+            gaps = np.diff(np.append(times, times[0] + curve.duration_s) if curve.periodic else times)
+            if len(times) > 1:
+                assert gaps.min() >= MIN_KNOT_PHASE * curve.duration_s * (1 - 1e-9), channel
 
 
 def test_the_generator_spans_the_validated_ranges():
