@@ -458,6 +458,9 @@ class WalkingController:
         (after the other foot lands) catches it: the gait should hurry, not wait. The external
         push the observer sees moves the reachable CoP (the MPC's shift) and counts too.
         """
+        if self.params.hurry_while_pushed and self.observer.force_n.any():
+            lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double
+            return dataclasses.replace(fb, kappa=max(fb.kappa, hi))
         if not math.isfinite(self.params.lateral_capture_margin_m):
             return fb
         planner = self.planner

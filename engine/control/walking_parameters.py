@@ -37,6 +37,9 @@ class WalkingParameters:
     lateral_xi_inset_m: float = 0.03
     # ξ this far beyond the stance foot's outer edge hurries the gait (inf: never).
     lateral_capture_margin_m: float = 0.0
+    # While the push observer sees a push, single and double supports run at the time scaling's upper
+    # bound (the steps that catch a pushed ξ land sooner; the ξ error the κ law reads is small after a plan restart).
+    hurry_while_pushed: bool = False
     # Push observer: response time and the force per kg below which model errors hide pushes.
     observer_time_constant_s: float = 0.08
     observer_deadband_n_per_kg: float = 0.25

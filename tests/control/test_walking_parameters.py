@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from engine.control.gait_feedback import GaitFeedbackGains
@@ -59,3 +60,26 @@ def test_mpc_rate_parameter_solves_every_other_planner_tick() -> None:
         sim.step()
     assert solves == [0, 8, 16, 24, 32]  # the first plan at once, then every second planner tick (8 ms apart)
     assert ctrl.plan is not None and ctrl.plan.ok
+
+
+def test_talos_hurries_every_support_while_pushed() -> None:
+    """robots/talos.toml hurry_while_pushed: with the observer seeing a push, κ goes to its upper bound in
+    single (2.0) and double support whatever the CoM error says; without a push the κ law is left alone."""
+    from engine.control.gait_feedback import FeedbackOutput
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+
+    params = WalkingParameters.for_robot("talos")
+    assert params.hurry_while_pushed and params.capture_from_stance_foot and params.max_step_width_m == 0.6
+    assert GaitFeedbackGains.for_robot("talos").kappa_single == (0.75, 2.0)
+    assert not WalkingParameters.for_robot("g1").hurry_while_pushed
+    robot = load_robot("talos")
+    ctrl = WalkingController(robot, load_style(styles_dir("talos") / "neutral.json"))
+    fb = FeedbackOutput(np.zeros(2), np.zeros(2), 0.9, -0.02, -0.1, np.zeros(2))  # a lagging CoM slows the gait
+    com = np.zeros(2)
+    ctrl.observer.force_n = np.zeros(2)
+    assert ctrl._hurry_when_thrown_out(fb, com, np.zeros(2), 0.9, "left", single=True).kappa == 0.9
+    ctrl.observer.force_n = np.array([0.0, -100.0])
+    assert ctrl._hurry_when_thrown_out(fb, com, np.zeros(2), 0.9, "left", single=True).kappa == 2.0
+    assert ctrl._hurry_when_thrown_out(fb, com, np.zeros(2), 0.9, "left", single=False).kappa == 2.0  # κ_double's bound
