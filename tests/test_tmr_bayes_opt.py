@@ -75,8 +75,8 @@ def test_initial_design_starts_with_the_identity_then_the_bounds(dims, bound, po
 
 
 def test_finds_an_optimum_on_the_bound_that_interior_points_miss() -> None:
-    """The TMR case of issue 10: only a uniform slow-down to the bound stands (score ≈ 0), every other α falls
-    earlier the faster it is (scores −1.x) — BO finds the bound with the second evaluation and stops soon after."""
+    """The TMR case of issue 10: only the motion shortened to the lower bound stands (score ≈ 0), every other α
+    falls, later the nearer it is to the bound (scores −1.x) — BO finds the bound with the second evaluation and stops soon after."""
     calls = []
 
     def f(x: np.ndarray) -> float:

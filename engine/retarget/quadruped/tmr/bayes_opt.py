@@ -5,10 +5,11 @@ expected improvement — both from the maintained ``bayesian-optimization`` libr
 (bounds [−B, B] per segment) and stops when the budget is spent or when the suggestions have settled on the best
 point (convergence).
 
-The warm start (``initial_design``) is the identity α = 1, then the uniform slow-down (every segment at
-log2 α = −B) and the uniform speed-up (+B), then random samples (the paper's random warm start). The bounds come
+The warm start (``initial_design``) is the identity α = 1, then the lower bound in every segment (log2 α = −B:
+the motion shortened to 2^−B of its duration, played faster, its ballistic flights lower) and the upper bound
+(+B: lengthened), then random samples (the paper's random warm start). The bounds come
 first because EI rarely proposes them from a few interior points, and the bound is where the motions that are
-too fast for the robot are solved: go1 HopTurn / SideSteps track at α = 0.5 and fall at α ≈ 0.59, and a warm
+that are too much for the robot are solved: go1 HopTurn / SideSteps track at α = 0.5 and fall at α ≈ 0.59, and a warm
 start of α = 1, 0.73, 1.21 with three EI proposals never got there (issue 10, third round).
 
 A suggestion within ``duplicate_log2`` of a point already evaluated is not evaluated again (the inner solve is
@@ -36,7 +37,7 @@ from engine.retarget.quadruped.tmr.ddp import Cancelled
 @dataclass
 class BOSettings:
     budget: int = 10  # evaluations at most
-    init_points: int = 3  # warm start: the identity, the uniform slow-down and speed-up, then random points
+    init_points: int = 3  # warm start: the identity, log2 α = −B then +B in every segment, then random points
     parallel: int = 1  # evaluations in flight at once
     xi: float = 0.05  # exploration of expected improvement (Eq. 18)
     noise: float = 1e-3  # GP observation noise (normalised scores): tracking scores are not smooth in α
@@ -95,7 +96,7 @@ def _suggest(dims: int, bound: float, observed: list[tuple[np.ndarray, float]], 
 
 
 def initial_design(dims: int, bound: float, points: int, rng: np.random.Generator) -> list[np.ndarray]:
-    """The warm start: identity, uniform slow-down (−bound), uniform speed-up (+bound), then uniform random."""
+    """The warm start: identity, every segment at −bound (shortened), at +bound (lengthened), then uniform random."""
     corners = [np.zeros(dims), np.full(dims, -float(bound)), np.full(dims, float(bound))]
     n = max(int(points), 1)
     return corners[:n] + [rng.uniform(-bound, bound, dims) for _ in range(n - len(corners))]
