@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.retarget.quadruped.tmr.bayes_opt import BOSettings, bayes_optimise
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.retarget.quadruped.tmr.bayes_opt import BOSettings, bayes_optimise, initial_design
 from engine.retarget.quadruped.tmr.ddp import Cancelled
 from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor
 
@@ -58,3 +61,46 @@ def test_warm_start_begins_with_the_identity_and_cancel_stops() -> None:
     with pytest.raises(Cancelled):
         _run(f, 1, 1.0, BOSettings(budget=10), cancel=lambda: len(calls) >= 2)
     assert len(calls) == 2 and calls[0][0] == 0.0
+
+
+@settings(max_examples=30, deadline=None)
+@given(dims=st.integers(1, 3), bound=st.floats(0.1, 2.0), points=st.integers(1, 8), seed=st.integers(0, 99))
+def test_initial_design_starts_with_the_identity_then_the_bounds(dims, bound, points, seed) -> None:  # noqa: ANN001
+    design = initial_design(dims, bound, points, np.random.default_rng(seed))
+    assert len(design) == points
+    corners = [np.zeros(dims), np.full(dims, -bound), np.full(dims, bound)]
+    for got, want in zip(design, corners):
+        np.testing.assert_array_equal(got, want)
+    assert all(np.all(np.abs(x) <= bound) for x in design)
+
+
+def test_finds_an_optimum_on_the_bound_that_interior_points_miss() -> None:
+    """The TMR case of issue 10: only the motion shortened to the lower bound stands (score ≈ 0), every other α
+    falls, later the nearer it is to the bound (scores −1.x) — BO finds the bound with the second evaluation and stops soon after."""
+    calls = []
+
+    def f(x: np.ndarray) -> float:
+        calls.append(float(x[0]))
+        if x[0] <= -0.95:
+            return -0.05 * x[0] ** 2
+        return -1.0 - 2.0 * (1.0 - (0.5 - 0.5 * x[0]) * 0.6)
+
+    res = _run(f, 1, 1.0, BOSettings(budget=6, init_points=3, seed=0))
+    assert calls[:2] == [0.0, -1.0]
+    assert res.best_log2_alpha[0] <= -0.95 and res.best_score > -0.1
+
+
+def test_a_suggestion_already_evaluated_is_not_evaluated_again() -> None:
+    """A flat score: EI has nothing to go on and returns to known points; each α is evaluated once at most and
+    the search converges before the budget."""
+    calls = []
+
+    def f(x: np.ndarray) -> float:
+        calls.append(float(x[0]))
+        return 0.0 if x[0] <= -0.99 else -1.0
+
+    res = _run(f, 1, 1.0, BOSettings(budget=30, init_points=3, seed=0))
+    xs = np.array(calls)
+    assert np.min(np.abs(xs[:, None] - xs[None, :]) + np.eye(len(xs)) * 9, initial=9) >= 1e-3
+    assert res.evaluations == len(calls) <= 30
+    assert res.best_log2_alpha[0] == -1.0

@@ -1,5 +1,6 @@
-"""The TMR score (Eq. 15 + our fall penalty): a fall always scores below the same motion standing, and among
-falls, the later one scores higher (BO climbs towards the α that gets furthest)."""
+"""The TMR score (Eq. 15 + our fall shaping): a fall always scores below a standing replay, among falls with the
+same pre-fall tracking the later one scores higher, a fall much later scores higher whatever the tracking, and
+what the robot does after it fell does not count (BO climbs towards the α that gets furthest)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.retarget.quadruped.tmr.scoring import tmr_score
+from engine.retarget.quadruped.tmr.scoring import (
+    FALL_PENALTY,
+    FALL_PENALTY_PER_SHARE_LEFT,
+    FALLEN_TRACKING_BOUND,
+    tmr_score,
+)
 
 
 def _motion(seed: int, T: int = 20):  # noqa: ANN202
@@ -29,8 +35,46 @@ def test_falls_score_below_standing_and_later_falls_score_higher(seed, a, b, log
     early, late = sorted((a, b))
     s_early = tmr_score(q, c, q_ref, c_ref, alpha, True, fall_fraction=early)["score"]
     s_late = tmr_score(q, c, q_ref, c_ref, alpha, True, fall_fraction=late)["score"]
-    assert s_early <= s_late < up
-    assert up - s_late >= 1.0  # at least the whole fall penalty
+    assert s_late < up
+    if up > FALLEN_TRACKING_BOUND - FALL_PENALTY:  # any standing replay that is not metres off
+        assert up - s_late > 0.0
+    if late - early > 2 * FALLEN_TRACKING_BOUND / FALL_PENALTY_PER_SHARE_LEFT:
+        assert s_early < s_late  # a fall much later wins whatever the tracking before it
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 1000), a=st.floats(0.0, 1.0), b=st.floats(0.0, 1.0), log2=st.floats(-1, 1),
+       err=st.floats(0.0, 0.3))
+def test_of_two_falls_with_the_same_tracking_the_later_scores_higher(seed, a, b, log2, err) -> None:  # noqa: ANN001
+    """A replay that follows its target with a constant offset until it falls: the later fall scores higher (the
+    pre-fall terms are the same, the penalty shrinks with the share left), strictly, for any positive gap."""
+    q_ref, c = _motion(seed)
+    q = q_ref.copy()
+    q[:, 0] += err
+    early, late = sorted((a, b))
+    alpha = np.array([log2])
+    s_early = tmr_score(q, c, q_ref, c, alpha, True, fall_fraction=early)
+    s_late = tmr_score(q, c, q_ref, c, alpha, True, fall_fraction=late)
+    assert s_early["d_b_m"] == pytest.approx(err) and s_late["d_b_m"] == pytest.approx(err)
+    if late - early > 1e-9:
+        assert s_early["score"] < s_late["score"]
+    assert s_early["fall_penalty"] == pytest.approx(FALL_PENALTY + FALL_PENALTY_PER_SHARE_LEFT * (1 - early))
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 1000), fall=st.floats(0.1, 0.9), junk=st.floats(0.1, 5.0))
+def test_what_happens_after_the_fall_does_not_count(seed, fall, junk) -> None:  # noqa: ANN001
+    """The rollout after its fall (lying on the floor, sliding away) changes nothing: only the frames before count."""
+    q_ref, c = _motion(seed)
+    q = q_ref.copy()
+    q_far = q_ref.copy()
+    k = int(round(fall * (len(q) - 1))) + 1
+    q_far[k:, 0:3] += junk
+    alpha = np.zeros(1)
+    s = tmr_score(q, c, q_ref, c, alpha, True, fall_fraction=fall)
+    s_far = tmr_score(q_far, c, q_ref, c, alpha, True, fall_fraction=fall)
+    assert s_far["score"] == pytest.approx(s["score"])
+    assert tmr_score(q, c, q_ref, c, alpha, False)["score"] > s["score"]
 
 
 @settings(max_examples=30, deadline=None)

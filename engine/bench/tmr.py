@@ -10,7 +10,10 @@ so; the in-process row is then the serial figure.
 six clips (§VIII-C, Table II/Fig. 6) × go1, a1 and anymal_c: UVM's and SMR's motions tracked as they are (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
 falls or not, DTW-normalised keypoint L1 (%) against SMR's motion at its frames (the same measure for both;
 STMR's against its own re-timed target too), tracking error (mm) against the motion each tracked, plus α and
-the durations, and the wall time of each stage.
+the durations, and the wall time of each stage; the CPU time of this process for the inner solve at α = 1 and the
+whole TMR (the evaluations' own when they run in process) and their ratio — wall times on a shared machine are
+inflated by its load, CPU times much less; ``bo_trace`` lists BO's evaluations in order: α, ✓ (stood) or ↓ and
+the fall time (s), and the evaluation's wall time.
 """
 
 from __future__ import annotations
@@ -146,11 +149,13 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
             t0 = time.perf_counter()
             smr = retarget_detailed(src, robot, "smr").motion
             t_smr = time.perf_counter() - t0
+            c0 = time.process_time()
             tracked = track_motion(smr, settings)  # one inner solve at α = 1: SMR's motion as it is
+            cpu_inner = time.process_time() - c0
             uvm = track_motion(retarget_detailed(src, robot, "uvm").motion, settings)  # UVM's, the same way
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             res = temporal_retarget(smr, settings, executor=executor)
-            t_tmr = time.perf_counter() - t0
+            t_tmr, cpu_tmr = time.perf_counter() - t0, time.process_time() - c0
             s = res.summary
             paper = PAPER_TABLE_II.get((robot, clip), ("", ""))
             rows.append({
@@ -163,7 +168,14 @@ def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CL
                 "stmr_fell": s["replay_fell"], "stmr_fell_at_s": s["replay_fell_at_s"],
                 "stmr_dtw_pct": s["dtw_keypoint_l1_pct"], "stmr_dtw_vs_target_pct": s["dtw_vs_target_pct"], "stmr_track_mm": s["tracking_error_mm"],
                 "evals": s["bo_evaluations"], "smr_s": round(t_smr, 2), "inner_solve_s": tracked["wall_time_s"],
-                "tmr_s": round(t_tmr, 1), "paper_stmr_dtw_pct": paper[0], "paper_smr_dtw_pct": paper[1],
+                "tmr_s": round(t_tmr, 1),
+                # CPU time of this process (the evaluations' own when they run in process, not on Ray workers)
+                "inner_solve_cpu_s": round(cpu_inner, 1), "tmr_cpu_s": round(cpu_tmr, 1),
+                "tmr_vs_inner_solve_cpu": round(cpu_tmr / cpu_inner, 2) if cpu_inner > 0 else None,
+                "bo_trace": " ".join(f"{e['alpha'][0] if len(e['alpha']) == 1 else e['alpha']}"
+                                     f"{'↓' + str(e['fell_at_s']) if e['replay_fell'] else '✓'}({e['wall_time_s']:g}s)"
+                                     for e in res.evaluations),
+                "paper_stmr_dtw_pct": paper[0], "paper_smr_dtw_pct": paper[1],
             })
             print(f"bench tmr-clips: {rows[-1]}", file=sys.stderr, flush=True)
     if isinstance(executor, RayExecutor):

@@ -2,11 +2,23 @@
 
 A Gaussian process with a Matérn kernel (ν = 5/2) is fitted to the scores seen so far and the next α maximises
 expected improvement — both from the maintained ``bayesian-optimization`` library. The search runs in log2 α
-(bounds [−B, B] per segment), starts with the identity α = 1 and random samples (the warm start), and stops
-when the budget is spent or when the suggestions have settled on the best point (convergence).
+(bounds [−B, B] per segment) and stops when the budget is spent or when the suggestions have settled on the best
+point (convergence).
+
+The warm start (``initial_design``) is the identity α = 1, then the lower bound in every segment (log2 α = −B:
+the motion shortened to 2^−B of its duration, played faster, its ballistic flights lower) and the upper bound
+(+B: lengthened), then random samples (the paper's random warm start). The bounds come
+first because EI rarely proposes them from a few interior points, and the bound is where the motions that are
+that are too much for the robot are solved: go1 HopTurn / SideSteps track at α = 0.5 and fall at α ≈ 0.59, and a warm
+start of α = 1, 0.73, 1.21 with three EI proposals never got there (issue 10, third round).
+
+A suggestion within ``duplicate_log2`` of a point already evaluated is not evaluated again (the inner solve is
+deterministic: it would cost a solve and teach the GP nothing); it counts as a settled step, so a search whose
+acquisition keeps returning to a known point converges instead of spending its budget there.
 
 Evaluations run in parallel batches on an executor (``engine.retarget.quadruped.tmr.ray_jobs``): while a batch
-is out, the pending points are registered with a constant lie (the worst score so far) so that the next
+is out, the pending points are registered with a constant lie (the median score so far — the worst one, with
+falls scoring −1 to −3 against ~0 for a standing replay, sent the next proposals far away) so that the next
 suggestions spread out instead of repeating. Every evaluation reports progress (k of N, best score, current α)
 and the search can be cancelled between evaluations.
 """
@@ -25,12 +37,13 @@ from engine.retarget.quadruped.tmr.ddp import Cancelled
 @dataclass
 class BOSettings:
     budget: int = 10  # evaluations at most
-    init_points: int = 3  # warm start: the identity + (init_points − 1) random points
+    init_points: int = 3  # warm start: the identity, log2 α = −B then +B in every segment, then random points
     parallel: int = 1  # evaluations in flight at once
     xi: float = 0.05  # exploration of expected improvement (Eq. 18)
     noise: float = 1e-3  # GP observation noise (normalised scores): tracking scores are not smooth in α
     convergence_log2: float = 0.05  # suggestions within this of the best point count as "settled"
     patience: int = 3  # settled suggestions in a row without improvement → converged
+    duplicate_log2: float = 1e-3  # a suggestion this close (max-norm) to an evaluated point is not re-evaluated
     seed: int = 0
 
 
@@ -71,7 +84,7 @@ def _suggest(dims: int, bound: float, observed: list[tuple[np.ndarray, float]], 
         acquisition_function=acquisition.ExpectedImprovement(xi=settings.xi),
         random_state=int(rng.integers(2**31)), verbose=0, allow_duplicate_points=True)
     opt.set_gp_params(alpha=settings.noise)
-    lie = min(s for _, s in observed)
+    lie = float(np.median([s for _, s in observed]))
     for x, s in observed:
         opt.register(params=dict(zip(keys, map(float, x))), target=float(s))
     for x in pending:
@@ -80,6 +93,13 @@ def _suggest(dims: int, bound: float, observed: list[tuple[np.ndarray, float]], 
         warnings.simplefilter("ignore")  # sklearn's GP convergence notes on tiny data sets
         params = opt.suggest()
     return np.array([params[k] for k in keys], dtype=float)
+
+
+def initial_design(dims: int, bound: float, points: int, rng: np.random.Generator) -> list[np.ndarray]:
+    """The warm start: identity, every segment at −bound (shortened), at +bound (lengthened), then uniform random."""
+    corners = [np.zeros(dims), np.full(dims, -float(bound)), np.full(dims, float(bound))]
+    n = max(int(points), 1)
+    return corners[:n] + [rng.uniform(-bound, bound, dims) for _ in range(n - len(corners))]
 
 
 def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callable[[list[Any]], list[tuple[Any, float, Any]]],
@@ -95,13 +115,14 @@ def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callab
     if settings.budget < 1:
         raise ValueError("budget must be ≥ 1")
     rng = np.random.default_rng(settings.seed)
-    warm = [np.zeros(dims)] + [rng.uniform(-bound, bound, dims) for _ in range(max(settings.init_points, 1) - 1)]
+    warm = initial_design(dims, bound, settings.init_points, rng)
     observed: list[tuple[np.ndarray, float]] = []
     payloads: list[Any] = []
     running: dict[Any, np.ndarray] = {}
     submitted = 0
     settled = 0
     converged = False
+    repeats = 0  # suggestions that duplicated an evaluated point (not evaluated again)
 
     def next_point() -> np.ndarray:
         if submitted < len(warm):
@@ -119,6 +140,16 @@ def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callab
                 if observed and submitted >= len(warm):
                     best_x = observed[int(np.argmax([s for _, s in observed]))][0]
                     settled = settled + 1 if np.max(np.abs(x - best_x)) < settings.convergence_log2 else 0
+                    known = [y for y in [*(y for y, _ in observed), *running.values()]
+                             if np.max(np.abs(x - y)) < settings.duplicate_log2]
+                    if known:  # already evaluated (or under way): no second solve of the same α
+                        repeats += 1
+                        settled = max(settled, repeats)
+                        if settled >= settings.patience:
+                            converged = True
+                        elif running:
+                            break  # wait for the running evaluations: the GP learns something new first
+                        continue
                 running[evaluate_submit(x)] = x
                 submitted += 1
             if not running:
