@@ -25,6 +25,7 @@ from studio.panels.plots_panel import PlotsPanel
 from studio.panels.robot_panel import RobotPanel
 from studio.robot_view import RobotView
 from studio.style_session import StyleSession
+from studio.viser_threads import allow_pushes_from_threads
 
 if TYPE_CHECKING:
     from studio.panels.curve_editor import CurveEditor
@@ -46,6 +47,7 @@ class Studio:
         self.robot_name = robot
         self.styles_folder = styles_folder
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
+        allow_pushes_from_threads(self.server)  # frames, telemetry, joystick and callbacks push from threads
         self.token = token
         if token:
             from studio.access import require_token

@@ -22,6 +22,7 @@ import shutil
 import tempfile
 import threading
 import time
+import traceback
 from pathlib import Path
 
 
@@ -215,7 +216,13 @@ class _Errors(logging.Handler):
         self.records: list[str] = []
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.records.append(f"{record.name}: {record.getMessage()}"[:200])
+        text = f"{record.name}: {record.getMessage()}"[:200]
+        if record.exc_info and record.exc_info[1] is not None:  # the exception and where it was raised
+            exc = record.exc_info[1]
+            where = " < ".join(f"{Path(f.filename).name}:{f.lineno} {f.name}"
+                               for f in reversed(traceback.extract_tb(exc.__traceback__)[-4:]))
+            text += f" | {type(exc).__name__}: {exc} at {where}"[:400]
+        self.records.append(text)
 
 
 def _free_port() -> int:
@@ -314,7 +321,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         (w0, s0), (w1, s1) = window[0], window[-1]
         drift = (s1 - s0) / (w1 - w0) - 1.0
         rates = [c.rates() for c in pool]
-        error_notices = [t for level, t in studio.notices if level == "error"]
+        error_notices = [t for level, t in studio.notices  # the link logs its own (with the traceback)
+                         if level == "error" and not t.startswith("studio failed to show ")]
         exceptions = (errors.records + thread_errors + [c.error for c in pool if c.error]
                       + [b.error for b in browsers if b.error] + error_notices)
         rows = [{
