@@ -158,6 +158,51 @@ def _process_cpu_s(pid: int | None) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _children() -> dict[int, list[int]]:
+    out: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            out.setdefault(ppid, []).append(int(d.name))
+    return out
+
+
+def _tab_processes(engine_pid: int | None) -> list[int]:
+    """This process's descendants but the engine's: the tabs (playwright's driver and Chromium's processes)."""
+    children, found, todo = _children(), [], [os.getpid()]
+    while todo:
+        for kid in children.get(todo.pop(), []):
+            if kid != engine_pid:
+                found.append(kid)
+                todo.append(kid)
+    return found
+
+
+def _tabs_cpu_s(pids: list[int]) -> dict[int, float]:
+    return {pid: cpu for pid in pids if (cpu := _process_cpu_s(pid)) == cpu}  # NaN: gone
+
+
+def _lowest_nice(pids: list[int]) -> int | None:
+    """The lowest niceness of any thread of ``pids`` (Chromium sets it per thread)."""
+    values = []
+    for pid in pids:
+        try:
+            for task in Path(f"/proc/{pid}/task").iterdir():
+                values.append(int((task / "stat").read_text().rsplit(")", 1)[1].split()[16]))
+        except (OSError, IndexError, ValueError):
+            continue
+    return min(values) if values else None
+
+
+def _machine_busy_s() -> float:
+    """CPU seconds all cores spent busy since boot (/proc/stat: everything but idle and iowait)."""
+    fields = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    return (sum(fields[:8]) - fields[3] - fields[4]) / os.sysconf("SC_CLK_TCK")
+
+
 class _Tab(threading.Thread):
     """One headless Chromium tab on the studio, counting the frames it renders (requestAnimationFrame)."""
 
@@ -321,6 +366,9 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         t0 = time.monotonic()
         marked, frame_mark = False, 0
         drawn0, rates_hz = 0, []  # frames the studio drew, its stream rate: from the mark on
+        tab_pids: list[int] = []
+        tabs_cpu0: dict[int, float] = {}
+        tab_nice_seen: int | None = None
         rss0 = (float("nan"), float("nan"))
         restarts0 = studio.link.restarts
         next_push, next_edit, edits, pushes = t0 + 10.0, t0 + 5.0, 0, 0
@@ -349,6 +397,9 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 marked = True
                 rss0 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
                 cpu0, engine_cpu0, cpu_t0 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
+                tab_pids = _tab_processes(studio.link.pid) if browsers else []
+                tabs_cpu0, machine0 = _tabs_cpu_s(tab_pids), _machine_busy_s()
+                tab_nice_seen = _lowest_nice(tab_pids)
                 for c in pool:
                     c.mark()
                 marked_event.set()
@@ -363,6 +414,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             b.finished.wait(60)
         rss1 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
         cpu1, engine_cpu1, cpu_t1 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
+        machine1 = _machine_busy_s()
+        tabs_cpu1 = _tabs_cpu_s(tab_pids) if marked else {}
         window = frames[frame_mark:] if marked else frames
         (w0, s0), (w1, s1) = window[0], window[-1]
         drift = (s1 - s0) / (w1 - w0) - 1.0
@@ -404,6 +457,15 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 used = engine_cpu1 - engine_cpu0
                 rows.append({"section": "soak cpu", "what": "engine process", "cpu_ms_per_frame": round(1e3 * used / n_frames, 2),
                              "cpu_pct_of_core": round(100 * used / span_s, 1)})
+            tabs_used = sum(tabs_cpu1.get(p, c0) - c0 for p, c0 in tabs_cpu0.items())
+            if browsers:
+                rows.append({"section": "soak cpu", "what": f"browser tabs (lowest thread nice {tab_nice_seen})",
+                             "cpu_ms_per_frame": round(1e3 * tabs_used / n_frames, 2),
+                             "cpu_pct_of_core": round(100 * tabs_used / span_s, 1)})
+            bench_used = sum(cpu1.get(g, 0.0) - cpu0.get(g, 0.0) for g in groups if g.startswith("bench"))
+            ours = studio_used + bench_used + tabs_used + (engine_cpu1 - engine_cpu0)
+            rows.append({"section": "soak cpu", "what": "other processes on the machine", "cpu_ms_per_frame": "-",
+                         "cpu_pct_of_core": round(100 * (machine1 - machine0 - ours) / span_s, 1)})
         for text in exceptions[:20]:
             rows.append({"section": "soak exceptions", "what": "exception", "text": text})
         return rows
