@@ -185,16 +185,20 @@ def _tabs_cpu_s(pids: list[int]) -> dict[int, float]:
     return {pid: cpu for pid in pids if (cpu := _process_cpu_s(pid)) == cpu}  # NaN: gone
 
 
-def _lowest_nice(pids: list[int]) -> int | None:
-    """The lowest niceness of any thread of ``pids`` (Chromium sets it per thread)."""
-    values = []
+def _lowest_nice(pids: list[int]) -> str:
+    """The lowest niceness of any Chromium thread of ``pids`` (Chromium sets it per thread) and the niceness of
+    their autogroups (the share of the CPU the browser gets against the studio's session)."""
+    values, groups = [], set()
     for pid in pids:
         try:
+            if Path(f"/proc/{pid}/comm").read_text().strip() != "chromium":
+                continue
+            groups.add(Path(f"/proc/{pid}/autogroup").read_text().split()[-1])
             for task in Path(f"/proc/{pid}/task").iterdir():
                 values.append(int((task / "stat").read_text().rsplit(")", 1)[1].split()[16]))
         except (OSError, IndexError, ValueError):
             continue
-    return min(values) if values else None
+    return f"{min(values) if values else '?'}, autogroup nice {'/'.join(sorted(groups)) or '?'}"
 
 
 def _machine_busy_s() -> float:
@@ -203,28 +207,30 @@ def _machine_busy_s() -> float:
     return (sum(fields[:8]) - fields[3] - fields[4]) / os.sysconf("SC_CLK_TCK")
 
 
-class _Tab(threading.Thread):
-    """One headless Chromium tab on the studio, counting the frames it renders (requestAnimationFrame)."""
+class _Browser(threading.Thread):
+    """One headless Chromium with ``tabs`` tabs on the studio (as a user opens several tabs in one browser),
+    counting the frames each tab renders (requestAnimationFrame)."""
 
     COUNTER_JS = ("() => { if (!window.__soakFrames) { window.__soakFrames = 0; const tick = () => "
                   "{ window.__soakFrames++; requestAnimationFrame(tick); }; requestAnimationFrame(tick); } "
                   "return window.__soakFrames; }")
 
-    def __init__(self, url: str, stop: threading.Event, mark: threading.Event, executable: str | None = None):
+    def __init__(self, url: str, tabs: int, stop: threading.Event, mark: threading.Event, executable: str | None = None):
         super().__init__(daemon=True, name="soak-tab")
-        self.url, self.stop, self.mark_event = url, stop, mark
+        self.url, self.tabs, self.stop, self.mark_event = url, tabs, stop, mark
         self.executable = executable or shutil.which("chromium") or "/usr/bin/chromium"
         self.error = ""
         self.loaded = threading.Event()
-        self.window: tuple[int, float] | None = None
-        self.last: tuple[int, float] | None = None
+        self.window: list[tuple[int, float] | None] = [None] * tabs
+        self.last: list[tuple[int, float] | None] = [None] * tabs
         self.finish = threading.Event()  # take a last sample and stop
         self.finished = threading.Event()
 
-    def fps(self) -> float:
-        if self.window is None or self.last is None or self.last[1] <= self.window[1]:
+    def fps(self, tab: int) -> float:
+        first, last = self.window[tab], self.last[tab]
+        if first is None or last is None or last[1] <= first[1]:
             return float("nan")
-        return (self.last[0] - self.window[0]) / (self.last[1] - self.window[1])
+        return (last[0] - first[0]) / (last[1] - first[1])
 
     def run(self) -> None:
         try:
@@ -233,19 +239,23 @@ class _Tab(threading.Thread):
             with sync_playwright() as p:
                 browser = p.chromium.launch(executable_path=self.executable,
                                             args=["--no-sandbox", "--enable-unsafe-swiftshader"])
-                page = browser.new_page(viewport={"width": 800, "height": 600})
-                page.goto(self.url, timeout=120_000)
-                page.wait_for_selector("canvas", timeout=120_000)
-                page.evaluate(self.COUNTER_JS)
+                # one window per tab (a context each), all shown: a background tab would not render
+                pages = [browser.new_context(viewport={"width": 800, "height": 600}).new_page() for _ in range(self.tabs)]
+                for page in pages:
+                    page.goto(self.url, timeout=120_000)
+                for page in pages:
+                    page.wait_for_selector("canvas", timeout=120_000)
+                    page.evaluate(self.COUNTER_JS)
                 self.loaded.set()
                 while not self.stop.is_set():
                     final = self.finish.is_set()
-                    count = int(page.evaluate(self.COUNTER_JS))
-                    now = time.monotonic()
-                    if self.mark_event.is_set() and self.window is None:
-                        self.window = (count, now)
-                    elif self.window is not None:
-                        self.last = (count, now)
+                    for i, page in enumerate(pages):
+                        count = int(page.evaluate(self.COUNTER_JS))
+                        now = time.monotonic()
+                        if self.mark_event.is_set() and self.window[i] is None:
+                            self.window[i] = (count, now)
+                        elif self.window[i] is not None:
+                            self.last[i] = (count, now)
                     if final:
                         break
                     self.finish.wait(1.0)
@@ -288,22 +298,27 @@ def _may_raise_priority() -> bool:
 def _user_chromium(folder: Path, niceness: int) -> tuple[str, str]:
     """Debian's Chromium as an ordinary user's browser runs, and a description of its priority.
 
-    Chromium raises its browser and GPU processes (where software WebGL draws) to nice -8 when it may: as root
-    (this machine's bench runs as root) it may, on a user's own machine it may not, and at -8 the tabs' drawing
-    outweighs the engine ≈ 6 to 1. So the tabs start without that capability (``setpriv --bounding-set
-    -sys_nice``) and, with ``niceness`` > 0, at that niceness (renderer and GPU processes inherit it): what a
-    user can do to their own browser without privileges (``nice``), so the engine gets the CPU first."""
+    Playwright starts the browser in a session of its own, so with the kernel's autogroups (on here and on
+    most desktops) the browser and the studio (with its engine) get equal shares of the CPU whatever the
+    threads' niceness; inside the browser's share, Chromium raises its browser and GPU threads to nice -8 when
+    it may (as root it may; on a user's machine it may not). The browser starts without that capability
+    (``setpriv --bounding-set -sys_nice``) and, with ``niceness`` > 0, with its session's autogroup and its
+    processes at that niceness — what a user can do to their own browser without privileges (``nice``, and
+    ``/proc/<pid>/autogroup``), so the engine gets the CPU first."""
     chromium = shutil.which("chromium") or "/usr/bin/chromium"
     setpriv = shutil.which("setpriv")
+    lines = ["#!/bin/sh"]
     prefix = []
-    if _may_raise_priority() and setpriv:
-        prefix.append(f"{setpriv} --bounding-set -sys_nice")
     if niceness:
+        lines.append(f"echo {int(niceness)} > /proc/self/autogroup 2>/dev/null")  # this session: the browser's
         prefix.append(f"nice -n {int(niceness)}")
+    if _may_raise_priority() and setpriv:
+        prefix.insert(0, f"{setpriv} --bounding-set -sys_nice")
     if not prefix:
         return chromium, "nice 0"
     wrapper = folder / "chromium-as-user"
-    wrapper.write_text(f'#!/bin/sh\nexec {" ".join(prefix)} {chromium} "$@"\n')
+    lines.append(f'exec {" ".join(prefix)} {chromium} "$@"')
+    wrapper.write_text("\n".join(lines) + "\n")
     wrapper.chmod(0o755)
     cannot = "cannot raise itself" if setpriv or not _may_raise_priority() else "MAY raise itself to -8"
     return str(wrapper), f"nice {int(niceness)}, {cannot}"
@@ -344,7 +359,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
 
     studio.link.on_event = record
     pool: list[_Client] = []
-    browsers: list[_Tab] = []
+    browsers: list[_Browser] = []
     marked_event = threading.Event()
     try:
         if not studio.loaded.wait(180):
@@ -355,8 +370,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         for c in pool:
             c.start()
         chromium, tab_priority = _user_chromium(scratch, tab_nice)
-        browsers = [_Tab(f"http://127.0.0.1:{studio.server.get_port()}/", stop, marked_event, chromium)
-                    for _ in range(tabs)]
+        browsers = [_Browser(f"http://127.0.0.1:{studio.server.get_port()}/", tabs, stop, marked_event, chromium)
+                    ] if tabs else []
         for b in browsers:
             b.start()
         for b in browsers:  # the soak starts once every tab shows the studio
@@ -368,7 +383,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         drawn0, rates_hz = 0, []  # frames the studio drew, its stream rate: from the mark on
         tab_pids: list[int] = []
         tabs_cpu0: dict[int, float] = {}
-        tab_nice_seen: int | None = None
+        tab_nice_seen = "?"
         rss0 = (float("nan"), float("nan"))
         restarts0 = studio.link.restarts
         next_push, next_edit, edits, pushes = t0 + 10.0, t0 + 5.0, 0, 0
@@ -433,7 +448,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             "studio_drawn_frames_per_s": round((studio.frame_rate.admitted - drawn0) / (w1 - w0), 1) if marked else "-",
             "studio_stream_rate_hz": (f"{min(rates_hz):.0f}–{max(rates_hz):.0f}" if marked and rates_hz else "-"),
             "pushes": pushes, "edits": edits, "engine_restarts": studio.link.restarts - restarts0,
-            "tabs": tabs, "tab_priority": tab_priority if tabs else "-", "tab_fps": ", ".join(f"{b.fps():.1f}" for b in browsers) or "-",
+            "tabs": tabs, "tab_priority": tab_priority if tabs else "-", "tab_fps": ", ".join(f"{b.fps(i):.1f}" for b in browsers for i in range(b.tabs)) or "-",
             "exceptions": len(exceptions), "load_avg_1min": round(os.getloadavg()[0], 1), "cpus": os.cpu_count(),
         }]
         if rates:
@@ -456,10 +471,11 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             if studio.link.pid == engine_pid0:
                 used = engine_cpu1 - engine_cpu0
                 rows.append({"section": "soak cpu", "what": "engine process", "cpu_ms_per_frame": round(1e3 * used / n_frames, 2),
-                             "cpu_pct_of_core": round(100 * used / span_s, 1)})
+                             "cpu_pct_of_core": round(100 * used / span_s, 1),  # and what real time needs:
+                             "core_s_per_sim_s": round(used / (s1 - s0), 2) if s1 > s0 else "-"})
             tabs_used = sum(tabs_cpu1.get(p, c0) - c0 for p, c0 in tabs_cpu0.items())
             if browsers:
-                rows.append({"section": "soak cpu", "what": f"browser tabs (lowest thread nice {tab_nice_seen})",
+                rows.append({"section": "soak cpu", "what": f"browser tabs (thread nice ≥ {tab_nice_seen})",
                              "cpu_ms_per_frame": round(1e3 * tabs_used / n_frames, 2),
                              "cpu_pct_of_core": round(100 * tabs_used / span_s, 1)})
             bench_used = sum(cpu1.get(g, 0.0) - cpu0.get(g, 0.0) for g in groups if g.startswith("bench"))
