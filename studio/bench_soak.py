@@ -324,6 +324,17 @@ def _user_chromium(folder: Path, niceness: int) -> tuple[str, str]:
     return str(wrapper), f"nice {int(niceness)}, {cannot}"
 
 
+def _second_half_growth(timeline: list[tuple[float, float, float]], same_engine: bool) -> dict:
+    """RSS growth (%) of the studio and the engine over the second half of the measured window."""
+    if len(timeline) < 3:
+        return {}
+    t_mid = (timeline[0][0] + timeline[-1][0]) / 2
+    mid = min(timeline, key=lambda r: abs(r[0] - t_mid))
+    end = timeline[-1]
+    return {"studio_rss_growth_2nd_half_pct": round(100 * (end[1] / mid[1] - 1), 1),
+            "engine_rss_growth_2nd_half_pct": round(100 * (end[2] / mid[2] - 1), 1) if same_engine else "restarted"}
+
+
 def _free_port() -> int:
     import socket
 
@@ -385,6 +396,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         tabs_cpu0: dict[int, float] = {}
         tab_nice_seen = "?"
         rss0 = (float("nan"), float("nan"))
+        rss_timeline: list[tuple[float, float, float]] = []  # (time, studio MB, engine MB) every 15 s after warm-up
+        next_rss = 0.0
         restarts0 = studio.link.restarts
         next_push, next_edit, edits, pushes = t0 + 10.0, t0 + 5.0, 0, 0
         engine_pid0 = studio.link.pid
@@ -422,6 +435,9 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 drawn0 = studio.frame_rate.admitted
             if marked:
                 rates_hz.append(studio.frame_rate.rate_hz)
+            if marked and now >= next_rss:  # the RSS timeline: a step after warm-up or a steady climb?
+                rss_timeline.append((now, _rss_mb(os.getpid()), _rss_mb(studio.link.pid)))
+                next_rss = now + 15.0
             time.sleep(0.1)
         for b in browsers:  # each tab's last frame count
             b.finish.set()
@@ -444,6 +460,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             "studio_rss_mb": f"{rss0[0]:.0f}→{rss1[0]:.0f}", "studio_rss_growth_pct": round(100 * (rss1[0] / rss0[0] - 1), 1),
             "engine_rss_mb": f"{rss0[1]:.0f}→{rss1[1]:.0f}",
             "engine_rss_growth_pct": round(100 * (rss1[1] / rss0[1] - 1), 1) if studio.link.pid == engine_pid0 else "restarted",
+            # the second half of the measured window alone: a leak keeps climbing there, a one-time step does not
+            **_second_half_growth(rss_timeline + [(time.monotonic(), *rss1)], studio.link.pid == engine_pid0),
             "engine_frames_per_s": round((len(window) - 1) / (w1 - w0), 1), "sim_clock_drift_pct": round(100 * drift, 2),
             "studio_drawn_frames_per_s": round((studio.frame_rate.admitted - drawn0) / (w1 - w0), 1) if marked else "-",
             "studio_stream_rate_hz": (f"{min(rates_hz):.0f}–{max(rates_hz):.0f}" if marked and rates_hz else "-"),
@@ -482,6 +500,10 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             ours = studio_used + bench_used + tabs_used + (engine_cpu1 - engine_cpu0)
             rows.append({"section": "soak cpu", "what": "other processes on the machine", "cpu_ms_per_frame": "-",
                          "cpu_pct_of_core": round(100 * (machine1 - machine0 - ours) / span_s, 1)})
+        for i, (t, studio_mb, engine_mb) in enumerate(rss_timeline):
+            if i % 4 == 0 or i == len(rss_timeline) - 1:  # a sample a minute
+                rows.append({"section": "soak rss", "what": f"+{t - rss_timeline[0][0]:.0f} s",
+                             "studio_mb": round(studio_mb), "engine_mb": round(engine_mb)})
         for text in exceptions[:20]:
             rows.append({"section": "soak exceptions", "what": "exception", "text": text})
         return rows
