@@ -24,7 +24,9 @@ from studio.panels.drive_panel import GHOST_OFFSETS, DrivePanel
 from studio.panels.plots_panel import PlotsPanel
 from studio.panels.robot_panel import RobotPanel
 from studio.robot_view import RobotView
+from studio.stream_rate import FRAME_HZ, TELEMETRY_HZ, StreamRate
 from studio.style_session import StyleSession
+from studio.viser_threads import allow_pushes_from_threads
 
 if TYPE_CHECKING:
     from studio.panels.curve_editor import CurveEditor
@@ -46,6 +48,7 @@ class Studio:
         self.robot_name = robot
         self.styles_folder = styles_folder
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
+        allow_pushes_from_threads(self.server)  # frames, telemetry, joystick and callbacks push from threads
         self.token = token
         if token:
             from studio.access import require_token
@@ -73,6 +76,9 @@ class Studio:
         self._last_notice_time = 0.0
         self.loaded = threading.Event()
         self.last_telemetry: msg.Telemetry | None = None
+        self.last_engine_frame: msg.Frame | None = None  # the newest frame received (drawn or not)
+        self.frame_rate = StreamRate(*FRAME_HZ)  # how many of the engine's frames are drawn
+        self.telemetry_rate = StreamRate(*TELEMETRY_HZ)
         self.style_revision = 0
         self.edit_times: dict[int, float] = {}
         self.edit_latencies_s: list[float] = []
@@ -245,10 +251,7 @@ class Studio:
     def _on_event(self, event: msg.Event) -> None:
         self.events_seen[event.kind] = self.events_seen.get(event.kind, 0) + 1
         if isinstance(event, msg.Frame):
-            self.view.update(event)
-            if len(event.body_pos):
-                self._root_pos = event.body_pos[0]
-            self._measure_edit_latency(event)
+            self._on_frame(event)
         elif isinstance(event, msg.Telemetry):
             self._on_telemetry(event)
         elif isinstance(event, msg.RobotLoaded):
@@ -262,6 +265,23 @@ class Studio:
                 self.record.on_job(event)
             else:
                 self.retarget.on_job(event)
+
+    def _on_frame(self, event: msg.Frame) -> None:
+        """Draw the engine's frame — every one while the engine keeps real time, fewer while it falls behind
+        (:mod:`studio.stream_rate`: the CPU goes to the simulation first)."""
+        now = time.monotonic()
+        self.last_engine_frame = event
+        if len(event.body_pos):
+            self._root_pos = event.body_pos[0]
+        speed = float(self.drive.speed.value) if self.drive.speed.value else 1.0  # the sim clock's rate
+        for rate in (self.frame_rate, self.telemetry_rate):
+            rate.adapt(now, event.real_time_factor / speed)
+        shown = self.view.last_frame
+        urgent = shown is None or (event.mode, event.style_revision, event.paused, event.fallen) != (
+            shown.mode, shown.style_revision, shown.paused, shown.fallen)
+        if self.frame_rate.admit(now, urgent):
+            self.view.update(event)
+            self._measure_edit_latency(event)
 
     def _on_robot_loaded(self, event: msg.RobotLoaded) -> None:
         changed = event.robot != (self.session.robot if self.session else None)
@@ -294,15 +314,9 @@ class Studio:
     def _on_telemetry(self, event: msg.Telemetry) -> None:
         self.last_telemetry = event
         s = event.signals
-        with self.server.atomic():  # one wake-up of viser's sender for the overlays, the ghost and the tints
-            if "support_polygon" in s:
-                self.overlays.update(s)
-            if "ghost_body_pos" in s and self.ghost_visible:
-                self._place_ghost()
-                self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
-                                                 np.zeros(0), False, False, 0.0))
-            self._shade_joint_limits(s.get("joint_limit_proximity"))
-        self.plots.add(event.sim_time_s, s)
+        if self.telemetry_rate.admit(time.monotonic()):
+            self._draw_telemetry(event)
+        self.plots.add(event.sim_time_s, s)  # every sample: the plots' data, drawn at 2 Hz
         if "puppet" in s:
             self.puppet.on_telemetry(s, self._root_pos, event.sim_time_s)
         style = self.session.style if self.session is not None else None
@@ -315,6 +329,18 @@ class Studio:
                                                if self.mode == "edit" else None)
             except Exception:  # noqa: BLE001 - the playhead is cosmetic
                 pass
+
+    def _draw_telemetry(self, event: msg.Telemetry) -> None:
+        """The overlays, the ghost and the joint-limit tints (at :data:`studio.stream_rate.TELEMETRY_HZ`)."""
+        s = event.signals
+        with self.server.atomic():  # one wake-up of viser's sender for the overlays, the ghost and the tints
+            if "support_polygon" in s:
+                self.overlays.update(s)
+            if "ghost_body_pos" in s and self.ghost_visible:
+                self._place_ghost()
+                self.ghost_view.update(msg.Frame(0, event.sim_time_s, s["ghost_body_pos"], s["ghost_body_quat"],
+                                                 np.zeros(0), False, False, 0.0))
+            self._shade_joint_limits(s.get("joint_limit_proximity"))
 
     def _shade_joint_limits(self, proximity) -> None:
         """Links whose joint nears a limit turn red (paper §6.1)."""

@@ -3,13 +3,14 @@
 The studio runs in this process (a real engine process behind it) in Test mode. C headless WebSocket
 clients speak viser's protocol (the subprotocol handshake and a camera message, as a browser tab does)
 and count what the server streams to them; T browser tabs (Debian's headless Chromium through playwright,
-software WebGL) render the studio and count the frames they draw (requestAnimationFrame). Meanwhile the joystick is held (forward, then turning), the
+software WebGL) render the studio and count the frames they draw (requestAnimationFrame); they run as on a user's own machine, unable to raise their
+priority over the engine (``--tab-nice N`` also lowers it, as a user can). Meanwhile the joystick is held (forward, then turning), the
 pelvis is pushed every 10 s and a sample attribute is edited every 5 s (through the style session, so
 each edit is validated, autosaved and sent to the engine).
 
 Reported: RSS of the studio and of the engine at the end of warm-up and at the end (growth in %),
 WebSocket messages and bytes per second per client, frames per second each browser tab drew, frames per second the studio received from the
-engine, sim-clock drift against the wall clock (Δsim/Δwall − 1 over the measured window, playback speed
+engine and how many of them it drew (its stream rate, :mod:`studio.stream_rate`), sim-clock drift against the wall clock (Δsim/Δwall − 1 over the measured window, playback speed
 1), engine restarts, and every exception seen (logging records with a traceback, thread exceptions,
 error notices).
 """
@@ -22,6 +23,7 @@ import shutil
 import tempfile
 import threading
 import time
+import traceback
 from pathlib import Path
 
 
@@ -156,48 +158,104 @@ def _process_cpu_s(pid: int | None) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-class _Tab(threading.Thread):
-    """One headless Chromium tab on the studio, counting the frames it renders (requestAnimationFrame)."""
+def _children() -> dict[int, list[int]]:
+    out: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            out.setdefault(ppid, []).append(int(d.name))
+    return out
+
+
+def _tab_processes(engine_pid: int | None) -> list[int]:
+    """This process's descendants but the engine's: the tabs (playwright's driver and Chromium's processes)."""
+    children, found, todo = _children(), [], [os.getpid()]
+    while todo:
+        for kid in children.get(todo.pop(), []):
+            if kid != engine_pid:
+                found.append(kid)
+                todo.append(kid)
+    return found
+
+
+def _tabs_cpu_s(pids: list[int]) -> dict[int, float]:
+    return {pid: cpu for pid in pids if (cpu := _process_cpu_s(pid)) == cpu}  # NaN: gone
+
+
+def _lowest_nice(pids: list[int]) -> str:
+    """The lowest niceness of any Chromium thread of ``pids`` (Chromium sets it per thread) and the niceness of
+    their autogroups (the share of the CPU the browser gets against the studio's session)."""
+    values, groups = [], set()
+    for pid in pids:
+        try:
+            if Path(f"/proc/{pid}/comm").read_text().strip() != "chromium":
+                continue
+            groups.add(Path(f"/proc/{pid}/autogroup").read_text().split()[-1])
+            for task in Path(f"/proc/{pid}/task").iterdir():
+                values.append(int((task / "stat").read_text().rsplit(")", 1)[1].split()[16]))
+        except (OSError, IndexError, ValueError):
+            continue
+    return f"{min(values) if values else '?'}, autogroup nice {'/'.join(sorted(groups)) or '?'}"
+
+
+def _machine_busy_s() -> float:
+    """CPU seconds all cores spent busy since boot (/proc/stat: everything but idle and iowait)."""
+    fields = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    return (sum(fields[:8]) - fields[3] - fields[4]) / os.sysconf("SC_CLK_TCK")
+
+
+class _Browser(threading.Thread):
+    """One headless Chromium with ``tabs`` tabs on the studio (as a user opens several tabs in one browser),
+    counting the frames each tab renders (requestAnimationFrame)."""
 
     COUNTER_JS = ("() => { if (!window.__soakFrames) { window.__soakFrames = 0; const tick = () => "
                   "{ window.__soakFrames++; requestAnimationFrame(tick); }; requestAnimationFrame(tick); } "
                   "return window.__soakFrames; }")
 
-    def __init__(self, url: str, stop: threading.Event, mark: threading.Event):
+    def __init__(self, url: str, tabs: int, stop: threading.Event, mark: threading.Event, executable: str | None = None):
         super().__init__(daemon=True, name="soak-tab")
-        self.url, self.stop, self.mark_event = url, stop, mark
+        self.url, self.tabs, self.stop, self.mark_event = url, tabs, stop, mark
+        self.executable = executable or shutil.which("chromium") or "/usr/bin/chromium"
         self.error = ""
         self.loaded = threading.Event()
-        self.window: tuple[int, float] | None = None
-        self.last: tuple[int, float] | None = None
+        self.window: list[tuple[int, float] | None] = [None] * tabs
+        self.last: list[tuple[int, float] | None] = [None] * tabs
         self.finish = threading.Event()  # take a last sample and stop
         self.finished = threading.Event()
 
-    def fps(self) -> float:
-        if self.window is None or self.last is None or self.last[1] <= self.window[1]:
+    def fps(self, tab: int) -> float:
+        first, last = self.window[tab], self.last[tab]
+        if first is None or last is None or last[1] <= first[1]:
             return float("nan")
-        return (self.last[0] - self.window[0]) / (self.last[1] - self.window[1])
+        return (last[0] - first[0]) / (last[1] - first[1])
 
     def run(self) -> None:
         try:
             from playwright.sync_api import sync_playwright
 
             with sync_playwright() as p:
-                browser = p.chromium.launch(executable_path=shutil.which("chromium") or "/usr/bin/chromium",
+                browser = p.chromium.launch(executable_path=self.executable,
                                             args=["--no-sandbox", "--enable-unsafe-swiftshader"])
-                page = browser.new_page(viewport={"width": 800, "height": 600})
-                page.goto(self.url, timeout=120_000)
-                page.wait_for_selector("canvas", timeout=120_000)
-                page.evaluate(self.COUNTER_JS)
+                # one window per tab (a context each), all shown: a background tab would not render
+                pages = [browser.new_context(viewport={"width": 800, "height": 600}).new_page() for _ in range(self.tabs)]
+                for page in pages:
+                    page.goto(self.url, timeout=120_000)
+                for page in pages:
+                    page.wait_for_selector("canvas", timeout=120_000)
+                    page.evaluate(self.COUNTER_JS)
                 self.loaded.set()
                 while not self.stop.is_set():
                     final = self.finish.is_set()
-                    count = int(page.evaluate(self.COUNTER_JS))
-                    now = time.monotonic()
-                    if self.mark_event.is_set() and self.window is None:
-                        self.window = (count, now)
-                    elif self.window is not None:
-                        self.last = (count, now)
+                    for i, page in enumerate(pages):
+                        count = int(page.evaluate(self.COUNTER_JS))
+                        now = time.monotonic()
+                        if self.mark_event.is_set() and self.window[i] is None:
+                            self.window[i] = (count, now)
+                        elif self.window[i] is not None:
+                            self.last[i] = (count, now)
                     if final:
                         break
                     self.finish.wait(1.0)
@@ -215,7 +273,66 @@ class _Errors(logging.Handler):
         self.records: list[str] = []
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.records.append(f"{record.name}: {record.getMessage()}"[:200])
+        text = f"{record.name}: {record.getMessage()}"[:200]
+        if record.exc_info and record.exc_info[1] is not None:  # the exception and where it was raised
+            exc = record.exc_info[1]
+            where = " < ".join(f"{Path(f.filename).name}:{f.lineno} {f.name}"
+                               for f in reversed(traceback.extract_tb(exc.__traceback__)[-4:]))
+            text += f" | {type(exc).__name__}: {exc} at {where}"[:400]
+        self.records.append(text)
+
+
+CAP_SYS_NICE = 23  # capability bit: may raise a process's priority (root has it)
+
+
+def _may_raise_priority() -> bool:
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("CapEff:"):
+                return bool(int(line.split()[1], 16) >> CAP_SYS_NICE & 1)
+    except (OSError, ValueError):
+        pass
+    return os.geteuid() == 0
+
+
+def _user_chromium(folder: Path, niceness: int) -> tuple[str, str]:
+    """Debian's Chromium as an ordinary user's browser runs, and a description of its priority.
+
+    Playwright starts the browser in a session of its own, so with the kernel's autogroups (on here and on
+    most desktops) the browser and the studio (with its engine) get equal shares of the CPU whatever the
+    threads' niceness; inside the browser's share, Chromium raises its browser and GPU threads to nice -8 when
+    it may (as root it may; on a user's machine it may not). The browser starts without that capability
+    (``setpriv --bounding-set -sys_nice``) and, with ``niceness`` > 0, with its session's autogroup and its
+    processes at that niceness — what a user can do to their own browser without privileges (``nice``, and
+    ``/proc/<pid>/autogroup``), so the engine gets the CPU first."""
+    chromium = shutil.which("chromium") or "/usr/bin/chromium"
+    setpriv = shutil.which("setpriv")
+    lines = ["#!/bin/sh"]
+    prefix = []
+    if niceness:
+        lines.append(f"echo {int(niceness)} > /proc/self/autogroup 2>/dev/null")  # this session: the browser's
+        prefix.append(f"nice -n {int(niceness)}")
+    if _may_raise_priority() and setpriv:
+        prefix.insert(0, f"{setpriv} --bounding-set -sys_nice")
+    if not prefix:
+        return chromium, "nice 0"
+    wrapper = folder / "chromium-as-user"
+    lines.append(f'exec {" ".join(prefix)} {chromium} "$@"')
+    wrapper.write_text("\n".join(lines) + "\n")
+    wrapper.chmod(0o755)
+    cannot = "cannot raise itself" if setpriv or not _may_raise_priority() else "MAY raise itself to -8"
+    return str(wrapper), f"nice {int(niceness)}, {cannot}"
+
+
+def _second_half_growth(timeline: list[tuple[float, float, float]], same_engine: bool) -> dict:
+    """RSS growth (%) of the studio and the engine over the second half of the measured window."""
+    if len(timeline) < 3:
+        return {}
+    t_mid = (timeline[0][0] + timeline[-1][0]) / 2
+    mid = min(timeline, key=lambda r: abs(r[0] - t_mid))
+    end = timeline[-1]
+    return {"studio_rss_growth_2nd_half_pct": round(100 * (end[1] / mid[1] - 1), 1),
+            "engine_rss_growth_2nd_half_pct": round(100 * (end[2] / mid[2] - 1), 1) if same_engine else "restarted"}
 
 
 def _free_port() -> int:
@@ -226,7 +343,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str = "g1") -> list[dict]:
+def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str = "g1", tab_nice: int = 0) -> list[dict]:
     from dataclasses import replace
 
     from engine import protocol as msg
@@ -243,16 +360,17 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
     shutil.copytree(styles_dir(robot), scratch / robot, ignore=shutil.ignore_patterns(".autosave"))
     studio = Studio(robot, port=_free_port(), styles_folder=scratch).start()
     stop = threading.Event()
-    frames: list[tuple[float, float]] = []
-    original_update = studio.view.update
+    frames: list[tuple[float, float]] = []  # every frame the studio received from the engine (drawn or not)
+    original_on_event = studio.link.on_event
 
-    def record(frame) -> None:
-        original_update(frame)
-        frames.append((time.monotonic(), frame.sim_time_s))
+    def record(event) -> None:
+        original_on_event(event)
+        if isinstance(event, msg.Frame):
+            frames.append((time.monotonic(), event.sim_time_s))
 
-    studio.view.update = record  # type: ignore[method-assign]
+    studio.link.on_event = record
     pool: list[_Client] = []
-    browsers: list[_Tab] = []
+    browsers: list[_Browser] = []
     marked_event = threading.Event()
     try:
         if not studio.loaded.wait(180):
@@ -262,7 +380,9 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         pool = [_Client(url, stop) for _ in range(clients)]
         for c in pool:
             c.start()
-        browsers = [_Tab(f"http://127.0.0.1:{studio.server.get_port()}/", stop, marked_event) for _ in range(tabs)]
+        chromium, tab_priority = _user_chromium(scratch, tab_nice)
+        browsers = [_Browser(f"http://127.0.0.1:{studio.server.get_port()}/", tabs, stop, marked_event, chromium)
+                    ] if tabs else []
         for b in browsers:
             b.start()
         for b in browsers:  # the soak starts once every tab shows the studio
@@ -271,7 +391,13 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         warmup_s = min(30.0, 0.25 * duration_s)
         t0 = time.monotonic()
         marked, frame_mark = False, 0
+        drawn0, rates_hz = 0, []  # frames the studio drew, its stream rate: from the mark on
+        tab_pids: list[int] = []
+        tabs_cpu0: dict[int, float] = {}
+        tab_nice_seen = "?"
         rss0 = (float("nan"), float("nan"))
+        rss_timeline: list[tuple[float, float, float]] = []  # (time, studio MB, engine MB) every 15 s after warm-up
+        next_rss = 0.0
         restarts0 = studio.link.restarts
         next_push, next_edit, edits, pushes = t0 + 10.0, t0 + 5.0, 0, 0
         engine_pid0 = studio.link.pid
@@ -299,10 +425,19 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 marked = True
                 rss0 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
                 cpu0, engine_cpu0, cpu_t0 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
+                tab_pids = _tab_processes(studio.link.pid) if browsers else []
+                tabs_cpu0, machine0 = _tabs_cpu_s(tab_pids), _machine_busy_s()
+                tab_nice_seen = _lowest_nice(tab_pids)
                 for c in pool:
                     c.mark()
                 marked_event.set()
                 frame_mark = len(frames)
+                drawn0 = studio.frame_rate.admitted
+            if marked:
+                rates_hz.append(studio.frame_rate.rate_hz)
+            if marked and now >= next_rss:  # the RSS timeline: a step after warm-up or a steady climb?
+                rss_timeline.append((now, _rss_mb(os.getpid()), _rss_mb(studio.link.pid)))
+                next_rss = now + 15.0
             time.sleep(0.1)
         for b in browsers:  # each tab's last frame count
             b.finish.set()
@@ -310,11 +445,14 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             b.finished.wait(60)
         rss1 = (_rss_mb(os.getpid()), _rss_mb(studio.link.pid))
         cpu1, engine_cpu1, cpu_t1 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
+        machine1 = _machine_busy_s()
+        tabs_cpu1 = _tabs_cpu_s(tab_pids) if marked else {}
         window = frames[frame_mark:] if marked else frames
         (w0, s0), (w1, s1) = window[0], window[-1]
         drift = (s1 - s0) / (w1 - w0) - 1.0
         rates = [c.rates() for c in pool]
-        error_notices = [t for level, t in studio.notices if level == "error"]
+        error_notices = [t for level, t in studio.notices  # the link logs its own (with the traceback)
+                         if level == "error" and not t.startswith("studio failed to show ")]
         exceptions = (errors.records + thread_errors + [c.error for c in pool if c.error]
                       + [b.error for b in browsers if b.error] + error_notices)
         rows = [{
@@ -322,9 +460,13 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             "studio_rss_mb": f"{rss0[0]:.0f}→{rss1[0]:.0f}", "studio_rss_growth_pct": round(100 * (rss1[0] / rss0[0] - 1), 1),
             "engine_rss_mb": f"{rss0[1]:.0f}→{rss1[1]:.0f}",
             "engine_rss_growth_pct": round(100 * (rss1[1] / rss0[1] - 1), 1) if studio.link.pid == engine_pid0 else "restarted",
+            # the second half of the measured window alone: a leak keeps climbing there, a one-time step does not
+            **_second_half_growth(rss_timeline + [(time.monotonic(), *rss1)], studio.link.pid == engine_pid0),
             "engine_frames_per_s": round((len(window) - 1) / (w1 - w0), 1), "sim_clock_drift_pct": round(100 * drift, 2),
+            "studio_drawn_frames_per_s": round((studio.frame_rate.admitted - drawn0) / (w1 - w0), 1) if marked else "-",
+            "studio_stream_rate_hz": (f"{min(rates_hz):.0f}–{max(rates_hz):.0f}" if marked and rates_hz else "-"),
             "pushes": pushes, "edits": edits, "engine_restarts": studio.link.restarts - restarts0,
-            "tabs": tabs, "tab_fps": ", ".join(f"{b.fps():.1f}" for b in browsers) or "-",
+            "tabs": tabs, "tab_priority": tab_priority if tabs else "-", "tab_fps": ", ".join(f"{b.fps(i):.1f}" for b in browsers for i in range(b.tabs)) or "-",
             "exceptions": len(exceptions), "load_avg_1min": round(os.getloadavg()[0], 1), "cpus": os.cpu_count(),
         }]
         if rates:
@@ -347,7 +489,21 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             if studio.link.pid == engine_pid0:
                 used = engine_cpu1 - engine_cpu0
                 rows.append({"section": "soak cpu", "what": "engine process", "cpu_ms_per_frame": round(1e3 * used / n_frames, 2),
-                             "cpu_pct_of_core": round(100 * used / span_s, 1)})
+                             "cpu_pct_of_core": round(100 * used / span_s, 1),  # and what real time needs:
+                             "core_s_per_sim_s": round(used / (s1 - s0), 2) if s1 > s0 else "-"})
+            tabs_used = sum(tabs_cpu1.get(p, c0) - c0 for p, c0 in tabs_cpu0.items())
+            if browsers:
+                rows.append({"section": "soak cpu", "what": f"browser tabs (thread nice ≥ {tab_nice_seen})",
+                             "cpu_ms_per_frame": round(1e3 * tabs_used / n_frames, 2),
+                             "cpu_pct_of_core": round(100 * tabs_used / span_s, 1)})
+            bench_used = sum(cpu1.get(g, 0.0) - cpu0.get(g, 0.0) for g in groups if g.startswith("bench"))
+            ours = studio_used + bench_used + tabs_used + (engine_cpu1 - engine_cpu0)
+            rows.append({"section": "soak cpu", "what": "other processes on the machine", "cpu_ms_per_frame": "-",
+                         "cpu_pct_of_core": round(100 * (machine1 - machine0 - ours) / span_s, 1)})
+        for i, (t, studio_mb, engine_mb) in enumerate(rss_timeline):
+            if i % 4 == 0 or i == len(rss_timeline) - 1:  # a sample a minute
+                rows.append({"section": "soak rss", "what": f"+{t - rss_timeline[0][0]:.0f} s",
+                             "studio_mb": round(studio_mb), "engine_mb": round(engine_mb)})
         for text in exceptions[:20]:
             rows.append({"section": "soak exceptions", "what": "exception", "text": text})
         return rows

@@ -77,6 +77,8 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--minutes", type=float, default=1.0, help="soak: how long to drive the studio")
     bench.add_argument("--clients", type=int, default=4, help="soak: headless WebSocket clients")
     bench.add_argument("--tabs", type=int, default=2, help="soak: headless Chromium tabs rendering the studio")
+    bench.add_argument("--tab-nice", type=int, default=0, help="soak: run the Chromium tabs at this niceness "
+                       "(0-19; a user can lower their browser's priority without privileges)")
 
     from studio import cli_tmr
 
@@ -343,6 +345,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not (0 < args.minutes <= 24 * 60) or not (0 <= args.clients <= 64) or not (0 <= args.tabs <= 8):
         raise CliError(f"--minutes/--clients/--tabs: expected 0 < M ≤ 1440, 0 ≤ C ≤ 64 and 0 ≤ T ≤ 8, "
                        f"got {args.minutes}, {args.clients}, {args.tabs}")
+    if not 0 <= args.tab_nice <= 19:
+        raise CliError(f"--tab-nice: expected a niceness 0 ≤ N ≤ 19, got {args.tab_nice}")
     from engine.bench.tmr import check_clip_options
 
     problem = check_clip_options(args.clips, args.budget)

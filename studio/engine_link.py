@@ -8,12 +8,15 @@ that define the engine's state (robot, style, mode, ...), so the user loses noth
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from typing import Callable
 
 from engine import protocol as msg
 from engine.process import EngineProcess
+
+LOG = logging.getLogger(__name__)
 
 # Commands whose latest value defines engine state and is replayed after a restart.
 STICKY_KINDS = ("switch_robot", "set_style", "set_mode", "set_velocity_command", "set_paused")
@@ -110,6 +113,7 @@ class EngineLink:
         try:
             self.on_event(event)
         except Exception as exc:  # a UI bug must not kill the link
+            LOG.exception("studio failed to show %s", event.kind)  # the traceback, for the log and the soak
             self.on_status("error", f"studio failed to show {event.kind}: {exc}")
 
     def _handle_death(self, engine: EngineProcess | None) -> None:

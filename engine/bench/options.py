@@ -35,7 +35,8 @@ def call_with_known(function: Callable[..., list[dict]], options: dict) -> list[
 
 def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) -> list[dict]:
     """Call a section with the command-line options it declares as keyword parameters."""
-    mapping = {"minutes": args.minutes, "clients": args.clients, "tabs": getattr(args, "tabs", 2), "robot": args.robot,
+    mapping = {"minutes": args.minutes, "clients": args.clients, "tabs": getattr(args, "tabs", 2), "tab_nice": getattr(args, "tab_nice", 0),
+               "robot": args.robot,
                "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
                "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir,
                "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None)}
