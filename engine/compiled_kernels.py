@@ -3,7 +3,8 @@
 the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` beside the sources).
 
 Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
-and the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`).
+the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
+planner's double-support hulls (:mod:`engine.gait.support_hull`).
 """
 
 from __future__ import annotations
@@ -31,7 +32,16 @@ def warm_up() -> None:
         if not wbc.diagnostics.ok:
             raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
     convex_hull_2d(np.random.default_rng(0).random((8, 2)))
+    _warm_up_planner()
     _warm_up_lwl2()
+
+
+def _warm_up_planner() -> None:
+    """The gait planner's and the CoM MPC's kernels on the argument types they pass."""
+    from engine.gait.footsteps import Foothold
+    from engine.gait.support_hull import support_hull
+
+    support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
 
 
 def _warm_up_lwl2() -> None:

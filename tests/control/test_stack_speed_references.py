@@ -103,3 +103,32 @@ def test_safe_region_projection_equals_the_array_version() -> None:
         for side in ("left", "right"):
             got, want = project_to_safe_region(support, target, side, region), project_reference(support, target, side, region)
             assert (got.x, got.y, got.yaw) == (want.x, want.y, want.yaw)
+
+
+def edge_strip_reference(corners, length_m, edge):  # noqa: ANN001, ANN201
+    """planner._edge_strip before the speed-up."""
+    if edge is None:
+        return corners
+    f = min(0.02 / max(length_m, 1e-9), 1.0)
+    bl, br, fr, fl = corners
+    if edge == "heel":
+        return np.array([bl, br, br + f * (fr - br), bl + f * (fl - bl)])
+    return np.array([fl + f * (bl - fl), fr + f * (br - fr), fr, fl])
+
+
+def test_compiled_support_hull_equals_corners_strips_and_hull() -> None:
+    from engine.gait.footsteps import Foothold
+    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M
+    from engine.gait.support_hull import support_hull
+    from engine.geometry.polygon import convex_hull_2d
+
+    assert EDGE_SUPPORT_DEPTH_M == 0.02
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        n = int(rng.integers(1, 3))
+        holds = tuple(Foothold(*rng.uniform(-2, 2, 2), float(rng.uniform(-7, 7))) for _ in range(n))
+        length, width = float(rng.uniform(0.005, 0.3)), float(rng.uniform(0.005, 0.15))
+        edges = tuple(rng.choice(np.array([None, "heel", "toe"], dtype=object)) for _ in range(n))
+        want = convex_hull_2d(np.concatenate([edge_strip_reference(h.corners(length, width), length, e)
+                                              for h, e in zip(holds, edges)]))
+        np.testing.assert_array_equal(support_hull(holds, length, width, edges, EDGE_SUPPORT_DEPTH_M), want)
