@@ -4,7 +4,8 @@ the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` bes
 
 Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
 the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
-planner's double-support hulls (:mod:`engine.gait.support_hull`).
+planner's double-support hulls (:mod:`engine.gait.support_hull`) and the CoM MPC's polygon geometry
+(:mod:`engine.control.mpc.kernels`).
 """
 
 from __future__ import annotations
@@ -42,6 +43,10 @@ def _warm_up_planner() -> None:
     from engine.gait.support_hull import support_hull
 
     support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
+    from engine.control.mpc.regions import _geometry_padded
+
+    square = np.array([[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.1]])
+    _geometry_padded([square, square[::-1] + 0.05])
 
 
 def _warm_up_lwl2() -> None:

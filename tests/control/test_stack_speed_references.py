@@ -132,3 +132,33 @@ def test_compiled_support_hull_equals_corners_strips_and_hull() -> None:
         want = convex_hull_2d(np.concatenate([edge_strip_reference(h.corners(length, width), length, e)
                                               for h, e in zip(holds, edges)]))
         np.testing.assert_array_equal(support_hull(holds, length, width, edges, EDGE_SUPPORT_DEPTH_M), want)
+
+
+def test_compiled_support_geometry_equals_the_complex_numpy_version() -> None:
+    """The MPC's padded polygon geometry: convex (either orientation, collinear vertices), non-convex and
+    degenerate polygons, 1–12 per call. numpy's complex products use fused multiply-adds on this machine's
+    SIMD (the kernel does too); where numpy would not, the two may differ in the last bit."""
+    from engine.control.mpc.regions import _geometry_padded, _geometry_padded_numpy
+    from engine.geometry.polygon import convex_hull_2d
+
+    rng = np.random.default_rng(11)
+    for _ in range(1500):
+        polys = []
+        for _ in range(int(rng.integers(1, 13))):
+            kind = rng.random()
+            if kind < 0.1:  # non-convex or repeated vertices
+                p = rng.normal(0.0, 1.0, (int(rng.integers(3, 9)), 2))
+                if kind < 0.03:
+                    p[1] = p[0]
+            else:
+                p = convex_hull_2d(rng.normal(0.0, 0.2, (int(rng.integers(3, 12)), 2)) + rng.normal(0.0, 2.0, 2))
+                if len(p) < 3:
+                    p = np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]])
+                if kind < 0.4:
+                    p = p[::-1]
+                if kind > 0.9:  # a collinear vertex: the midpoint of an edge
+                    p = np.insert(p, 1, 0.5 * (p[0] + p[1]), axis=0)
+            polys.append(np.ascontiguousarray(p))
+        got, want = _geometry_padded(polys), _geometry_padded_numpy(polys)
+        for g, w in zip(got, want):
+            np.testing.assert_array_equal(g, w)
