@@ -43,10 +43,16 @@ def _warm_up_planner() -> None:
     from engine.gait.support_hull import support_hull
 
     support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
-    from engine.control.mpc.regions import _geometry_padded
+    from engine.control.mpc import ComMpc, SupportInterval
 
-    square = np.array([[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.1]])
-    _geometry_padded([square, square[::-1] + 0.05])
+    left = np.array([[-0.1, 0.06], [-0.1, 0.14], [0.1, 0.14], [0.1, 0.06]])[::-1]  # clockwise: either orientation
+    right = left - [0.0, 0.2]
+    both = np.array([[-0.1, -0.14], [0.1, -0.14], [0.1, 0.14], [-0.1, 0.14]])
+    supports = [SupportInterval(0.0, 0.2, both), SupportInterval(0.2, 0.6, left), SupportInterval(0.6, 0.7, both),
+                SupportInterval(0.7, 2.5, right)]
+    plan = ComMpc().solve(0.0, np.zeros(2), np.array([0.0, 0.1]), np.zeros(2), 0.6, supports)
+    if not plan.ok:
+        raise RuntimeError(f"kernel warm-up: CoM MPC {plan.status}: {plan.message}")
 
 
 def _warm_up_lwl2() -> None:

@@ -162,3 +162,44 @@ def test_compiled_support_geometry_equals_the_complex_numpy_version() -> None:
         got, want = _geometry_padded(polys), _geometry_padded_numpy(polys)
         for g, w in zip(got, want):
             np.testing.assert_array_equal(g, w)
+
+
+def test_compiled_mpc_rows_equal_the_numpy_rows() -> None:
+    """ComMpc._build_problem's rows (containment of consecutive supports, half-plane rows, waypoint times and
+    centroid targets) from the compiled kernel and from the numpy code, on walking supports at random times,
+    yaws and step sizes and on random (overlapping, non-nesting) polygons."""
+    from dataclasses import fields
+    from unittest import mock
+
+    import engine.control.mpc.controller as mpc_controller
+    from engine.bench.mpc_problems import example_walking_supports
+    from engine.control.mpc import ComMpc, SupportInterval
+    from engine.geometry.polygon import convex_hull_2d
+
+    compiled = mpc_controller.problem_rows
+
+    def numpy_rows(*args):  # noqa: ANN002, ANN202
+        return (True, *compiled(*args)[1:])
+
+    rng = np.random.default_rng(13)
+    mpc = ComMpc()
+    for case in range(400):
+        if case % 4 == 3:  # random convex polygons: general overlaps, disjoint supports
+            t = np.cumsum(rng.uniform(0.05, 0.6, 8))
+            supports = [SupportInterval(float(a), float(b), convex_hull_2d(rng.normal(0, 0.15, (6, 2)) + rng.normal(0, 0.1, 2)))
+                        for a, b in zip(np.r_[0.0, t[:-1]], t)]
+        else:
+            supports = example_walking_supports(n_steps=int(rng.integers(2, 10)), step_length_m=float(rng.uniform(-0.3, 0.4)),
+                                                step_width_m=float(rng.uniform(0.1, 0.3)), single_support_s=float(rng.uniform(0.2, 0.7)),
+                                                double_support_s=float(rng.uniform(0.02, 0.3)), yaw_rad=float(rng.uniform(-3, 3)))
+        t_now = float(rng.uniform(0.0, 1.5))
+        got, _ = mpc._build_problem(t_now, supports)
+        with mock.patch.object(mpc_controller, "problem_rows", numpy_rows):
+            want, _ = mpc._build_problem(t_now, supports)
+        assert (got is None) == (want is None)
+        if got is None:
+            continue
+        for f in fields(want):
+            g, w = np.asarray(getattr(got, f.name)), np.asarray(getattr(want, f.name))
+            assert g.dtype == w.dtype, f.name
+            np.testing.assert_array_equal(g, w, err_msg=f.name)

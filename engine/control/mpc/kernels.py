@@ -149,3 +149,84 @@ def geometry_padded(points, lens, n_v, edge_length):  # noqa: ANN001, ANN201
         area[k] = 0.5 * abs(area2)
         start += n
     return hull, normals, offsets, centroids, area, bad
+
+
+@njit(cache=True, nogil=True)
+def problem_rows(own, n_sup, hull, normals, offsets, centroids, ends, t_now, contain_tol, kind_offset_s):  # noqa: ANN001, ANN201, PLR0913
+    """The rows of one call's QP from its supports' padded geometry (``ComMpc._build_problem``'s numpy code
+    after the geometry, the same numbers): ``own[i]`` is the support of interval ``i``; its midpoint waypoint
+    keeps that support's half-planes, its end waypoint the intersection with the next support's, by
+    containment. Returns ``(overlap, normals (m, 2), offsets (m,), row_wp (m,), row_key (m,), times (2n+1,),
+    centroids (2n+1, 2))``; ``overlap`` True (and nothing else computed) when an end waypoint needs the
+    general intersection of two polygons (the numpy code clips them)."""
+    n_int = own.shape[0]
+    n_v = offsets.shape[1]
+    nxt = np.empty(n_int, dtype=np.int64)
+    for i in range(n_int - 1):
+        nxt[i] = own[i + 1]
+    nxt[n_int - 1] = own[n_int - 1]
+    use_a = np.ones(n_int, dtype=np.bool_)
+    use_b = np.zeros(n_int, dtype=np.bool_)
+    overlap = False
+    if n_sup > 1:
+        inner_a = np.empty(n_sup - 1)
+        inner_b = np.empty(n_sup - 1)
+        for k in range(n_sup - 1):
+            # max over (half-plane of one polygon, vertex of the other) of the signed distance
+            best_b, best_a = -np.inf, -np.inf
+            for h in range(n_v):
+                for v in range(n_v):
+                    d_b = _cmul(normals[k, h, 0], -normals[k, h, 1], hull[k + 1, v, 0], hull[k + 1, v, 1])[0] - offsets[k, h]
+                    d_a = _cmul(normals[k + 1, h, 0], -normals[k + 1, h, 1], hull[k, v, 0], hull[k, v, 1])[0] - offsets[k + 1, h]
+                    best_b = max(best_b, d_b)
+                    best_a = max(best_a, d_a)
+            inner_b[k], inner_a[k] = best_b, best_a
+        for i in range(n_int):
+            pair = min(own[i], n_sup - 2)
+            in_a = inner_a[pair] <= contain_tol  # C_k ⊂ C_k+1: the intersection is C_k
+            in_b = inner_b[pair] <= contain_tol  # C_k+1 ⊂ C_k: it is C_k+1
+            use_b[i] = nxt[i] != own[i] and not in_a
+            use_a[i] = not (use_b[i] and in_b)
+            if use_a[i] and use_b[i]:
+                overlap = True
+    m = 0
+    for i in range(n_int):
+        for j in range(n_v):
+            if offsets[own[i], j] < np.inf:
+                m += 1 + (1 if use_a[i] else 0)
+            if use_b[i] and offsets[nxt[i], j] < np.inf:
+                m += 1
+    times = np.empty(2 * n_int + 1)
+    times[0] = t_now
+    for i in range(n_int):
+        times[2 * i + 2] = ends[i]
+        times[2 * i + 1] = 0.5 * (times[2 * i] + ends[i])
+    cent = np.empty((2 * n_int + 1, 2))
+    cent[0, 0], cent[0, 1] = centroids[own[0], 0], centroids[own[0], 1]
+    for i in range(n_int):
+        k_end = own[i] if use_a[i] else nxt[i]
+        cent[2 * i + 1, 0], cent[2 * i + 1, 1] = centroids[own[i], 0], centroids[own[i], 1]
+        cent[2 * i + 2, 0], cent[2 * i + 2, 1] = centroids[k_end, 0], centroids[k_end, 1]
+    out_n = np.empty((m, 2))
+    out_o = np.empty(m)
+    row_wp = np.empty(m, dtype=np.int64)
+    row_key = np.empty(m)
+    if overlap:
+        return overlap, out_n, out_o, row_wp, row_key, times, cent
+    r = 0
+    for i in range(n_int):
+        for part in range(3):  # midpoint slots (C_k), end slots (C_k), end slots (C_k+1)
+            if part == 1 and not use_a[i]:
+                continue
+            if part == 2 and not use_b[i]:
+                continue
+            k = nxt[i] if part == 2 else own[i]
+            wp = 2 * i + 1 if part == 0 else 2 * i + 2
+            for j in range(n_v):
+                if offsets[k, j] < np.inf:
+                    out_n[r, 0], out_n[r, 1] = normals[k, j, 0], normals[k, j, 1]
+                    out_o[r] = offsets[k, j]
+                    row_wp[r] = wp
+                    row_key[r] = times[wp] + kind_offset_s * (wp & 1)
+                    r += 1
+    return overlap, out_n, out_o, row_wp, row_key, times, cent
