@@ -203,3 +203,22 @@ def test_compiled_mpc_rows_equal_the_numpy_rows() -> None:
             g, w = np.asarray(getattr(got, f.name)), np.asarray(getattr(want, f.name))
             assert g.dtype == w.dtype, f.name
             np.testing.assert_array_equal(g, w, err_msg=f.name)
+
+
+def test_compiled_lip_segments_and_propagation_equal_numpy() -> None:
+    from engine.control.mpc.lip import _Segments
+
+    rng = np.random.default_rng(17)
+    for _ in range(2000):
+        n = int(rng.integers(1, 30))
+        steps = rng.uniform(0.0, 0.4, n)
+        steps[rng.random(n) < 0.1] = 0.0  # zero-length and tiny segments: the limit branch
+        steps[rng.random(n) < 0.1] *= 1e-10
+        times = float(rng.uniform(-5, 5)) + np.r_[0.0, np.cumsum(steps)]
+        omega = float(rng.uniform(0.5, 8.0))
+        got, want = _Segments.build(times, omega), _Segments.build_numpy(times, omega)
+        for name in ("h", "a", "b", "grow"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        cop, com, vel = rng.normal(0, 0.3, (n + 1, 2)), rng.normal(0, 0.3, 2), rng.normal(0, 0.5, 2)
+        for g, w in zip(got.propagate(cop, com, vel), want.propagate_numpy(cop, com, vel)):
+            np.testing.assert_array_equal(g, w)

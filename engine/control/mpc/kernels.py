@@ -8,6 +8,8 @@ spelled out in the same order: the same numbers (``tests/control/test_stack_spee
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
@@ -230,3 +232,48 @@ def problem_rows(own, n_sup, hull, normals, offsets, centroids, ends, t_now, con
                     row_key[r] = times[wp] + kind_offset_s * (wp & 1)
                     r += 1
     return overlap, out_n, out_o, row_wp, row_key, times, cent
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lip_segments(times, omega):  # noqa: ANN001, ANN201
+    """``_Segments.build``'s coefficients ``(h, a, b, grow)`` (the same numbers as its numpy code)."""
+    n = times.shape[0] - 1
+    h = np.empty(n)
+    a = np.empty(n)
+    b = np.empty(n)
+    grow = np.empty(n + 1)
+    for j in range(n):
+        h[j] = times[j + 1] - times[j]
+        wh = omega * h[j]
+        one_minus_e = -math.expm1(-wh)
+        r = one_minus_e / max(wh, 1e-9) if wh > 1e-9 else 1.0 - 0.5 * wh  # -> 1 as h -> 0
+        a[j] = 1.0 - r
+        b[j] = r - (1.0 - one_minus_e)
+    for j in range(n + 1):
+        grow[j] = math.exp(omega * (times[j] - times[0]))
+    return h, a, b, grow
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lip_propagate(omega, a, b, grow, cop, com, vel):  # noqa: ANN001, ANN201
+    """``_Segments.propagate``: CoM position and velocity at every waypoint (the same numbers as its numpy
+    code: its running sums in numpy's cumsum order)."""
+    n1 = cop.shape[0]
+    pos = np.empty((n1, 2))
+    out_vel = np.empty((n1, 2))
+    zeta = np.zeros((n1, 2))
+    eta = np.zeros((n1, 2))
+    for ax in range(2):
+        for j in range(n1 - 1):
+            z = (a[j] * cop[j, ax] + b[j] * cop[j + 1, ax]) / grow[j]
+            e = (b[j] * cop[j, ax] + a[j] * cop[j + 1, ax]) * grow[j + 1]
+            zeta[j + 1, ax] = z if j == 0 else zeta[j, ax] + z
+            eta[j + 1, ax] = e if j == 0 else eta[j, ax] + e
+        z0 = com[ax] + vel[ax] / omega
+        e0 = com[ax] - vel[ax] / omega
+        for j in range(n1):
+            zj = grow[j] * (z0 - zeta[j, ax])
+            ej = (e0 + eta[j, ax]) / grow[j]
+            pos[j, ax] = 0.5 * (zj + ej)
+            out_vel[j, ax] = (0.5 * omega) * (zj - ej)
+    return pos, out_vel
