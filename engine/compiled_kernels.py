@@ -50,7 +50,9 @@ def _warm_up_planner() -> None:
     both = np.array([[-0.1, -0.14], [0.1, -0.14], [0.1, 0.14], [-0.1, 0.14]])
     supports = [SupportInterval(0.0, 0.2, both), SupportInterval(0.2, 0.6, left), SupportInterval(0.6, 0.7, both),
                 SupportInterval(0.7, 2.5, right)]
-    plan = ComMpc().solve(0.0, np.zeros(2), np.array([0.0, 0.1]), np.zeros(2), 0.6, supports)
+    mpc = ComMpc()
+    for t_s in (0.0, 0.008):  # the second call matches the first one's active rows (warm start)
+        plan = mpc.solve(t_s, np.zeros(2), np.array([0.0, 0.1]), np.zeros(2), 0.6, supports)
     if not plan.ok:
         raise RuntimeError(f"kernel warm-up: CoM MPC {plan.status}: {plan.message}")
 

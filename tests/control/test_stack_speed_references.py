@@ -222,3 +222,25 @@ def test_compiled_lip_segments_and_propagation_equal_numpy() -> None:
         cop, com, vel = rng.normal(0, 0.3, (n + 1, 2)), rng.normal(0, 0.3, 2), rng.normal(0, 0.5, 2)
         for g, w in zip(got.propagate(cop, com, vel), want.propagate_numpy(cop, com, vel)):
             np.testing.assert_array_equal(g, w)
+
+
+def test_compiled_warm_start_matching_equals_numpy() -> None:
+    """ComMpc._match_warm: the rows of a later problem matching a remembered solution's active rows."""
+    from engine.bench.mpc_problems import example_walking_supports
+    from engine.control.mpc import ComMpc
+
+    rng = np.random.default_rng(19)
+    mpc = ComMpc()
+    matched = 0
+    for _ in range(300):
+        kw = dict(n_steps=int(rng.integers(2, 8)), step_length_m=float(rng.uniform(-0.3, 0.4)), yaw_rad=float(rng.uniform(-3, 3)))
+        t0 = float(rng.uniform(0.0, 1.0))
+        before, _ = mpc._build_problem(t0, example_walking_supports(**kw))
+        after, _ = mpc._build_problem(t0 + float(rng.uniform(0.0, 0.05)),
+                                      example_walking_supports(**kw, t0_s=float(rng.normal(0.0, 0.01))))
+        rows = rng.choice(len(before.row_key), size=int(rng.integers(0, min(12, len(before.row_key)) + 1)), replace=False)
+        entry = (before.row_key[rows], before.normals_c[rows])
+        got = mpc._match_warm(after, entry)
+        assert got == mpc._match_warm_numpy(after, entry)
+        matched += len(got)
+    assert matched > 300  # most remembered rows find their match

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
 from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
-from engine.control.mpc.kernels import problem_rows
+from engine.control.mpc.kernels import match_rows, problem_rows
 from engine.control.mpc.lip import _Segments, propagate_lip
 from engine.control.mpc.problem import _Condensed, _Problem
 from engine.control.mpc.regions import _CONTAIN_TOL_M, _make_region, _Region, _support_geometry
@@ -440,6 +440,14 @@ class ComMpc:
         ``_WARM_TIME_TOL_S`` and with a parallel edge normal, so that shifted timings
         and moved footholds keep the warm start.
         """
+        key_prev, n_prev = entry
+        if len(key_prev) == 0:
+            return []
+        return match_rows(pb.row_key, pb.normals, key_prev, n_prev.view(np.float64).reshape(-1, 2),
+                          _WARM_TIME_TOL_S, _WARM_NORMAL_COS).tolist()  # compiled: _match_warm_numpy's rows
+
+    def _match_warm_numpy(self, pb: _Problem, entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
+        """The reference of :meth:`_match_warm`."""
         key_prev, n_prev = entry
         if len(key_prev) == 0:
             return []

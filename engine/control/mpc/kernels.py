@@ -277,3 +277,20 @@ def lip_propagate(omega, a, b, grow, cop, com, vel):  # noqa: ANN001, ANN201
             pos[j, ax] = 0.5 * (zj + ej)
             out_vel[j, ax] = (0.5 * omega) * (zj - ej)
     return pos, out_vel
+
+
+@njit(cache=True, nogil=True)
+def match_rows(row_key, normals, key_prev, normals_prev, time_tol, cos_min):  # noqa: ANN001, ANN201
+    """``ComMpc._match_warm``: for each remembered active row (in order), the first row of this problem
+    with a key within ``time_tol`` and a normal more parallel than ``cos_min`` (rows without one are left
+    out); numpy's complex product as fused multiply-adds, as in its code."""
+    out = np.empty(key_prev.shape[0], dtype=np.int64)
+    count = 0
+    for j in range(key_prev.shape[0]):
+        for i in range(row_key.shape[0]):
+            if abs(row_key[i] - key_prev[j]) < time_tol and \
+                    _cmul(normals[i, 0], -normals[i, 1], normals_prev[j, 0], normals_prev[j, 1])[0] > cos_min:
+                out[count] = i
+                count += 1
+                break
+    return out[:count]
