@@ -4,7 +4,7 @@ the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` bes
 
 Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
 the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
-planner's double-support hulls (:mod:`engine.gait.support_hull`) and the CoM MPC's polygon geometry
+planner's path table and double-support hulls (:mod:`engine.gait.planner_kernels`) and the CoM MPC's polygon geometry
 (:mod:`engine.control.mpc.kernels`).
 """
 
@@ -40,9 +40,12 @@ def warm_up() -> None:
 def _warm_up_planner() -> None:
     """The gait planner's and the CoM MPC's kernels on the argument types they pass."""
     from engine.gait.footsteps import Foothold
-    from engine.gait.support_hull import support_hull
+    from engine.gait.planner import _command_ramp
+    from engine.gait.planner_kernels import path_table_poses, support_hull
 
     support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
+    _, _, th, dx, dy = _command_ramp(np.zeros(3), np.array([0.3, 0.0, 0.2]), np.ones(3))
+    path_table_poses(0.0, 0.0, 0.0, th, dx, dy)
     from engine.control.mpc import ComMpc, SupportInterval
 
     left = np.array([[-0.1, 0.06], [-0.1, 0.14], [0.1, 0.14], [0.1, 0.06]])[::-1]  # clockwise: either orientation

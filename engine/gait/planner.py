@@ -35,7 +35,7 @@ from engine.gait.heel_toe import foot_rig, stance_pitch
 from engine.gait.path_frame import PathFrame, predict
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
-from engine.gait.support_hull import support_hull
+from engine.gait.planner_kernels import path_table_poses, support_hull
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
 
@@ -352,15 +352,7 @@ class GaitPlanner:
         goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
         times, vels, th, dx, dy = _command_ramp(self.command, goal, command_rate_limits)
-        n = len(times)
-        poses = np.empty((n, 3))
-        poses[0] = (self.path.x, self.path.y, self.path.yaw)
-        np.cumsum(th[:-1], out=poses[1:, 2])
-        poses[1:, 2] += poses[0, 2]
-        c, s_ = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
-        np.cumsum(c * dx[:-1] - s_ * dy[:-1], out=poses[1:, 0])
-        np.cumsum(s_ * dx[:-1] + c * dy[:-1], out=poses[1:, 1])
-        poses[1:, :2] += poses[0, :2]
+        poses = path_table_poses(float(self.path.x), float(self.path.y), float(self.path.yaw), th, dx, dy)  # compiled
         return times, poses, vels
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:

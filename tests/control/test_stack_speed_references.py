@@ -119,7 +119,7 @@ def edge_strip_reference(corners, length_m, edge):  # noqa: ANN001, ANN201
 def test_compiled_support_hull_equals_corners_strips_and_hull() -> None:
     from engine.gait.footsteps import Foothold
     from engine.gait.planner import EDGE_SUPPORT_DEPTH_M
-    from engine.gait.support_hull import support_hull
+    from engine.gait.planner_kernels import support_hull
     from engine.geometry.polygon import convex_hull_2d
 
     assert EDGE_SUPPORT_DEPTH_M == 0.02
@@ -244,3 +244,30 @@ def test_compiled_warm_start_matching_equals_numpy() -> None:
         assert got == mpc._match_warm_numpy(after, entry)
         matched += len(got)
     assert matched > 300  # most remembered rows find their match
+
+
+def path_table_reference(pose, th, dx, dy):  # noqa: ANN001, ANN201
+    """GaitPlanner._build_path_table's poses before the speed-up (numpy cumsums)."""
+    poses = np.empty((len(th), 3))
+    poses[0] = pose
+    np.cumsum(th[:-1], out=poses[1:, 2])
+    poses[1:, 2] += poses[0, 2]
+    c, s_ = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
+    np.cumsum(c * dx[:-1] - s_ * dy[:-1], out=poses[1:, 0])
+    np.cumsum(s_ * dx[:-1] + c * dy[:-1], out=poses[1:, 1])
+    poses[1:, :2] += poses[0, :2]
+    return poses
+
+
+def test_compiled_path_table_equals_the_numpy_cumsums() -> None:
+    from engine.gait.planner import _command_ramp
+    from engine.gait.planner_kernels import path_table_poses
+
+    rng = np.random.default_rng(23)
+    for _ in range(500):
+        command, goal = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
+        if rng.random() < 0.2:
+            goal = command.copy()  # held: the ramp's early exit
+        _, _, th, dx, dy = _command_ramp(command, goal, rng.uniform(0.1, 3.0, 3))
+        pose = rng.uniform(-5, 5, 3)
+        np.testing.assert_array_equal(path_table_poses(*pose.tolist(), th, dx, dy), path_table_reference(pose, th, dx, dy))

@@ -1,7 +1,8 @@
-"""The preview's double-support polygons, compiled (numba): the convex hull of the soles on a tuple of
-footholds, each sole whole or cut to the strip along its heel or toe edge (a foot rolling on that edge).
+"""The gait planner's compiled (numba) kernels: the path table's poses and the preview's double-support
+polygons (the convex hull of the soles on a tuple of footholds, each sole whole or cut to the strip along
+its heel or toe edge: a foot rolling on that edge).
 
-One call computes what :meth:`engine.gait.footsteps.Foothold.corners`, the planner's ``_edge_strip`` and
+For the polygons one call computes what :meth:`engine.gait.footsteps.Foothold.corners`, the planner's ``_edge_strip`` and
 :func:`engine.geometry.polygon.convex_hull_2d` compute one after the other, with the same expressions in
 the same order (the same numbers: ``tests/control/test_stack_speed_references.py``). Most support hulls
 of a walk are new every planner tick (the predicted footholds move with the path), so the hull cache
@@ -65,3 +66,26 @@ def _support_hull_compiled(poses, length_m, width_m, codes, strip_depth_m):  # n
             pts[k + 2, 0], pts[k + 2, 1] = frx, fry
             pts[k + 3, 0], pts[k + 3, 1] = flx, fly
     return _hull_compiled(pts)
+
+
+@njit(cache=True, nogil=True)
+def path_table_poses(x, y, yaw, th, dx, dy):  # noqa: ANN001, ANN201
+    """The planner's path table poses (n, 3) from the start pose and the pieces' turn angles and arcs
+    (``GaitPlanner._build_path_table``'s numpy cumsums, in their order: the same numbers)."""
+    n = th.shape[0]
+    poses = np.empty((n, 3))
+    poses[0, 0], poses[0, 1], poses[0, 2] = x, y, yaw
+    acc_th, acc_x, acc_y = 0.0, 0.0, 0.0
+    for i in range(1, n):
+        acc_th = th[0] if i == 1 else acc_th + th[i - 1]
+        poses[i, 2] = acc_th
+    for i in range(1, n):
+        poses[i, 2] += yaw
+    for i in range(1, n):
+        c, s = math.cos(poses[i - 1, 2]), math.sin(poses[i - 1, 2])
+        ddx = c * dx[i - 1] - s * dy[i - 1]
+        ddy = s * dx[i - 1] + c * dy[i - 1]
+        acc_x = ddx if i == 1 else acc_x + ddx
+        acc_y = ddy if i == 1 else acc_y + ddy
+        poses[i, 0], poses[i, 1] = acc_x + x, acc_y + y
+    return poses
