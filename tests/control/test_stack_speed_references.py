@@ -285,3 +285,22 @@ def test_compiled_path_table_equals_the_numpy_cumsums() -> None:
         _, _, th, dx, dy = _command_ramp(command, goal, rng.uniform(0.1, 3.0, 3))
         pose = rng.uniform(-5, 5, 3)
         np.testing.assert_array_equal(path_table_poses(*pose.tolist(), th, dx, dy), path_table_reference(pose, th, dx, dy))
+
+
+def test_compiled_merged_bank_equals_numpy() -> None:
+    """MergedBank.evaluate (every channel of every blended sample at its own time) at random member times,
+    negative and beyond the cycle, on the shipped G1 neutral style's samples."""
+    from engine.gait.blending import ChannelLayout, MergedBank, StyleBanks
+    from engine.gait.style import StyleContext, load_style, styles_dir
+
+    ctx = StyleContext.for_robot("g1")
+    layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
+    banks = list(StyleBanks(load_style(styles_dir("g1") / "neutral.json"), layout).banks.values())
+    rng = np.random.default_rng(29)
+    for _ in range(300):
+        members = [banks[i] for i in rng.choice(len(banks), size=int(rng.integers(1, 5)), replace=False)]
+        merged = MergedBank(members)
+        times, scale = rng.uniform(-3.0, 5.0, len(members)), rng.uniform(0.5, 2.0, len(members))
+        times[rng.random(len(members)) < 0.2] = 0.0
+        for g, w in zip(merged.evaluate(times, scale), merged.evaluate_numpy(times, scale)):
+            np.testing.assert_array_equal(g, w)
