@@ -3,7 +3,9 @@
 the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` beside the sources).
 
 Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
-and the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`).
+the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
+planner's path table, blended channels and double-support hulls (:mod:`engine.gait.planner_kernels`) and the CoM MPC's polygon geometry
+(:mod:`engine.control.mpc.kernels`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,37 @@ def warm_up() -> None:
         if not wbc.diagnostics.ok:
             raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
     convex_hull_2d(np.random.default_rng(0).random((8, 2)))
+    _warm_up_planner()
     _warm_up_lwl2()
+
+
+def _warm_up_planner() -> None:
+    """The gait planner's and the CoM MPC's kernels on the argument types they pass."""
+    from engine.robot.model import load_robot
+    from engine.gait.footsteps import Foothold
+    from engine.gait.planner import _command_ramp
+    from engine.gait.planner_kernels import path_table_poses, support_hull
+
+    support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
+    _, _, th, dx, dy = _command_ramp(np.zeros(3), np.array([0.3, 0.0, 0.2]), np.ones(3))
+    path_table_poses(0.0, 0.0, 0.0, th, dx, dy)
+    from engine.gait.offline_plan import planner_for
+    from engine.gait.style import StyleContext, load_style, styles_dir
+
+    planner = planner_for(load_robot("g1"), load_style(styles_dir("g1") / "neutral.json"), StyleContext.for_robot("g1"))
+    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the blended gait's channels (MergedBank)
+    from engine.control.mpc import ComMpc, SupportInterval
+
+    left = np.array([[-0.1, 0.06], [-0.1, 0.14], [0.1, 0.14], [0.1, 0.06]])[::-1]  # clockwise: either orientation
+    right = left - [0.0, 0.2]
+    both = np.array([[-0.1, -0.14], [0.1, -0.14], [0.1, 0.14], [-0.1, 0.14]])
+    supports = [SupportInterval(0.0, 0.2, both), SupportInterval(0.2, 0.6, left), SupportInterval(0.6, 0.7, both),
+                SupportInterval(0.7, 2.5, right)]
+    mpc = ComMpc()
+    for t_s in (0.0, 0.008):  # the second call matches the first one's active rows (warm start)
+        plan = mpc.solve(t_s, np.zeros(2), np.array([0.0, 0.1]), np.zeros(2), 0.6, supports)
+    if not plan.ok:
+        raise RuntimeError(f"kernel warm-up: CoM MPC {plan.status}: {plan.message}")
 
 
 def _warm_up_lwl2() -> None:

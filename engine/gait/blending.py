@@ -18,6 +18,7 @@ import numpy as np
 
 from engine.gait.curves import HermiteCurve
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD, PhaseMap
+from engine.gait.planner_kernels import merged_bank_rows
 from engine.gait.style import (
     ATTRIBUTE_NAMES,
     PELVIS_CURVES,
@@ -162,7 +163,15 @@ class MergedBank:
         self._rows = np.arange(len(self.offset))
 
     def evaluate(self, member_times: np.ndarray, member_rate_scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Values and d/dt of every row; shapes (members, rows_per_member)."""
+        """Values and d/dt of every row; shapes (members, rows_per_member). Compiled
+        (:func:`engine.gait.planner_kernels.merged_bank_rows`); :meth:`evaluate_numpy` is the reference."""
+        values, rates = merged_bank_rows(
+            np.ascontiguousarray(member_times, dtype=np.float64), np.ascontiguousarray(member_rate_scale, dtype=np.float64),
+            self.member_of_row, self.offset, self.periodic, self.period, self.hi, self.search, self.t0, self.coef)
+        shape = (self.n_members, self.rows_per_member)
+        return values.reshape(shape), rates.reshape(shape)
+
+    def evaluate_numpy(self, member_times: np.ndarray, member_rate_scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t = member_times[self.member_of_row] - self.offset
         t = np.where(self.periodic, np.mod(t, self.period), np.clip(t, 0.0, self.hi))
         idx = (self.search <= t[:, None]).sum(axis=1) - 1

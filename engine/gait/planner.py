@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.geometry import convex_hull_2d, quat_from_matrix, rot_z, rot_zyx, smooth_max, smooth_min, smoothstep
+from engine.geometry import quat_from_matrix, rot_z, rot_zyx, smooth_max, smooth_min, smoothstep
 from engine.gait.blending import HEEL, SWING_PHASES, TOE, BlendedGait, ChannelLayout, StyleBanks
 from engine.gait.footsteps import (
     Foothold,
@@ -35,6 +35,7 @@ from engine.gait.heel_toe import foot_rig, stance_pitch
 from engine.gait.path_frame import PathFrame, predict
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
+from engine.gait.planner_kernels import path_table_poses, support_hull
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
 
@@ -351,15 +352,7 @@ class GaitPlanner:
         goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
         times, vels, th, dx, dy = _command_ramp(self.command, goal, command_rate_limits)
-        n = len(times)
-        poses = np.empty((n, 3))
-        poses[0] = (self.path.x, self.path.y, self.path.yaw)
-        np.cumsum(th[:-1], out=poses[1:, 2])
-        poses[1:, 2] += poses[0, 2]
-        c, s_ = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
-        np.cumsum(c * dx[:-1] - s_ * dy[:-1], out=poses[1:, 0])
-        np.cumsum(s_ * dx[:-1] + c * dy[:-1], out=poses[1:, 1])
-        poses[1:, :2] += poses[0, :2]
+        poses = path_table_poses(float(self.path.x), float(self.path.y), float(self.path.yaw), th, dx, dy)  # compiled
         return times, poses, vels
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:
@@ -596,8 +589,7 @@ class GaitPlanner:
         if hull is None:
             if len(self._hull_cache) >= 64:
                 self._hull_cache.clear()
-            hull = convex_hull_2d(np.concatenate([_edge_strip(h.corners(length, width), length, e)
-                                                  for h, e in zip(holds, edges)]))
+            hull = support_hull(holds, length, width, edges, EDGE_SUPPORT_DEPTH_M)  # compiled: the same numbers
             hull.flags.writeable = False  # shared between calls
             self._hull_cache[key] = hull
         return hull
@@ -667,18 +659,6 @@ def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:
     if toe_pitch > EDGE_CONTACT_PITCH_RAD:
         return "toe"
     return None
-
-
-def _edge_strip(corners: np.ndarray, length_m: float, edge: str | None) -> np.ndarray:
-    """The sole rectangle ``corners`` (back-left, back-right, front-right, front-left) cut to the strip
-    EDGE_SUPPORT_DEPTH_M deep along its heel or toe edge (the whole sole for ``edge`` None)."""
-    if edge is None:
-        return corners
-    f = min(EDGE_SUPPORT_DEPTH_M / max(length_m, 1e-9), 1.0)
-    bl, br, fr, fl = corners
-    if edge == "heel":
-        return np.array([bl, br, br + f * (fr - br), bl + f * (fl - bl)])
-    return np.array([fl + f * (bl - fl), fr + f * (br - fr), fr, fl])
 
 
 def _at_event(phi: float, event_phi: float) -> bool:

@@ -103,3 +103,204 @@ def test_safe_region_projection_equals_the_array_version() -> None:
         for side in ("left", "right"):
             got, want = project_to_safe_region(support, target, side, region), project_reference(support, target, side, region)
             assert (got.x, got.y, got.yaw) == (want.x, want.y, want.yaw)
+
+
+def edge_strip_reference(corners, length_m, edge):  # noqa: ANN001, ANN201
+    """planner._edge_strip before the speed-up."""
+    if edge is None:
+        return corners
+    f = min(0.02 / max(length_m, 1e-9), 1.0)
+    bl, br, fr, fl = corners
+    if edge == "heel":
+        return np.array([bl, br, br + f * (fr - br), bl + f * (fl - bl)])
+    return np.array([fl + f * (bl - fl), fr + f * (br - fr), fr, fl])
+
+
+def test_compiled_support_hull_equals_corners_strips_and_hull() -> None:
+    from engine.gait.footsteps import Foothold
+    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M
+    from engine.gait.planner_kernels import support_hull
+    from engine.geometry.polygon import convex_hull_2d
+
+    assert EDGE_SUPPORT_DEPTH_M == 0.02
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        n = int(rng.integers(1, 3))
+        holds = tuple(Foothold(*rng.uniform(-2, 2, 2), float(rng.uniform(-7, 7))) for _ in range(n))
+        length, width = float(rng.uniform(0.005, 0.3)), float(rng.uniform(0.005, 0.15))
+        edges = tuple(rng.choice(np.array([None, "heel", "toe"], dtype=object)) for _ in range(n))
+        want = convex_hull_2d(np.concatenate([edge_strip_reference(h.corners(length, width), length, e)
+                                              for h, e in zip(holds, edges)]))
+        np.testing.assert_array_equal(support_hull(holds, length, width, edges, EDGE_SUPPORT_DEPTH_M), want)
+
+
+def _numpy_fuses_complex_products() -> bool:
+    """numpy's complex product rounds once per part (fused multiply-add SIMD, as on this machine's AVX2)."""
+    a, b = np.full(4, 1.0 + 2.0 ** -30 + 1j), np.full(4, 1.0 - 2.0 ** -30 + 1j)
+    return bool((a * b).real[0] != (1.0 + 2.0 ** -30) * (1.0 - 2.0 ** -30) - 1.0)
+
+
+def _assert_same(got, want) -> None:  # noqa: ANN001
+    """Bit-equal where numpy fuses its complex products as the kernels do; to rounding elsewhere."""
+    if _numpy_fuses_complex_products():
+        np.testing.assert_array_equal(got, want)
+    else:
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def test_compiled_support_geometry_equals_the_complex_numpy_version() -> None:
+    """The MPC's padded polygon geometry: convex (either orientation, collinear vertices), non-convex and
+    degenerate polygons, 1–12 per call. numpy's complex products use fused multiply-adds on this machine's
+    SIMD (the kernel does too); where numpy would not, the two may differ in the last bit."""
+    from engine.control.mpc.regions import _geometry_padded, _geometry_padded_numpy
+    from engine.geometry.polygon import convex_hull_2d
+
+    rng = np.random.default_rng(11)
+    for _ in range(1500):
+        polys = []
+        for _ in range(int(rng.integers(1, 13))):
+            kind = rng.random()
+            if kind < 0.1:  # non-convex or repeated vertices
+                p = rng.normal(0.0, 1.0, (int(rng.integers(3, 9)), 2))
+                if kind < 0.03:
+                    p[1] = p[0]
+            else:
+                p = convex_hull_2d(rng.normal(0.0, 0.2, (int(rng.integers(3, 12)), 2)) + rng.normal(0.0, 2.0, 2))
+                if len(p) < 3:
+                    p = np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]])
+                if kind < 0.4:
+                    p = p[::-1]
+                if kind > 0.9:  # a collinear vertex: the midpoint of an edge
+                    p = np.insert(p, 1, 0.5 * (p[0] + p[1]), axis=0)
+            polys.append(np.ascontiguousarray(p))
+        got, want = _geometry_padded(polys), _geometry_padded_numpy(polys)
+        for g, w in zip(got, want):
+            _assert_same(g, w)
+
+
+def test_compiled_mpc_rows_equal_the_numpy_rows() -> None:
+    """ComMpc._build_problem's rows (containment of consecutive supports, half-plane rows, waypoint times and
+    centroid targets) from the compiled kernel and from the numpy code, on walking supports at random times,
+    yaws and step sizes and on random (overlapping, non-nesting) polygons."""
+    from dataclasses import fields
+    from unittest import mock
+
+    import engine.control.mpc.controller as mpc_controller
+    from engine.bench.mpc_problems import example_walking_supports
+    from engine.control.mpc import ComMpc, SupportInterval
+    from engine.geometry.polygon import convex_hull_2d
+
+    compiled = mpc_controller.problem_rows
+
+    def numpy_rows(*args):  # noqa: ANN002, ANN202
+        return (True, *compiled(*args)[1:])
+
+    rng = np.random.default_rng(13)
+    mpc = ComMpc()
+    for case in range(400):
+        if case % 4 == 3:  # random convex polygons: general overlaps, disjoint supports
+            t = np.cumsum(rng.uniform(0.05, 0.6, 8))
+            supports = [SupportInterval(float(a), float(b), convex_hull_2d(rng.normal(0, 0.15, (6, 2)) + rng.normal(0, 0.1, 2)))
+                        for a, b in zip(np.r_[0.0, t[:-1]], t)]
+        else:
+            supports = example_walking_supports(n_steps=int(rng.integers(2, 10)), step_length_m=float(rng.uniform(-0.3, 0.4)),
+                                                step_width_m=float(rng.uniform(0.1, 0.3)), single_support_s=float(rng.uniform(0.2, 0.7)),
+                                                double_support_s=float(rng.uniform(0.02, 0.3)), yaw_rad=float(rng.uniform(-3, 3)))
+        t_now = float(rng.uniform(0.0, 1.5))
+        got, _ = mpc._build_problem(t_now, supports)
+        with mock.patch.object(mpc_controller, "problem_rows", numpy_rows):
+            want, _ = mpc._build_problem(t_now, supports)
+        assert (got is None) == (want is None)
+        if got is None:
+            continue
+        for f in fields(want):
+            g, w = np.asarray(getattr(got, f.name)), np.asarray(getattr(want, f.name))
+            assert g.dtype == w.dtype, f.name
+            _assert_same(g, w)
+
+
+def test_compiled_lip_segments_and_propagation_equal_numpy() -> None:
+    from engine.control.mpc.lip import _Segments
+
+    rng = np.random.default_rng(17)
+    for _ in range(2000):
+        n = int(rng.integers(1, 30))
+        steps = rng.uniform(0.0, 0.4, n)
+        steps[rng.random(n) < 0.1] = 0.0  # zero-length and tiny segments: the limit branch
+        steps[rng.random(n) < 0.1] *= 1e-10
+        times = float(rng.uniform(-5, 5)) + np.r_[0.0, np.cumsum(steps)]
+        omega = float(rng.uniform(0.5, 8.0))
+        got, want = _Segments.build(times, omega), _Segments.build_numpy(times, omega)
+        for name in ("h", "a", "b", "grow"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        cop, com, vel = rng.normal(0, 0.3, (n + 1, 2)), rng.normal(0, 0.3, 2), rng.normal(0, 0.5, 2)
+        for g, w in zip(got.propagate(cop, com, vel), want.propagate_numpy(cop, com, vel)):
+            np.testing.assert_array_equal(g, w)
+
+
+def test_compiled_warm_start_matching_equals_numpy() -> None:
+    """ComMpc._match_warm: the rows of a later problem matching a remembered solution's active rows."""
+    from engine.bench.mpc_problems import example_walking_supports
+    from engine.control.mpc import ComMpc
+
+    rng = np.random.default_rng(19)
+    mpc = ComMpc()
+    matched = 0
+    for _ in range(300):
+        kw = dict(n_steps=int(rng.integers(2, 8)), step_length_m=float(rng.uniform(-0.3, 0.4)), yaw_rad=float(rng.uniform(-3, 3)))
+        t0 = float(rng.uniform(0.0, 1.0))
+        before, _ = mpc._build_problem(t0, example_walking_supports(**kw))
+        after, _ = mpc._build_problem(t0 + float(rng.uniform(0.0, 0.05)),
+                                      example_walking_supports(**kw, t0_s=float(rng.normal(0.0, 0.01))))
+        rows = rng.choice(len(before.row_key), size=int(rng.integers(0, min(12, len(before.row_key)) + 1)), replace=False)
+        entry = (before.row_key[rows], before.normals_c[rows])
+        got = mpc._match_warm(after, entry)
+        assert got == mpc._match_warm_numpy(after, entry)
+        matched += len(got)
+    assert matched > 300  # most remembered rows find their match
+
+
+def path_table_reference(pose, th, dx, dy):  # noqa: ANN001, ANN201
+    """GaitPlanner._build_path_table's poses before the speed-up (numpy cumsums)."""
+    poses = np.empty((len(th), 3))
+    poses[0] = pose
+    np.cumsum(th[:-1], out=poses[1:, 2])
+    poses[1:, 2] += poses[0, 2]
+    c, s_ = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
+    np.cumsum(c * dx[:-1] - s_ * dy[:-1], out=poses[1:, 0])
+    np.cumsum(s_ * dx[:-1] + c * dy[:-1], out=poses[1:, 1])
+    poses[1:, :2] += poses[0, :2]
+    return poses
+
+
+def test_compiled_path_table_equals_the_numpy_cumsums() -> None:
+    from engine.gait.planner import _command_ramp
+    from engine.gait.planner_kernels import path_table_poses
+
+    rng = np.random.default_rng(23)
+    for _ in range(500):
+        command, goal = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
+        if rng.random() < 0.2:
+            goal = command.copy()  # held: the ramp's early exit
+        _, _, th, dx, dy = _command_ramp(command, goal, rng.uniform(0.1, 3.0, 3))
+        pose = rng.uniform(-5, 5, 3)
+        np.testing.assert_array_equal(path_table_poses(*pose.tolist(), th, dx, dy), path_table_reference(pose, th, dx, dy))
+
+
+def test_compiled_merged_bank_equals_numpy() -> None:
+    """MergedBank.evaluate (every channel of every blended sample at its own time) at random member times,
+    negative and beyond the cycle, on the shipped G1 neutral style's samples."""
+    from engine.gait.blending import ChannelLayout, MergedBank, StyleBanks
+    from engine.gait.style import StyleContext, load_style, styles_dir
+
+    ctx = StyleContext.for_robot("g1")
+    layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
+    banks = list(StyleBanks(load_style(styles_dir("g1") / "neutral.json"), layout).banks.values())
+    rng = np.random.default_rng(29)
+    for _ in range(300):
+        members = [banks[i] for i in rng.choice(len(banks), size=int(rng.integers(1, 5)), replace=False)]
+        merged = MergedBank(members)
+        times, scale = rng.uniform(-3.0, 5.0, len(members)), rng.uniform(0.5, 2.0, len(members))
+        times[rng.random(len(members)) < 0.2] = 0.0
+        for g, w in zip(merged.evaluate(times, scale), merged.evaluate_numpy(times, scale)):
+            np.testing.assert_array_equal(g, w)

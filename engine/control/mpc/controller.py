@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
 from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
+from engine.control.mpc.kernels import match_rows, problem_rows
 from engine.control.mpc.lip import _Segments, propagate_lip
 from engine.control.mpc.problem import _Condensed, _Problem
 from engine.control.mpc.regions import _CONTAIN_TOL_M, _make_region, _Region, _support_geometry
@@ -345,71 +346,17 @@ class ComMpc:
             self._max_halfplanes = max(self._max_halfplanes, max_h)
             self._setup()
 
-        # End waypoints: C_k ∩ C_k+1.  Consecutive supports nest in walking (a foot inside
-        # the double-support hull): the intersection is the inner polygon.  Otherwise both
-        # polygons' rows are stacked (clipped only for the centroid and the empty check).
-        n_sup = len(used)
-        nrm, off, hull, cent = geom.normals, geom.offsets, geom.hull, geom.centroids
-        nxt = np.append(own[1:], own[-1])
-        switch = nxt != own  # the interval closes its support
-        if n_sup > 1:
-            # max over (half-plane of one polygon, vertex of the other) of the signed distance
-            inner_b = ((nrm[:-1, :, None].conj() * hull[1:, None, :]).real - off[:-1, :, None]).max(axis=(1, 2))
-            inner_a = ((nrm[1:, :, None].conj() * hull[:-1, None, :]).real - off[1:, :, None]).max(axis=(1, 2))
-            pair = np.minimum(own, n_sup - 2)
-            in_a = inner_a[pair] <= _CONTAIN_TOL_M  # C_k ⊂ C_k+1: the intersection is C_k
-            in_b = inner_b[pair] <= _CONTAIN_TOL_M  # C_k+1 ⊂ C_k: it is C_k+1
-            use_b = switch & ~in_a
-            use_a = ~(use_b & in_b)
-        else:
-            use_a, use_b = np.ones(n_int, bool), np.zeros(n_int, bool)
-        end_centroids = np.where(use_a, cent[own], cent[nxt])
-        empty = False
-        for i in np.flatnonzero(use_a & use_b):  # general overlap (rare)
-            k = own[i]
-            hull_a = convex_hull(np.stack([hull[k].real, hull[k].imag], axis=1))
-            hull_b = convex_hull(np.stack([hull[k + 1].real, hull[k + 1].imag], axis=1))
-            inter = clip_convex_polygons(hull_a, hull_b)
-            if len(inter) == 0:  # fall back to C_k alone
-                use_b[i] = False
-                empty = True
-            else:
-                c = polygon_centroid(inter)
-                end_centroids[i] = c[0] + 1j * c[1]
-
-        # Rows, per interval: V midpoint slots (C_k), then 2V end slots (C_k, C_k+1);
-        # unused slots (+inf offsets) are dropped.
-        n_v = off.shape[1]
-        off_all = np.concatenate(
-            [off[own], np.where(use_a[:, None], off[own], np.inf), np.where(use_b[:, None], off[nxt], np.inf)], axis=1
-        ).ravel()
-        nrm_all = np.concatenate([nrm[own], nrm[own], nrm[nxt]], axis=1).ravel()
-        keep = off_all < np.inf
-        wp_all = _row_waypoints(n_int, n_v)
-
-        times = np.empty(2 * n_int + 1)
-        times[0] = t_now
-        times[2::2] = ends_arr
-        times[1::2] = 0.5 * (times[0:-1:2] + ends_arr)
-        centroids = np.empty(2 * n_int + 1, np.complex128)
-        centroids[0] = cent[own[0]]
-        centroids[1::2] = cent[own]
-        centroids[2::2] = end_centroids
-        final = cent[own[-1]]
-        nrm_c = nrm_all[keep]
-        row_wp = wp_all[keep]
-        problem = _Problem(
-            times,
-            ends_arr,
-            nrm_c.view(np.float64).reshape(-1, 2),
-            nrm_c,
-            times[row_wp] + _WARM_KIND_OFFSET_S * (row_wp & 1),
-            off_all[keep],
-            row_wp,
-            centroids.view(np.float64).reshape(-1, 2),
-            np.array([final.real, final.imag]),
-            empty,
-        )
+        # End waypoints: C_k ∩ C_k+1 (consecutive supports nest in walking: the inner polygon), compiled.
+        centroids_xy = geom.centroids.view(np.float64).reshape(-1, 2)
+        n_sup, n_v = len(used), geom.offsets.shape[1]
+        overlap, normals, offsets, row_wp, row_key, times, centroids = problem_rows(
+            own.astype(np.int64, copy=False), n_sup, geom.hull.view(np.float64).reshape(n_sup, n_v, 2),
+            geom.normals.view(np.float64).reshape(n_sup, n_v, 2), geom.offsets, centroids_xy, ends_arr, t_now,
+            _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S)
+        if overlap:  # an end waypoint needs the general intersection of two supports (rare): clip them
+            return _problem_numpy(geom, own, n_sup, ends_arr, t_now), ""
+        problem = _Problem(times, ends_arr, normals, normals.view(np.complex128)[:, 0], row_key, offsets, row_wp,
+                           centroids, centroids_xy[own[-1]].copy(), False)
         return problem, ""
 
     # ---------------------------------------------------------- condensed QP
@@ -493,6 +440,14 @@ class ComMpc:
         ``_WARM_TIME_TOL_S`` and with a parallel edge normal, so that shifted timings
         and moved footholds keep the warm start.
         """
+        key_prev, n_prev = entry
+        if len(key_prev) == 0:
+            return []
+        return match_rows(pb.row_key, pb.normals, key_prev, n_prev.view(np.float64).reshape(-1, 2),
+                          _WARM_TIME_TOL_S, _WARM_NORMAL_COS).tolist()  # compiled: _match_warm_numpy's rows
+
+    def _match_warm_numpy(self, pb: _Problem, entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
+        """The reference of :meth:`_match_warm`."""
         key_prev, n_prev = entry
         if len(key_prev) == 0:
             return []
@@ -678,6 +633,77 @@ class ComMpc:
         t_arr = np.array(times)
         pos, vel_wp = propagate_lip(t_arr, wps - com, np.zeros(2), vel, math.sqrt(GRAVITY_MPS2 / height))
         return ComMpcSolution(t_arr, wps, pos + com, vel_wp, height, "", 0.0)
+
+
+def _problem_numpy(geom, own, n_sup, ends_arr, t_now):  # noqa: ANN001, ANN202
+    """The rows of one call's QP from its supports' geometry (numpy; :func:`problem_rows` computes the same
+    numbers compiled and hands the calls whose end waypoints need a general intersection to this)."""
+    n_int = len(own)
+    # End waypoints: C_k ∩ C_k+1.  Consecutive supports nest in walking (a foot inside
+    # the double-support hull): the intersection is the inner polygon.  Otherwise both
+    # polygons' rows are stacked (clipped only for the centroid and the empty check).
+    nrm, off, hull, cent = geom.normals, geom.offsets, geom.hull, geom.centroids
+    nxt = np.append(own[1:], own[-1])
+    switch = nxt != own  # the interval closes its support
+    if n_sup > 1:
+        # max over (half-plane of one polygon, vertex of the other) of the signed distance
+        inner_b = ((nrm[:-1, :, None].conj() * hull[1:, None, :]).real - off[:-1, :, None]).max(axis=(1, 2))
+        inner_a = ((nrm[1:, :, None].conj() * hull[:-1, None, :]).real - off[1:, :, None]).max(axis=(1, 2))
+        pair = np.minimum(own, n_sup - 2)
+        in_a = inner_a[pair] <= _CONTAIN_TOL_M  # C_k ⊂ C_k+1: the intersection is C_k
+        in_b = inner_b[pair] <= _CONTAIN_TOL_M  # C_k+1 ⊂ C_k: it is C_k+1
+        use_b = switch & ~in_a
+        use_a = ~(use_b & in_b)
+    else:
+        use_a, use_b = np.ones(n_int, bool), np.zeros(n_int, bool)
+    end_centroids = np.where(use_a, cent[own], cent[nxt])
+    empty = False
+    for i in np.flatnonzero(use_a & use_b):  # general overlap (rare)
+        k = own[i]
+        hull_a = convex_hull(np.stack([hull[k].real, hull[k].imag], axis=1))
+        hull_b = convex_hull(np.stack([hull[k + 1].real, hull[k + 1].imag], axis=1))
+        inter = clip_convex_polygons(hull_a, hull_b)
+        if len(inter) == 0:  # fall back to C_k alone
+            use_b[i] = False
+            empty = True
+        else:
+            c = polygon_centroid(inter)
+            end_centroids[i] = c[0] + 1j * c[1]
+
+    # Rows, per interval: V midpoint slots (C_k), then 2V end slots (C_k, C_k+1);
+    # unused slots (+inf offsets) are dropped.
+    n_v = off.shape[1]
+    off_all = np.concatenate(
+        [off[own], np.where(use_a[:, None], off[own], np.inf), np.where(use_b[:, None], off[nxt], np.inf)], axis=1
+    ).ravel()
+    nrm_all = np.concatenate([nrm[own], nrm[own], nrm[nxt]], axis=1).ravel()
+    keep = off_all < np.inf
+    wp_all = _row_waypoints(n_int, n_v)
+
+    times = np.empty(2 * n_int + 1)
+    times[0] = t_now
+    times[2::2] = ends_arr
+    times[1::2] = 0.5 * (times[0:-1:2] + ends_arr)
+    centroids = np.empty(2 * n_int + 1, np.complex128)
+    centroids[0] = cent[own[0]]
+    centroids[1::2] = cent[own]
+    centroids[2::2] = end_centroids
+    final = cent[own[-1]]
+    nrm_c = nrm_all[keep]
+    row_wp = wp_all[keep]
+    problem = _Problem(
+        times,
+        ends_arr,
+        nrm_c.view(np.float64).reshape(-1, 2),
+        nrm_c,
+        times[row_wp] + _WARM_KIND_OFFSET_S * (row_wp & 1),
+        off_all[keep],
+        row_wp,
+        centroids.view(np.float64).reshape(-1, 2),
+        np.array([final.real, final.imag]),
+        empty,
+    )
+    return problem
 
 
 # ------------------------------------------------------------------ utilities

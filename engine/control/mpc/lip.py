@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from engine.control.mpc.kernels import lip_propagate, lip_segments
+
 
 FloatArray = NDArray[np.float64]
 
@@ -30,6 +32,12 @@ class _Segments:
 
     @staticmethod
     def build(times_s: FloatArray, omega: float) -> _Segments:
+        """Compiled (:func:`engine.control.mpc.kernels.lip_segments`); :meth:`build_numpy` is the reference."""
+        h, a, b, grow = lip_segments(np.ascontiguousarray(times_s, dtype=np.float64), float(omega))
+        return _Segments(omega, h, a, b, grow)
+
+    @staticmethod
+    def build_numpy(times_s: FloatArray, omega: float) -> _Segments:
         h = times_s[1:] - times_s[:-1]
         wh = omega * h
         one_minus_e = -np.expm1(-wh)
@@ -40,7 +48,15 @@ class _Segments:
     def propagate(
         self, cop_xy_m: FloatArray, com_xy_m: FloatArray, com_vel_xy_mps: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """CoM position and velocity at every waypoint time (closed form, see module docstring)."""
+        """CoM position and velocity at every waypoint time (closed form, see module docstring); compiled
+        (:func:`engine.control.mpc.kernels.lip_propagate`), :meth:`propagate_numpy` is the reference."""
+        return lip_propagate(float(self.omega), self.a, self.b, self.grow, np.ascontiguousarray(cop_xy_m, dtype=np.float64),
+                             np.ascontiguousarray(com_xy_m, dtype=np.float64).reshape(2),
+                             np.ascontiguousarray(com_vel_xy_mps, dtype=np.float64).reshape(2))
+
+    def propagate_numpy(
+        self, cop_xy_m: FloatArray, com_xy_m: FloatArray, com_vel_xy_mps: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
         w = self.omega
         a, b, grow = self.a[:, None], self.b[:, None], self.grow[:, None]
         p0, p1 = cop_xy_m[:-1], cop_xy_m[1:]

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.control.mpc.kernels import geometry_padded
 from engine.control.mpc.types import MIN_POLYGON_AREA_M2
 from engine.geometry.polygon import convex_hull, polygon_area, polygon_centroid, polygon_halfplanes
 
@@ -122,6 +123,22 @@ def _pad_layout(lens: tuple[int, ...]) -> tuple:
 
 
 def _geometry_padded(arrays: list[FloatArray]) -> tuple:
+    """:func:`_geometry_padded_numpy` compiled (:func:`engine.control.mpc.kernels.geometry_padded`, the same
+    numbers); the numpy code for non-finite vertices and polygons of more than 16 vertices."""
+    lens = tuple(len(a) for a in arrays)
+    n_v = max(lens)
+    points = np.concatenate(arrays)
+    if n_v > 16 or not np.isfinite(points).all():
+        return _geometry_padded_numpy(arrays)
+    idx, idx_next, _, _ = _pad_layout(lens)
+    zf = points.view(np.complex128)[:, 0]
+    hull, normals, offsets, centroids, area, bad = geometry_padded(
+        points, np.array(lens, dtype=np.int64), n_v, np.abs(zf[idx_next] - zf[idx]))
+    return (hull.view(np.complex128)[..., 0], normals.view(np.complex128)[..., 0], offsets,
+            centroids.view(np.complex128)[:, 0], area, bad)
+
+
+def _geometry_padded_numpy(arrays: list[FloatArray]) -> tuple:
     """Vectorised geometry of polygons (n_k, 2), with complex numbers ``x + iy``.
 
     Returns ``(hull (S, V), normals (S, V) complex, offsets (S, V), centroids (S,)

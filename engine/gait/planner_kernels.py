@@ -1,0 +1,115 @@
+"""The gait planner's compiled (numba) kernels: the path table's poses and the preview's double-support
+polygons (the convex hull of the soles on a tuple of footholds, each sole whole or cut to the strip along
+its heel or toe edge: a foot rolling on that edge).
+
+For the polygons one call computes what :meth:`engine.gait.footsteps.Foothold.corners`, the planner's ``_edge_strip`` and
+:func:`engine.geometry.polygon.convex_hull_2d` compute one after the other, with the same expressions in
+the same order (the same numbers: ``tests/control/test_stack_speed_references.py``). Most support hulls
+of a walk are new every planner tick (the predicted footholds move with the path), so the hull cache
+of the planner misses often and the miss is what this kernel makes cheap.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from engine.geometry.polygon import _hull_compiled
+
+#: Edge codes of :func:`support_hull`: the whole sole, the heel strip, the toe strip.
+EDGE_CODES = {None: 0, "heel": 1, "toe": 2}
+
+
+def support_hull(holds: tuple, length_m: float, width_m: float, edges: tuple, strip_depth_m: float) -> np.ndarray:
+    """Counter-clockwise hull (M, 2) of the soles (``length_m`` × ``width_m``) on ``holds`` (Footholds),
+    the one of ``edges[i]`` ("heel", "toe" or None) cut to its ``strip_depth_m`` strip."""
+    n = len(holds)
+    poses = np.empty((n, 3))
+    codes = np.empty(n, dtype=np.int64)
+    for i, (h, e) in enumerate(zip(holds, edges)):
+        poses[i, 0], poses[i, 1], poses[i, 2] = h.x, h.y, h.yaw
+        codes[i] = EDGE_CODES[e]
+    return _support_hull_compiled(poses, float(length_m), float(width_m), codes, float(strip_depth_m))
+
+
+@njit(cache=True, nogil=True)
+def _support_hull_compiled(poses, length_m, width_m, codes, strip_depth_m):  # noqa: ANN001, ANN201
+    n = poses.shape[0]
+    pts = np.empty((4 * n, 2))
+    f = min(strip_depth_m / max(length_m, 1e-9), 1.0)
+    for i in range(n):
+        # Foothold.corners(length_m, width_m) (front trim 0): back-left, back-right, front-right, front-left
+        c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
+        trim = min(max(0.0, 0.0), 0.9 * length_m)
+        hl, hw = 0.5 * (length_m - trim), 0.5 * width_m
+        x, y = poses[i, 0] - c * 0.5 * trim, poses[i, 1] - s * 0.5 * trim
+        blx, bly = x - c * hl - s * hw, y - s * hl + c * hw
+        brx, bry = x - c * hl + s * hw, y - s * hl - c * hw
+        frx, fry = x + c * hl + s * hw, y + s * hl - c * hw
+        flx, fly = x + c * hl - s * hw, y + s * hl + c * hw
+        k = 4 * i
+        if codes[i] == 1:  # heel strip: bl, br, br + f (fr − br), bl + f (fl − bl)
+            pts[k, 0], pts[k, 1] = blx, bly
+            pts[k + 1, 0], pts[k + 1, 1] = brx, bry
+            pts[k + 2, 0], pts[k + 2, 1] = brx + f * (frx - brx), bry + f * (fry - bry)
+            pts[k + 3, 0], pts[k + 3, 1] = blx + f * (flx - blx), bly + f * (fly - bly)
+        elif codes[i] == 2:  # toe strip: fl + f (bl − fl), fr + f (br − fr), fr, fl
+            pts[k, 0], pts[k, 1] = flx + f * (blx - flx), fly + f * (bly - fly)
+            pts[k + 1, 0], pts[k + 1, 1] = frx + f * (brx - frx), fry + f * (bry - fry)
+            pts[k + 2, 0], pts[k + 2, 1] = frx, fry
+            pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+        else:
+            pts[k, 0], pts[k, 1] = blx, bly
+            pts[k + 1, 0], pts[k + 1, 1] = brx, bry
+            pts[k + 2, 0], pts[k + 2, 1] = frx, fry
+            pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+    return _hull_compiled(pts)
+
+
+@njit(cache=True, nogil=True)
+def path_table_poses(x, y, yaw, th, dx, dy):  # noqa: ANN001, ANN201
+    """The planner's path table poses (n, 3) from the start pose and the pieces' turn angles and arcs
+    (``GaitPlanner._build_path_table``'s numpy cumsums, in their order: the same numbers)."""
+    n = th.shape[0]
+    poses = np.empty((n, 3))
+    poses[0, 0], poses[0, 1], poses[0, 2] = x, y, yaw
+    acc_th, acc_x, acc_y = 0.0, 0.0, 0.0
+    for i in range(1, n):
+        acc_th = th[0] if i == 1 else acc_th + th[i - 1]
+        poses[i, 2] = acc_th
+    for i in range(1, n):
+        poses[i, 2] += yaw
+    for i in range(1, n):
+        c, s = math.cos(poses[i - 1, 2]), math.sin(poses[i - 1, 2])
+        ddx = c * dx[i - 1] - s * dy[i - 1]
+        ddy = s * dx[i - 1] + c * dy[i - 1]
+        acc_x = ddx if i == 1 else acc_x + ddx
+        acc_y = ddy if i == 1 else acc_y + ddy
+        poses[i, 0], poses[i, 1] = acc_x + x, acc_y + y
+    return poses
+
+
+@njit(cache=True, nogil=True)
+def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, periodic, period, hi, search, t0, coef):  # noqa: ANN001, ANN201, PLR0913
+    """``MergedBank.evaluate``'s values and d/dt of every row (its numpy code, the same numbers: numpy's
+    float remainder for periodic rows, its clip otherwise, then the Horner cubic of the row's segment)."""
+    n_rows = offset.shape[0]
+    values = np.empty(n_rows)
+    rates = np.empty(n_rows)
+    for r in range(n_rows):
+        t = member_times[member_of_row[r]] - offset[r]
+        if periodic[r]:
+            t = t % period[r]  # Python's float remainder: numpy's (fmod, then the divisor's sign)
+        else:
+            t = min(max(t, 0.0), hi[r])
+        idx = -1
+        for j in range(search.shape[1]):
+            if search[r, j] <= t:
+                idx += 1
+        tau = t - t0[r, idx]
+        c0, c1, c2, c3 = coef[r, idx, 0], coef[r, idx, 1], coef[r, idx, 2], coef[r, idx, 3]
+        values[r] = c0 + tau * (c1 + tau * (c2 + tau * c3))
+        rates[r] = (c1 + tau * (2.0 * c2 + 3.0 * c3 * tau)) * member_rate_scale[member_of_row[r]]
+    return values, rates
