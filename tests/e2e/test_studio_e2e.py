@@ -83,6 +83,46 @@ def test_joystick_drives_the_robot(served_studio, artifacts):
         wait_for_text(page, "Command: stopped", timeout_ms=30_000)
 
 
+def wait_for_simulated_time(page, t_s: float, wall_cap_s: float = 600.0) -> dict:
+    """Poll the status line until the simulation's clock reaches ``t_s`` (the wall cap only guards against a
+    stalled engine); returns that status."""
+    deadline = time.monotonic() + wall_cap_s
+    while True:
+        now = robot_status(page)
+        now["fallen"] = "Engine fallen" in page.inner_text("body")
+        HISTORY.append(now)
+        if now["t"] >= t_s or time.monotonic() > deadline:
+            return now
+        page.wait_for_timeout(250)
+
+
+def test_a_push_from_standing_ends_at_rest_nearby(served_studio, artifacts):
+    """Issue 16 item 0, as the animator did it: Test mode, command stopped, *Push (1 s)* (1.5 N/kg from the
+    front). The robot recovers, stays within 0.6 m of where it stood and is at rest again 3 s after the push
+    (mean speed over the next 3 simulated seconds < 0.05 m/s: a window of several steps, so the sway of
+    stepping in place averages out; the status line gives the pelvis to the centimetre), in simulated time."""
+    with open_page(served_studio.url, 1100, 720) as page:
+        wait_for_text(page, "Engine running")
+        page.get_by_role("button", name="Test").click()
+        wait_for_text(page, "test mode", timeout_ms=30_000)
+        wait_for_text(page, "Command: stopped", timeout_ms=30_000)
+        wait_for_simulated_time(page, robot_status(page)["t"] + 2.0)  # settled into Test mode
+        before = robot_status(page)
+        page.get_by_role("button", name="Push (1 s)").click()
+        pushed_at = robot_status(page)["t"]
+        settled = wait_for_simulated_time(page, pushed_at + 1.0 + 3.0)
+        later = wait_for_simulated_time(page, settled["t"] + 3.0)
+        page.screenshot(path=str(artifacts / "studio_push_from_standing_at_rest.png"))
+        assert not later["fallen"] and "Engine running" in page.inner_text("body"), history()
+        assert later["t"] >= settled["t"] + 3.0, f"the engine stalled: {history()}"
+        moved_m = ((later["x"] - before["x"]) ** 2 + (later["y"] - before["y"]) ** 2) ** 0.5
+        speed_mps = ((later["x"] - settled["x"]) ** 2 + (later["y"] - settled["y"]) ** 2) ** 0.5 / (
+            later["t"] - settled["t"])
+        print(f"push from standing: moved {moved_m:.2f} m, then {speed_mps:.3f} m/s")
+        assert moved_m < 0.6, f"the push moved the robot {moved_m:.2f} m: {history()}"
+        assert speed_mps < 0.05, f"3 s after the push it still moves at {speed_mps:.3f} m/s: {history()}"
+
+
 def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path, artifacts):
     """Edit mode, Curves: drag the swing-height knot up in the browser; the style changes and the
     simulated robot lifts its foot higher."""
