@@ -15,6 +15,7 @@ import time
 import numpy as np
 import pytest
 
+from engine.gait.velocity_sampler import SAMPLE_NAMES
 from engine.retarget.humanoid_arm.puppet_session import puppet_clips
 from tests.conftest import free_port
 from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, wait_for_text
@@ -41,7 +42,8 @@ class EngineTap:
         self.lock = threading.Lock()
         self.frames: list[tuple[float, int, np.ndarray]] = []  # Edit mode's frames only
         self.phases: list[tuple[float, float]] = []
-        self.tracked: list[tuple[float, float, float]] = []  # (time, phase, the tracked arm joint's reference)
+        # (time, phase, the tracked arm joint's reference, in_place's blend weight)
+        self.tracked: list[tuple[float, float, float, float]] = []
         view_update, on_telemetry = studio.view.update, studio._on_telemetry
 
         def frame(event):
@@ -57,8 +59,10 @@ class EngineTap:
                 with self.lock:
                     self.phases.append((float(event.sim_time_s), float(event.signals["phase"][0])))
                     if "arm_joint" in event.signals:
+                        weights = event.signals.get("sample_weights")
+                        w = float(weights[IN_PLACE]) if weights is not None and len(weights) > IN_PLACE else 1.0
                         self.tracked.append((float(event.sim_time_s), float(event.signals["phase"][0]),
-                                             float(event.signals["arm_joint"][0])))
+                                             float(event.signals["arm_joint"][0]), w))
 
         studio.view.update = frame
         studio._on_telemetry = telemetry
@@ -73,9 +77,10 @@ class EngineTap:
             return self.frames[-1][0] if self.frames else 0.0
 
     def references(self, t0: float, t1: float) -> np.ndarray:
-        """(N, 3) time, phase and reference angle of the tracked arm joint (the engine's Plots signal)."""
+        """(N, 4) time, phase, reference angle of the tracked arm joint (the engine's Plots signal) and
+        in_place's blend weight."""
         with self.lock:
-            return np.array([r for r in self.tracked if t0 <= r[0] <= t1]).reshape(-1, 3)
+            return np.array([r for r in self.tracked if t0 <= r[0] <= t1]).reshape(-1, 4)
 
     def window(self, t0: float, t1: float, sample, cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
         """(cycle times, simulated arm angles) of the frames in [t0, t1]: each frame's gait time from the
@@ -95,6 +100,7 @@ class EngineTap:
 
 
 PHASE_SKEW_S = 2 / 125.0  # two planner ticks
+IN_PLACE = SAMPLE_NAMES.index("in_place")
 
 
 def _curve_values(sample, joints: list[str], standing: dict[str, float], times: np.ndarray) -> np.ndarray:
@@ -134,7 +140,14 @@ def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, j
     at = np.array([pm.time_at(p % 1.0) for p in refs[:, 1]])
     gap = np.min([np.abs(refs[:, 2] - _curve_values(follows, [tracked], standing, (at + skew) % cycle_s)[:, 0])
                   for skew in np.linspace(-PHASE_SKEW_S, PHASE_SKEW_S, 9)], axis=0)
-    assert np.max(gap) < 1e-3, f"{tracked}: the walk's reference is not the sample's curve (off by {np.max(gap):.4f} rad)"
+    # the velocity feedback adds its adjustment to the command, so the blend may hold a small share of the
+    # neighbouring samples (in_place's weight below 1): the reference then moves off the curve by at most that
+    # share times the samples' difference (< 1 rad on any arm curve)
+    allowed = 1e-3 + (1.0 - refs[:, 3]) * 1.0
+    print(f"reference vs curve: worst {np.max(gap):.2e} rad; in_place's weight {refs[:, 3].min():.4f}–{refs[:, 3].max():.4f}")
+    worst = int(np.argmax(gap - allowed))
+    assert np.all(gap < allowed), (f"{tracked}: the walk's reference is not the sample's curve (off by "
+                                   f"{gap[worst]:.4f} rad with in_place's weight {refs[worst, 3]:.4f})")
     return (_lagged_rms(q, follows, joints, standing, times, cycle_s),
             _lagged_rms(q, other, joints, standing, times, cycle_s))
 
