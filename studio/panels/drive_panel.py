@@ -23,7 +23,9 @@ from studio.camera_follow import CameraFollow
 if TYPE_CHECKING:
     from studio.app import Studio
 
-HOLD_TIMEOUT_S = 2.0  # safety net: a hold with no repeat for this long ends even if its release was missed
+HOLD_TIMEOUT_S = 2.0  # a hold with no repeat for this long ends (its release was lost) — when repeats come fast
+HOLD_TIMEOUT_MAX_S = 10.0  # ... and at most this long, however slow the browser's repeats have been
+HOLD_GAP_FACTOR = 3.0  # the timeout is this many of the browser's recent repeat gaps (a slow browser's gaps are long)
 TAP_MAX_S = 0.35  # a press released sooner than this is a tap: it latches that direction (cruise) until ■ Stop
 PAD_RADIUS_M = 0.12
 SEND_PERIOD_S = 0.05
@@ -36,12 +38,15 @@ class JoystickState:
     """What the joystick asks for, from hold buttons, taps and the two pads (unit-free, in [-1, 1] per axis).
 
     The browser sends a hold message when a button is pressed and then about 20 times a second while it
-    stays down, and a click when it is released. Under software WebGL the repeats can be a second apart, so
-    a hold lasts until its release (the click) — the timeout is only a safety net for a lost release. A
-    release within ``TAP_MAX_S`` of the press is a tap, and so is a release with no repeat between (a slow
-    browser delivers a quick click's press and release up to a frame, ~0.7 s, apart): it latches that
-    direction until ■ Stop, a tap on the same button again, or a tap in the opposite direction. Axes: 0
-    forward, 1 left, 2 turn left.
+    stays down, and a click when it is released. Under software WebGL on a slow machine the repeats can be
+    seconds apart (the page's main thread draws a frame between two of them), so a press lasts until its
+    release (the click); the timeout is only a safety net for a lost release, and it adapts to the gaps
+    this browser's repeats have shown (``HOLD_GAP_FACTOR`` of them, between ``HOLD_TIMEOUT_S`` and
+    ``HOLD_TIMEOUT_MAX_S``). A late repeat continues its press, it does not start a new one, so the end
+    of a long hold is never mistaken for a tap. A release within ``TAP_MAX_S`` of the press is a tap, and
+    so is a release with no repeat between (a slow browser delivers a quick click's press and release up to
+    a frame, ~0.7 s, apart): it latches that direction until ■ Stop, a tap on the same button again, or a
+    tap in the opposite direction. Axes: 0 forward, 1 left, 2 turn left.
     """
 
     def __init__(self, clock: Callable[[], float] = time.monotonic):
@@ -50,17 +55,26 @@ class JoystickState:
         self._pressed_at: dict[tuple[int, float], float] = {}  # (axis, sign) → time the press began
         self._last_repeat: dict[tuple[int, float], float] = {}
         self._repeats: dict[tuple[int, float], int] = {}  # hold messages after the press
+        self._repeat_gap_s = SEND_PERIOD_S  # recent gap between this browser's repeats: fast up, slow down
         self.latched = np.zeros(3)
         self.pad = np.zeros(3)
+
+    @property
+    def hold_timeout_s(self) -> float:
+        """How long a press stays held without a repeat (a lost release ends after this)."""
+        return float(min(HOLD_TIMEOUT_MAX_S, max(HOLD_TIMEOUT_S, HOLD_GAP_FACTOR * self._repeat_gap_s)))
 
     def hold(self, axis: int, sign: float) -> None:
         now = self.clock()
         key = (axis, sign)
         with self._lock:
-            if now - self._last_repeat.get(key, -np.inf) > HOLD_TIMEOUT_S:
-                self._pressed_at[key] = now  # a new press (or one whose release was lost)
+            last = self._last_repeat.get(key)
+            if key not in self._pressed_at or last is None or now - last > HOLD_TIMEOUT_MAX_S:
+                self._pressed_at[key] = now  # a new press (or one whose release was lost long ago)
                 self._repeats[key] = 0
-            else:
+            else:  # a repeat of the press, however late: learn how far apart this browser sends them
+                gap = now - last
+                self._repeat_gap_s = gap if gap > self._repeat_gap_s else 0.9 * self._repeat_gap_s + 0.1 * gap
                 self._repeats[key] = self._repeats.get(key, 0) + 1
             self._last_repeat[key] = now
 
@@ -71,7 +85,8 @@ class JoystickState:
             began = self._pressed_at.pop((axis, sign), None)
             self._last_repeat.pop((axis, sign), None)
             repeats = self._repeats.pop((axis, sign), 0)
-            tap = began is None or now - began <= TAP_MAX_S or (repeats == 0 and now - began <= HOLD_TIMEOUT_S)
+            tap = (began is None or now - began <= TAP_MAX_S
+                   or (repeats == 0 and now - began <= max(HOLD_TIMEOUT_S, self._repeat_gap_s)))
             self.latched[axis] = (0.0 if self.latched[axis] == sign else sign) if tap else 0.0
 
     def set_pad(self, axes: slice | int, values) -> None:
@@ -92,8 +107,9 @@ class JoystickState:
         with self._lock:
             held = np.zeros(3)
             pressed = set()
+            timeout_s = self.hold_timeout_s
             for (axis, sign), t in self._last_repeat.items():
-                if now - t <= HOLD_TIMEOUT_S:  # else no repeat for long: its release was lost
+                if now - t <= timeout_s:  # else no repeat for long: its release was lost
                     held[axis] += sign
                     pressed.add(axis)
             v = np.array([held[a] if a in pressed else self.latched[a] for a in range(3)]) + self.pad

@@ -40,6 +40,9 @@ def open_page(url: str, width: int = 900, height: int = 640):
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         page = browser.new_page(viewport={"width": width, "height": height})
         page.set_default_timeout(60_000)
+        slowdown = float(os.environ.get("E2E_CPU_SLOWDOWN", "1") or 1)
+        if slowdown > 1:  # a slower machine's page, emulated: Chromium's CPU throttling (e.g. 3 or 6)
+            page.context.new_cdp_session(page).send("Emulation.setCPUThrottlingRate", {"rate": slowdown})
         page.goto(url)
         try:
             yield page

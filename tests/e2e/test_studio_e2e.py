@@ -23,22 +23,40 @@ def robot_status(page) -> dict[str, float]:
     return {k: float(v) for k, v in match.groupdict().items()}
 
 
-def hold_for_simulated_time(page, button_name: str, sim_seconds: float, done=lambda start, now: False,
+COMMAND = re.compile(r"Command: vx (?P<vx>[+-]\d+\.\d+) m/s · vy (?P<vy>[+-]\d+\.\d+) m/s · "
+                     r"wz (?P<wz>[+-]\d+\.\d+) rad/s")
+
+
+def command_readout(page) -> dict[str, float]:
+    """The command the studio applies, from the joystick's readout (zeros when it says "stopped")."""
+    match = COMMAND.search(page.inner_text("body"))
+    return {k: float(v) for k, v in match.groupdict().items()} if match else {"vx": 0.0, "vy": 0.0, "wz": 0.0}
+
+
+def hold_for_simulated_time(page, button_name: str, sim_seconds: float, applied, done=lambda start, now: False,
                             wall_cap_s: float = 600.0) -> tuple[dict, dict]:
-    """Press and hold a joystick button until the simulation (not the wall clock) has run ``sim_seconds``:
-    the result does not depend on how fast the machine simulates or renders. The wall-clock cap only
-    guards against a stalled engine (a heavily loaded machine simulates at 1–5 % of real time)."""
+    """Press and hold a joystick button until the simulation (not the wall clock) has run ``sim_seconds``
+    from when the studio applies the press (its readout shows a command for which ``applied`` holds): the
+    result does not depend on how fast the machine simulates or renders — a slow machine's software-WebGL
+    page can take many seconds to deliver the press itself. The wall-clock cap only guards against a
+    stalled engine (a heavily loaded machine simulates at 1–5 % of real time)."""
     button = page.get_by_role("button", name=button_name)
-    start = robot_status(page)
     button.hover()
+    box = button.bounding_box()  # where it is now: the panel may have moved since the hover scrolled to it
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.down()
-    now = start
     deadline = time.monotonic() + wall_cap_s
     try:
+        while not applied(command_readout(page)):
+            assert time.monotonic() < deadline, (f"holding {button_name} never reached the studio; the readout "
+                                                 f"shows {command_readout(page)}")
+            page.wait_for_timeout(250)
+        start = now = robot_status(page)
         while time.monotonic() < deadline:
             page.wait_for_timeout(250)
             now = robot_status(page)
             now["fallen"] = "Engine fallen" in page.inner_text("body")
+            now["command"] = command_readout(page)
             HISTORY.append(now)
             if now["t"] - start["t"] >= sim_seconds or done(start, now):
                 break
@@ -52,8 +70,12 @@ HISTORY: list[dict] = []
 
 def history() -> str:
     """The statuses seen while holding, for a failure message."""
-    return "; ".join(f"t {h['t']:.1f} x {h['x']:+.2f} yaw {h['yaw']:+.0f}{' FALLEN' if h.get('fallen') else ''}"
-                     for h in HISTORY[-40:])
+    def command(h: dict) -> str:
+        c = h.get("command")
+        return f" cmd {c['vx']:+.2f},{c['vy']:+.2f},{c['wz']:+.2f}" if c else ""
+
+    return "; ".join(f"t {h['t']:.1f} x {h['x']:+.2f} y {h['y']:+.2f} yaw {h['yaw']:+.0f}{command(h)}"
+                     f"{' FALLEN' if h.get('fallen') else ''}" for h in HISTORY[-40:])
 
 
 def test_joystick_drives_the_robot(served_studio, artifacts):
@@ -62,7 +84,7 @@ def test_joystick_drives_the_robot(served_studio, artifacts):
         wait_for_text(page, "Engine running")
         page.get_by_role("button", name="Test").click()
         wait_for_text(page, "test mode", timeout_ms=30_000)
-        start, end = hold_for_simulated_time(page, "▲ forward", 10.0,
+        start, end = hold_for_simulated_time(page, "▲ forward", 10.0, applied=lambda c: c["vx"] > 0,
                                              done=lambda s, n: n["x"] - s["x"] > 0.3)
         page.screenshot(path=str(artifacts / "studio_test_mode_joystick.png"))
         moved = end["x"] - start["x"]
@@ -76,7 +98,8 @@ def test_joystick_drives_the_robot(served_studio, artifacts):
         def turned_deg(s: dict, n: dict) -> float:  # signed, wrapped to (-180, 180]: left is positive
             return -((s["yaw"] - n["yaw"] + 180.0) % 360.0 - 180.0)
 
-        start, end = hold_for_simulated_time(page, "⟲ turn left", 8.0, done=lambda s, n: turned_deg(s, n) > 20)
+        start, end = hold_for_simulated_time(page, "⟲ turn left", 8.0, applied=lambda c: c["wz"] > 0,
+                                             done=lambda s, n: turned_deg(s, n) > 20)
         turned = turned_deg(start, end)
         assert turned > 20, f"holding ⟲ turn left turned the robot by {turned:+.0f}° in simulated time: {history()}"
         page.get_by_role("button", name="■ Stop").click()

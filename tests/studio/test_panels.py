@@ -12,7 +12,7 @@ import viser
 
 from engine import protocol as msg
 from engine.gait.style import load_style
-from studio.panels.drive_panel import HOLD_TIMEOUT_S, DrivePanel, JoystickState
+from studio.panels.drive_panel import HOLD_TIMEOUT_MAX_S, HOLD_TIMEOUT_S, DrivePanel, JoystickState
 from studio.panels.sample_editor import SampleEditor
 from studio.panels.style_browser import StyleBrowser
 from studio.style_session import StyleSession
@@ -196,6 +196,42 @@ def test_joystick_hold_lasts_until_release_even_with_slow_repeats():
     clock.t += 0.3
     joy.release(0, 1.0)  # a long hold ends at release and latches nothing
     np.testing.assert_allclose(joy.unit_command(), 0.0)
+
+
+def test_joystick_hold_survives_a_slow_browsers_repeats_seconds_apart():
+    """A 3x slower machine rendering software WebGL: repeats 3-4 s apart. The hold stays on between them,
+    and its release (after a last gap longer than the fast-browser timeout) ends it without latching."""
+    clock = FakeClock()
+    joy = JoystickState(clock)
+    joy.hold(2, 1.0)
+    for gap in (1.5, 3.0, 3.5, 4.0, 2.5):
+        for _ in range(int(gap / 0.5)):
+            clock.t += 0.5
+            np.testing.assert_allclose(joy.unit_command(), [0.0, 0.0, 1.0])
+        clock.t += gap - 0.5 * int(gap / 0.5)
+        joy.hold(2, 1.0)
+    assert joy.hold_timeout_s >= 3 * 2.5
+    clock.t += 3.0
+    joy.release(2, 1.0)  # a hold, not a tap: nothing latches
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+    assert not joy.latched_any
+    joy.hold(2, 1.0)  # a lost release still ends, within the longest timeout
+    clock.t += HOLD_TIMEOUT_MAX_S + 0.1
+    np.testing.assert_allclose(joy.unit_command(), 0.0)
+
+
+def test_joystick_timeout_comes_back_down_when_the_browser_speeds_up():
+    clock = FakeClock()
+    joy = JoystickState(clock)
+    joy.hold(0, 1.0)
+    clock.t += 3.0
+    joy.hold(0, 1.0)
+    assert joy.hold_timeout_s == pytest.approx(9.0)
+    for _ in range(200):  # 10 s of repeats at 20 Hz
+        clock.t += 0.05
+        joy.hold(0, 1.0)
+    joy.release(0, 1.0)
+    assert joy.hold_timeout_s == pytest.approx(HOLD_TIMEOUT_S)
 
 
 def test_joystick_lost_release_times_out():
