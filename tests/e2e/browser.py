@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import shutil
 from pathlib import Path
 
@@ -11,6 +12,19 @@ import numpy as np
 import pytest
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+#: Every wall-clock timeout in the e2e tests is a stall guard (a test that passes returns as soon as its
+#: condition holds), so it is scaled generously: machines here differ 3x in speed and a software-WebGL
+#: page on a loaded slow one answers many times slower still. ``E2E_STALL_SCALE`` overrides the factor.
+STALL_SCALE = float(os.environ.get("E2E_STALL_SCALE", "4") or 4)
+
+
+def stall_s(seconds: float) -> float:
+    """A stall guard of ``seconds`` on this project's reference machine, scaled for slower ones."""
+    return seconds * STALL_SCALE
+
+
+def stall_ms(milliseconds: float) -> float:
+    return milliseconds * STALL_SCALE
 ARGS = [
     "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
     "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic",
@@ -32,14 +46,13 @@ def copy_styles(tmp_path: Path, robot: str = "g1") -> Path:
 @contextlib.contextmanager
 def open_page(url: str, width: int = 900, height: int = 640):
     playwright = pytest.importorskip("playwright.sync_api")
-    import os
 
     if not os.path.exists(CHROMIUM):
         pytest.fail("chromium is not installed: `make test` installs Debian's chromium")
     with playwright.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         page = browser.new_page(viewport={"width": width, "height": height})
-        page.set_default_timeout(60_000)
+        page.set_default_timeout(stall_ms(60_000))
         slowdown = float(os.environ.get("E2E_CPU_SLOWDOWN", "1") or 1)
         if slowdown > 1:  # a slower machine's page, emulated: Chromium's CPU throttling (e.g. 3 or 6)
             page.context.new_cdp_session(page).send("Emulation.setCPUThrottlingRate", {"rate": slowdown})
@@ -51,19 +64,19 @@ def open_page(url: str, width: int = 900, height: int = 640):
 
 
 def wait_for_text(page, text: str, timeout_ms: int = 60_000) -> None:
-    page.wait_for_function("t => document.body.innerText.includes(t)", arg=text, timeout=timeout_ms)
+    page.wait_for_function("t => document.body.innerText.includes(t)", arg=text, timeout=stall_ms(timeout_ms))
 
 
 def wait_until(predicate, timeout_s: float, what: str, poll_s: float = 0.1) -> None:
     """Poll ``predicate`` until it holds (a condition, not a fixed sleep); fail naming ``what``."""
     import time
 
-    deadline = time.monotonic() + timeout_s
+    deadline = time.monotonic() + stall_s(timeout_s)
     while time.monotonic() < deadline:
         if predicate():
             return
         time.sleep(poll_s)
-    pytest.fail(f"timed out after {timeout_s:g} s waiting for {what}")
+    pytest.fail(f"timed out after {stall_s(timeout_s):g} s waiting for {what}")
 
 
 def close_software_webgl_notice(page) -> None:
@@ -71,7 +84,7 @@ def close_software_webgl_notice(page) -> None:
     notice = page.locator(".mantine-Notification-root", has_text="Software WebGL").locator("button")
     if notice.count():
         try:
-            notice.first.click(timeout=10_000)
+            notice.first.click(timeout=stall_ms(10_000))
         except Exception:  # noqa: BLE001 - it may have closed by itself
             pass
 
@@ -81,7 +94,7 @@ def wait_value(predicate, timeout_s: float, what: str, page=None, poll_ms: int =
     the page (``wait_for_timeout`` keeps its event loop going); fail naming ``what``."""
     import time
 
-    deadline = time.monotonic() + timeout_s
+    deadline = time.monotonic() + stall_s(timeout_s)
     while time.monotonic() < deadline:
         value = predicate()
         if value:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import free_port
-from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, wait_for_text
+from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, stall_s, wait_for_text
 from tests.e2e.browser import wait_value as _wait
 
 pytestmark = pytest.mark.e2e
@@ -57,7 +57,7 @@ def test_an_animators_first_try(tmp_path, artifacts):
     styles = copy_styles(tmp_path)
     studio = Studio("g1", port=free_port(), styles_folder=styles).start()
     try:
-        assert studio.loaded.wait(120)
+        assert studio.loaded.wait(stall_s(120))
         with open_page(studio.url, 1000, 680) as page:
             wait_for_text(page, "Engine running", timeout_ms=240_000)
             close_software_webgl_notice(page)

@@ -14,7 +14,7 @@ import viser
 from studio.panels.curve_editor import CurveEditor, KnotRef, project_to_screen
 from studio.style_session import StyleSession
 from tests.conftest import REPO, free_port
-from tests.e2e.browser import open_page, wait_for_text
+from tests.e2e.browser import open_page, stall_s, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -24,7 +24,7 @@ RIGHT_SHOULDER = "joints.right_shoulder_pitch_joint"
 
 
 def _wait(predicate, timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
+    deadline = time.monotonic() + stall_s(timeout_s)
     while time.monotonic() < deadline:
         if predicate():
             return

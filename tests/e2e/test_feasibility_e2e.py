@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from engine.gait.curve_editing import KnotRef
-from tests.e2e.browser import copy_styles, open_page, wait_for_text
+from tests.e2e.browser import copy_styles, open_page, stall_s, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -20,7 +20,7 @@ def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
     styles = copy_styles(tmp_path)
     studio = Studio("g1", port=free_port(), styles_folder=styles).start()
     try:
-        assert studio.loaded.wait(240)  # a loaded machine builds the models slowly
+        assert studio.loaded.wait(stall_s(240))  # a loaded machine builds the models slowly
         with open_page(studio.url, 1000, 720) as page:
             wait_for_text(page, "Engine running", timeout_ms=240_000)
             page.get_by_role("tab", name="Sample").click(force=True)

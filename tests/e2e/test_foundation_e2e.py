@@ -9,7 +9,7 @@ import signal
 import numpy as np
 import pytest
 
-from tests.e2e.browser import canvas_pixels, open_page, robot_pixel_count, wait_for_text, wait_until
+from tests.e2e.browser import stall_ms, canvas_pixels, open_page, robot_pixel_count, wait_for_text, wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -30,7 +30,7 @@ def test_robot_stands_in_the_browser_and_survives_an_engine_kill(served_studio, 
         wait_for_text(page, "stopped", timeout_ms=30_000)  # the notification tells the user
         page.wait_for_function(
             "old => { const m = document.body.innerText.match(/Engine running · pid (\\d+)/);"
-            " return m && Number(m[1]) !== old; }", arg=old_pid, timeout=30_000)
+            " return m && Number(m[1]) !== old; }", arg=old_pid, timeout=stall_ms(30_000))
         new_pid = int(re.search(r"Engine running · pid (\d+)", page.inner_text("body")).group(1))
         assert new_pid != old_pid and new_pid in served_studio.engine_pids()
         wait_until(lambda: robot_pixel_count(canvas_pixels(page)) > 300, 60, "the robot drawn after the restart")

@@ -18,7 +18,7 @@ import pytest
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from engine.retarget.humanoid_arm.puppet_session import puppet_clips
 from tests.conftest import free_port
-from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, wait_for_text
+from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, stall_ms, stall_s, wait_for_text
 from tests.e2e.browser import wait_value as _wait
 
 pytestmark = pytest.mark.e2e
@@ -164,7 +164,7 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
     studio = Studio("g1", port=free_port(), styles_folder=copy_styles(tmp_path)).start()
     tap = EngineTap(studio, joints)
     try:
-        assert studio.loaded.wait(240)
+        assert studio.loaded.wait(stall_s(240))
         with open_page(studio.url, 1000, 760) as page:
             wait_for_text(page, "Engine running", 240_000)
             close_software_webgl_notice(page)
@@ -175,7 +175,7 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
             # the engine loads LWL2 and streams telemetry: wait until 30 puppet frames ran (simulated 0.5 s)
             page.wait_for_function(
                 "re => { const m = document.body.innerText.match(new RegExp(re)); return m && +m[1] >= 30; }",
-                arg=FRAMES_RE, timeout=240_000)
+                arg=FRAMES_RE, timeout=stall_ms(240_000))
             text = page.inner_text("body")
             assert "LWL2" in text and "datagrams" in text
             page.screenshot(path=str(artifacts / "puppet_running.png"))

@@ -9,7 +9,7 @@ import pytest
 
 from engine.walk_recording import load_run_motion
 from tests.conftest import ServedStudio
-from tests.e2e.browser import open_page, wait_for_text
+from tests.e2e.browser import open_page, stall_ms, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -35,15 +35,15 @@ def test_record_ten_seconds_of_joystick_walking_and_export(tmp_path, monkeypatch
             try:
                 page.wait_for_function(
                     "() => { const m = document.body.innerText.match(/Recording… (\\d+\\.\\d) s simulated/);"
-                    " return m && parseFloat(m[1]) >= 10.0; }", timeout=1_500_000, polling=500)
+                    " return m && parseFloat(m[1]) >= 10.0; }", timeout=stall_ms(1_500_000), polling=500)
             finally:
                 page.mouse.up()
             page.get_by_role("button", name="■ Stop recording").click()
-            page.wait_for_function("() => /Saved runs\\/[\\w.-]+\\.npz/.test(document.body.innerText)", timeout=120_000)
+            page.wait_for_function("() => /Saved runs\\/[\\w.-]+\\.npz/.test(document.body.innerText)", timeout=stall_ms(120_000))
             saved = SAVED.search(page.inner_text("body"))
             assert saved, page.inner_text("body")[-500:]
             page.get_by_role("button", name="Export recording").click()
-            page.wait_for_function("() => /Exported exports\\//.test(document.body.innerText)", timeout=300_000)
+            page.wait_for_function("() => /Exported exports\\//.test(document.body.innerText)", timeout=stall_ms(300_000))
             page.screenshot(path=str(artifacts / "studio_record_export.png"))
             exported = EXPORTED.search(page.inner_text("body"))
             assert exported, page.inner_text("body")[-500:]

@@ -10,7 +10,7 @@ import pytest
 
 from engine.motion_files import shared_root
 from tests.conftest import ServedStudio
-from tests.e2e.browser import open_page, wait_for_text
+from tests.e2e.browser import open_page, stall_ms, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -65,18 +65,18 @@ def test_retarget_workspace(tmp_path, monkeypatch, artifacts):
             assert state == "playing"
             page.wait_for_function(  # the result plays: the frame advances
                 "f => { const m = document.body.innerText.match(/Frame (\\d+) of/); return m && Number(m[1]) !== f; }",
-                arg=first, timeout=60_000)
+                arg=first, timeout=stall_ms(60_000))
             page.screenshot(path=str(artifacts / "retarget_playing.png"))
 
             # pause, then scrub: type a frame into the timeline's number box
             page.get_by_role("button", name="Play / pause", exact=True).click()
             page.wait_for_function("() => /Frame \\d+ of \\d+ · [\\d.]+ s · paused/.test(document.body.innerText)",
-                                   timeout=60_000)
+                                   timeout=stall_ms(60_000))
             slider_input = text_input(page, "Frame")
             slider_input.fill("12")
             slider_input.press("Enter")
             page.wait_for_function("() => /Frame 12 of \\d+ · [\\d.]+ s · paused/.test(document.body.innerText)",
-                                   timeout=60_000)
+                                   timeout=stall_ms(60_000))
 
             page.get_by_role("button", name="Export", exact=True).click()
             wait_for_text(page, f"Exported: motions/exports/go1_{stem}_smr.json", 120_000)

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from tests.e2e.browser import copy_styles, open_page, wait_for_text
+from tests.e2e.browser import copy_styles, open_page, stall_s, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -173,7 +173,7 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
 
     studio.view.update = record
     try:
-        assert studio.loaded.wait(60)
+        assert studio.loaded.wait(stall_s(60))
         with open_page(studio.url, 1100, 720) as page:
             wait_for_text(page, "Engine running")
             studio.drive.follow.value = False
@@ -191,9 +191,8 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
                     zs = [z for t, z in heights if t_from <= t <= t_to]
                 return max(zs) if zs else float("nan")
 
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline and (not heights or heights[-1][0] < 4.0):
-                time.sleep(0.5)
+            wait_until(lambda: bool(heights) and heights[-1][0] >= 4.0, 60, "4 s of simulated walking in Edit mode",
+                       poll_s=0.5)
             t_edit = heights[-1][0]
             apex_before = swing_apex(t_edit - 2.0, t_edit)
             before = studio.session.style.sample("in_place").curve("left_foot.z")
@@ -220,18 +219,16 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
                 if i == 1:
                     wait_until(lambda: editor._drag is not None, 30, "the knot drag to start")
             page.mouse.up()
-            deadline = time.monotonic() + 20
-            while time.monotonic() < deadline and studio.session.style.sample("in_place").curve("left_foot.z") == before:
-                time.sleep(0.2)
+            wait_until(lambda: studio.session.style.sample("in_place").curve("left_foot.z") != before, 20,
+                       "the drag to change the style", poll_s=0.2)
             after = studio.session.style.sample("in_place").curve("left_foot.z")
             assert after.knots[1].value > before.knots[1].value + 0.015, "the style did not change"
             assert "unsaved" in page.inner_text("body") or studio.session.dirty
             # The simulated robot now lifts its left foot higher (give it two cycles).
             with lock:
                 t_after = heights[-1][0]
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline and heights[-1][0] < t_after + 3.0:
-                time.sleep(0.5)
+            wait_until(lambda: heights[-1][0] >= t_after + 3.0, 60, "3 s of simulated walking after the edit",
+                       poll_s=0.5)
             apex_after = swing_apex(t_after + 1.0, t_after + 3.0)
             page.screenshot(path=str(artifacts / "studio_edit_mode_curve_drag.png"))
             assert apex_after > apex_before + 0.01, (apex_before, apex_after)
