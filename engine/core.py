@@ -429,7 +429,9 @@ class EngineCore:
             signals["puppet_q"] = session.x  # LWL2's output, in session.arms.joint_names order
         cm = session.arms.capsules
         measured = q[[self.robot.joint_names.index(j) for j in session.arms.joint_names]]
-        signals["puppet_capsule_distance"] = cm.signed_distances(measured)
+        pairs = cm.signed_distances(measured)
+        signals["puppet_capsule_distance"] = pairs
+        signals["puppet_capsule_min_distance"] = cm.capsule_min_distances(pairs)  # per capsule (the studio tints them)
 
     def _base_yaw(self) -> float:
         assert self.sim is not None

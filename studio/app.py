@@ -258,6 +258,7 @@ class Studio:
             self._on_robot_loaded(event)
         elif isinstance(event, msg.Notice):
             self._notify(event.level, event.message)
+            self.puppet.on_notice(event.level, event.message)
         elif isinstance(event, msg.JobProgress):
             from studio.panels.record_panel import JOB_PREFIX
 
@@ -289,6 +290,7 @@ class Studio:
         self.robot_simulated = event.simulated
         self.view.load(event.robot, event.body_names)
         self.ghost_view.load(event.robot, event.body_names)
+        self.puppet.on_view_loaded(event.robot)  # the capsules hang under the robot's (rebuilt) body frames
         model = load_robot(event.robot)
         self._limit_bodies = [model.mj_model.body(int(model.mj_model.jnt_bodyid[
             model.mj_model.joint(j).id])).name for j in model.joint_names]

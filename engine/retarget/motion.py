@@ -258,6 +258,10 @@ class RobotMotion:
         self.extra = _dynamic_fields(where, self.extra, t, nq - 7, len(self.foot_names))
 
     def save(self, path: str | Path) -> None:
+        _write_npz(path, self.arrays())
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The npz's entries (what :meth:`save` writes; a writer may add its own keys beside them)."""
         arrays = {
             "format": np.array(ROBOT_FORMAT), "fps": np.array(self.fps), "qpos": self.qpos,
             "joint_names": np.array(self.joint_names), "contact": self.contact,
@@ -273,7 +277,7 @@ class RobotMotion:
             arrays["ctrl"] = self.ctrl
         for key, value in self.extra.items():
             arrays[key] = value
-        _write_npz(path, arrays)
+        return arrays
 
     @classmethod
     def load(cls, path: str | Path) -> "RobotMotion":

@@ -230,3 +230,111 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
             page.screenshot(path=str(artifacts / "puppet_gesture_undone.png"))
     finally:
         studio.stop()
+
+
+def _tinted_pixels(rgb: np.ndarray) -> int:
+    """Canvas pixels of a saturated non-blue colour: the capsules' green / orange / red (the robot is grey, the
+    floor white, the source skeleton and the joystick pads blue)."""
+    mx, mn = rgb.max(axis=2), rgb.min(axis=2)
+    return int(np.sum((mx - mn > 50) & (rgb[..., 2] < mx)))
+
+
+def test_puppet_capsules_ride_the_robot_and_a_recorded_take_exports(tmp_path, artifacts, monkeypatch):
+    """Show capsules draws LWL2's capsules under the robot's body frames (canvas pixels of their colours
+    appear), tinted by the engine's per-capsule distances; a refused start (UDP port in use) is a status line;
+    a recorded span exports to motions/g1/NAME.npz (a name leaving the folder is refused in one line) and
+    reads back as a robot motion of the recorded LWL2 outputs."""
+    import socket
+
+    from engine.retarget.motion import RobotMotion
+    from studio.capsule_view import tint_states
+    from studio.panels.puppet_panel import LIVE
+    from tests.e2e.browser import canvas_pixels
+
+    clips = puppet_clips()
+    if not clips:
+        pytest.skip("shared mocap clips absent (set MOTION_STUDIO_SHARED)")
+    motions = tmp_path / "motions"
+    monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(motions))
+    studio = _start_g1_studio(tmp_path)
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", 0))
+    try:
+        assert studio.loaded.wait(240)
+        with open_page(studio.url, 820, 560) as page:
+            wait_for_text(page, "Engine running", 240_000)
+            close_software_webgl_notice(page)
+            page.get_by_role("tab", name="Mocap").click()
+            page.get_by_role("tab", name="Puppet").click()
+            wait_for_text(page, "Puppet: idle")
+            panel = studio.puppet
+
+            # ---- a live source on a port already in use: the engine refuses, the status line says why
+            panel.source.value = LIVE
+            panel.port.value = busy.getsockname()[1]
+            page.get_by_role("button", name="Start puppet").click()
+            wait_for_text(page, "Puppet: refused", 120_000)
+            assert "in use" in panel.status.content and not panel.active and studio.mode == "stand", panel.status.content
+
+            # ---- the clip: the robot follows; the capsules are drawn on it when ticked
+            panel.source.value = clips[0]
+            page.get_by_role("button", name="Start puppet").click()
+            page.wait_for_function(
+                "re => { const m = document.body.innerText.match(new RegExp(re)); return m && +m[1] >= 30; }",
+                arg=FRAMES_RE, timeout=240_000)
+            client = next(iter(studio.server.get_clients().values()))
+            t_asked = time.time()
+            client.camera.position, client.camera.look_at = (1.05, -0.6, 1.2), (0.0, 0.05, 0.85)
+            studio.drive.camera.adopt(client)
+            _wait(lambda: client.camera.update_timestamp > t_asked, 60, "the browser to take the camera", page)
+            before = _tinted_pixels(canvas_pixels(page))
+            page.get_by_label("Show capsules", exact=True).check()
+            _wait(lambda: panel.capsule_view.visible and len(panel.capsule_view.meshes) == 13, 60, "13 capsules", page)
+            names = {m.name for m in panel.capsule_view.meshes}
+            assert all(n.startswith("/robot/") and "/capsule_" in n for n in names), names  # under the body frames
+            tinted = _wait(lambda: (lambda n: n if n > before + 400 else 0)(_tinted_pixels(canvas_pixels(page))),
+                           120, "the capsules' colours on the canvas", page)
+            print(f"capsule-coloured canvas pixels: {before} before, {tinted} with the capsules")
+            # the tints are the engine's per-capsule distances (a later sample may be on its way: wait for agreement)
+            _wait(lambda: np.array_equal(panel.capsule_view.states, tint_states(
+                studio.last_telemetry.signals["puppet_capsule_min_distance"])), 60, "tints = distances", page)
+            close_software_webgl_notice(page)  # it may come back with the first heavy frames
+            page.mouse.move(5, 550)  # no hint tooltip over the panel
+            page.screenshot(path=str(artifacts / "puppet_capsules.png"))
+
+            # ---- record a second, export it: a name leaving the folder is refused, a plain one written
+            panel.record_s.value = 1.0
+            page.get_by_role("button", name="Record gesture").click()
+            wait_for_text(page, "Recorded", 240_000)
+            t_rec, q_rec = panel._recorded
+            name_box = page.get_by_label("Export name", exact=True)
+            name_box.fill("../outside")
+            _wait(lambda: panel.export_name.value == "../outside", 30, "the typed name to reach the studio", page)
+            page.get_by_role("button", name="Export recording").click()
+            wait_for_text(page, "Export refused: Export name:", 60_000)
+            assert "\n" not in panel.export_status.content and not (tmp_path / "outside.npz").exists()
+            name_box.fill("wave_take")
+            _wait(lambda: panel.export_name.value == "wave_take", 30, "the typed name to reach the studio", page)
+            page.get_by_role("button", name="Export recording").click()
+            wait_for_text(page, "Exported motions/g1/wave_take.npz", 60_000)
+            page.screenshot(path=str(artifacts / "puppet_exported.png"))
+            path = motions / "g1" / "wave_take.npz"
+            motion = RobotMotion.load(path)
+            assert motion.robot == "g1" and motion.method == "lwl2-puppet" and motion.fps == 30.0
+            assert motion.frames == int(np.floor((t_rec[-1] - t_rec[0]) * 30 + 1e-9)) + 1
+            assert motion.source["clip"] == clips[0]
+            with np.load(path, allow_pickle=False) as f:
+                arm_q, grid, joints = f["arm_q"], f["t"], [str(j) for j in f["arm_joint_names"]]
+                assert f["collision_free"].all() and f["pose15"].shape == (motion.frames, 15)
+            for k, tk in enumerate(t_rec[0] + grid):  # each frame: the latest recorded LWL2 output
+                np.testing.assert_array_equal(arm_q[k], q_rec[np.flatnonzero(t_rec <= tk + 1e-9)[-1]])
+            np.testing.assert_allclose(motion.joints[:, [motion.joint_names.index(j) for j in joints]], arm_q)
+    finally:
+        busy.close()
+        studio.stop()
+
+
+def _start_g1_studio(tmp_path):
+    from studio.app import Studio
+
+    return Studio("g1", port=free_port(), styles_folder=copy_styles(tmp_path)).start()

@@ -85,3 +85,46 @@ def test_coal_distances_equal_the_numpy_segment_test(robot, g1_capsules):
         assert cm.is_free(x) == bool(np.all(ref >= 0))
         negatives += int(np.sum(ref < 0))
     assert negatives > 0  # penetrating pairs were compared too
+
+
+@pytest.mark.parametrize("robot", ["g1", "talos"])
+def test_capsules_on_bodies_follow_the_mujoco_bodies_in_any_pose(robot, g1_capsules):
+    """What the studio draws: each capsule placed on the MuJoCo body of its frame's name, composed with that
+    body's simulated pose, is the capsule the checks use (pinocchio) — in random poses, not only the fitting one."""
+    import mujoco
+
+    from engine.retarget.humanoid_arm.capsules import fitted_capsules_on_bodies
+
+    cm = g1_capsules if robot == "g1" else CapsuleModel(UpperBody(robot))
+    placed = cm.on_bodies()
+    assert [c.name for c in placed] == [c.name for c in fitted_capsules_on_bodies(robot)]  # the studio's fit
+    ub = cm.ub
+    mm = ub.model.mj_model
+    data = mujoco.MjData(mm)
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        x = rng.uniform(ub.lower, ub.upper)
+        a, b = cm.segments(x)
+        data.qpos[:] = ub.model.mj_qpos_from_pin(ub.full_q(x))
+        mujoco.mj_kinematics(mm, data)
+        for i, c in enumerate(placed):
+            bid = mm.body(c.body).id
+            body_rot = data.xmat[bid].reshape(3, 3)
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, c.wxyz)
+            centre = body_rot @ c.position + data.xpos[bid]
+            axis = body_rot @ rot.reshape(3, 3)[:, 2]
+            ends = np.array([centre - 0.5 * c.length * axis, centre + 0.5 * c.length * axis])
+            np.testing.assert_allclose(ends, [a[i], b[i]], atol=1e-5)
+            assert c.radius == cm.capsules[i].radius
+
+
+def test_each_capsules_min_distance_is_its_closest_checked_pair(g1_capsules):
+    cm = g1_capsules
+    x = cm.ub.neutral()
+    pairs = cm.signed_distances(x)
+    per = cm.capsule_min_distances(pairs)
+    for c in range(len(cm.capsules)):
+        mine = [pairs[k] for k, (i, j) in enumerate(cm.pairs) if c in (i, j)]
+        assert per[c] == (min(mine) if mine else np.inf)
+    assert np.min(per) == np.min(pairs)

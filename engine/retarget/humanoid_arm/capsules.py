@@ -173,6 +173,19 @@ class CapsuleModel:
     def radii(self) -> np.ndarray:
         return np.array([c.radius for c in self.capsules])
 
+    def capsule_min_distances(self, pair_distances: np.ndarray) -> np.ndarray:
+        """(C,) each capsule's smallest signed distance over the checked pairs it is in (m; +inf for a capsule
+        in no checked pair), from :meth:`signed_distances`' (P,) answer."""
+        out = np.full(len(self.capsules), np.inf)
+        d = np.asarray(pair_distances, dtype=float)
+        np.minimum.at(out, self._ia, d)
+        np.minimum.at(out, self._ib, d)
+        return out
+
+    def on_bodies(self) -> list["CapsuleOnBody"]:
+        """The capsules placed on the MuJoCo bodies they ride on (what the studio draws)."""
+        return capsules_on_bodies(self.ub, self.capsules)
+
     def signed_distances(self, x: np.ndarray) -> np.ndarray:
         """(P,) signed distance of every checked pair (m; negative = colliding)."""
         self._distances(x)
@@ -304,6 +317,58 @@ class CapsuleModel:
         return [p for p, t in zip(candidates, touching) if t < ALWAYS_TOUCHING_FRACTION * n_samples]
 
 
+@dataclass(frozen=True)
+class CapsuleOnBody:
+    """A capsule as drawn on the robot: the MuJoCo body it rides on (the body named like its pinocchio frame),
+    its centre and orientation (the capsule's axis is local z) in that body's frame, the distance between its
+    two sphere centres and its radius (m)."""
+
+    name: str
+    body: str
+    position: np.ndarray  # (3,)
+    wxyz: np.ndarray  # (4,)
+    length: float
+    radius: float
+
+
+def capsules_on_bodies(ub: UpperBody, capsules: list[Capsule]) -> list[CapsuleOnBody]:
+    """``capsules`` (in their pinocchio frames) in the frames of the MuJoCo bodies of the same name, so a body
+    pose streamed from the simulation places them: body ∘ placement = the capsule in the world. The frame-to-body
+    transform is measured once in the fitting pose (pinocchio and MuJoCo kinematics of the same configuration; a
+    frame and the body of its name are one link, so it holds in every pose — tested on random poses); ValueError
+    when a capsule's frame is no MuJoCo body."""
+    mm = ub.model.mj_model
+    data = mujoco.MjData(mm)
+    q = ub.full_q(np.zeros(ub.n))
+    data.qpos[:] = ub.model.mj_qpos_from_pin(q)
+    mujoco.mj_kinematics(mm, data)
+    pdata = ub.forward(np.zeros(ub.n))
+    out = []
+    for c in capsules:
+        frame = ub.pin_model.frames[c.frame_id]
+        bid = mujoco.mj_name2id(mm, mujoco.mjtObj.mjOBJ_BODY, frame.name)
+        if bid < 0:
+            raise ValueError(f"capsule {c.name}: frame {frame.name!r} is no body of the {ub.model.name} MuJoCo model")
+        body_rot = data.xmat[bid].reshape(3, 3)
+        f = pdata.oMf[c.frame_id]
+        rot_fb = body_rot.T @ f.rotation  # the pinocchio frame in the body's frame
+        pos_fb = body_rot.T @ (f.translation - data.xpos[bid])
+        axis = c.b - c.a
+        length = float(np.linalg.norm(axis))
+        rot_c = _rotation_z_to(axis / length) if length > 1e-9 else np.eye(3)
+        xyzw = pin.Quaternion(rot_fb @ rot_c).coeffs()
+        out.append(CapsuleOnBody(c.name, frame.name, rot_fb @ (0.5 * (c.a + c.b)) + pos_fb,
+                                 np.array([xyzw[3], xyzw[0], xyzw[1], xyzw[2]]), length, float(c.radius)))
+    return out
+
+
+def fitted_capsules_on_bodies(robot: str) -> list[CapsuleOnBody]:
+    """The capsules LWL2 checks for ``robot`` (the same deterministic fit as :class:`CapsuleModel`'s, without its
+    pair selection), placed on their MuJoCo bodies — cheap enough for the studio (≈ 10 ms once the robot loaded)."""
+    ub = UpperBody(robot)
+    return capsules_on_bodies(ub, _fit_groups(ub))
+
+
 def _moves_between(pm, ja: int, jb: int, q_index: np.ndarray) -> bool:
     """Is there a driven joint on the kinematic path between joints ja and jb?"""
     def chain(j):
@@ -410,4 +475,5 @@ def mujoco_agreement(cm: CapsuleModel, n_poses: int = 500, seed: int = 1) -> dic
             "conservative": mj_only == 0}
 
 
-__all__ = ["segment_distance", "fit_capsule", "Capsule", "CapsuleModel", "mujoco_agreement"]
+__all__ = ["segment_distance", "fit_capsule", "Capsule", "CapsuleModel", "CapsuleOnBody", "capsules_on_bodies",
+           "fitted_capsules_on_bodies", "mujoco_agreement"]
