@@ -10,7 +10,8 @@ so only the loop's thread writes to the pipe.
 Jobs (all paths relative to the motion library, :mod:`engine.motion_files`):
 
 * ``retarget``  {source: "source/x.npz" | "demo:trot", robot, method: uvm|smr|stmr, baseless, terrain: [box:…],
-  name, uvm_ghost} → writes ``<robot>/<name>.npz`` (and ``<robot>/<name>.uvm.npz``, the UVM comparison, for smr)
+  name, uvm_ghost, budget, segments} → writes ``<robot>/<name>.npz`` (and the kinematic comparison beside it:
+  ``<robot>/<name>.uvm.npz`` for smr, ``<robot>/<name>.smr.npz`` — the motion TMR started from — for stmr)
   → {path, metrics, playback}
 * ``import``    {root: "shared"|"motions", path, name} → writes ``source/<name>.npz`` → {path, frames, fps}
 * ``export``    {motion, format: amp-json|unitree-csv|beyondmimic-npz|npz, amp_full, fps?, take?: simulated|reference}
@@ -18,7 +19,9 @@ Jobs (all paths relative to the motion library, :mod:`engine.motion_files`):
 * ``poses``     {motion, source?, ghost?} → {playback} (nothing written)
 
 ``playback`` holds what a viewer needs to show a motion without any kinematics of its own: the robot's body poses
-per frame (forward kinematics here, in MuJoCo), the source keypoints and contacts, the result's contacts.
+per frame (forward kinematics here, in MuJoCo), the source keypoints and contacts, the result's contacts, and for
+a re-timed (TMR) result its α segments and, per frame, the source frame and the kinematic ghost at the same point
+of the motion (s_α(t), :func:`retiming`).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import queue
 import threading
 import time
 import traceback
+from types import SimpleNamespace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -203,6 +207,13 @@ class JobRunner:
         budget = int(params.get("budget", 6))
         if not 1 <= budget <= 100:
             raise JobError(f"budget: expected 1..100 BO evaluations, got {budget}")
+        segments = int(params.get("segments", 1))
+        from engine.retarget.quadruped.tmr.deformation import DeformationError, check_segments
+
+        try:
+            check_segments(segments, kinematic.frames, kinematic.fps)
+        except DeformationError as exc:
+            raise JobError(f"segments: {exc}") from None
 
         def on_bo(p) -> None:
             alpha = ", ".join(f"{a:.2f}" for a in 2.0 ** np.asarray(p.current_log2_alpha, float).ravel())
@@ -210,7 +221,7 @@ class JobRunner:
                    f"TMR: BO evaluation {p.evaluation} of {p.budget} · best score {p.best_score:.4f} · α {alpha}")
 
         report(smr_span, f"TMR: BO evaluation 0 of {budget}")
-        result = temporal_retarget(kinematic, TMRSettings(budget=budget, init_points=min(3, budget)),
+        result = temporal_retarget(kinematic, TMRSettings(segments=segments, budget=budget, init_points=min(3, budget)),
                                    progress=on_bo, cancel=cancel.is_set)
         if cancel.is_set():
             raise JobCancelled
@@ -222,7 +233,7 @@ class JobRunner:
         kinematic.save(ghost_path)
         return {"path": str(out.relative_to(self.root.resolve())), "metrics": dict(result.summary),
                 "ghost_path": str(ghost_path.relative_to(self.root.resolve())),
-                "playback": playback_data(motion, source, None)}
+                "playback": playback_data(motion, source, kinematic)}
 
     def _job_import(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
         from engine.retarget.importers import import_source
@@ -318,20 +329,63 @@ def body_poses(motion) -> tuple[list[str], np.ndarray, np.ndarray]:
     return list(robot.body_names), pos, quat
 
 
+def retiming(motion):  # noqa: ANN001, ANN201 - a RobotMotion → TemporalDeformation | None
+    """The temporal deformation s_α of a re-timed (TMR) motion, from the α and segment knots it carries (None
+    for a motion that was not re-timed). Its source time is the kinematic motion's (SMR's) time."""
+    extra = getattr(motion, "extra", None) or {}
+    if "alpha" not in extra or "segment_knots_s" not in extra:
+        return None
+    from engine.retarget.quadruped.tmr.deformation import TemporalDeformation
+
+    alpha = np.asarray(extra["alpha"], dtype=float).ravel()
+    knots = np.asarray(extra["segment_knots_s"], dtype=float).ravel()
+    source_duration = float(np.sum(np.diff(knots) / alpha))  # segment i lasts α_i · T_s / S of control time
+    return TemporalDeformation(tuple(float(a) for a in alpha), source_duration)
+
+
+def source_times(motion) -> np.ndarray:  # noqa: ANN001
+    """Per frame of ``motion``, the time (s) of the kinematic motion / source it shows: s_α(t) for a re-timed
+    motion, t otherwise."""
+    t = np.arange(motion.frames) / float(motion.fps)
+    deformation = retiming(motion)
+    return t if deformation is None else deformation(t)
+
+
 def playback_data(motion, source=None, ghost=None) -> dict:
-    """What the studio needs to play a robot motion beside its source (see module docstring)."""
+    """What the studio needs to play a robot motion beside its source (see module docstring). A re-timed (TMR)
+    motion plays its kinematic ghost (SMR's motion) and its source at s_α(t), the same point of the motion as
+    the robot in physics, and carries ``segments``: α and the segment boundaries in playback time."""
     names, pos, quat = body_poses(motion)
     data: dict[str, Any] = {
         "robot": motion.robot, "method": motion.method, "fps": float(motion.fps), "frames": int(motion.frames),
         "body_names": names, "body_pos": pos, "body_quat": quat,
         "contact": np.asarray(motion.contact, dtype=bool), "foot_names": list(getattr(motion, "foot_names", LEGS)),  # TMR's motion class has none
     }
+    deformation = retiming(motion)
+    t_src = source_times(motion)
+    if deformation is not None:
+        data["segments"] = {"alpha": [float(a) for a in deformation.alpha],
+                            "knots_s": [float(k) for k in motion.extra["segment_knots_s"]],
+                            "duration_before_s": float(deformation.source_duration_s)}
     if source is not None:
         data["source_keypoints"] = np.asarray(source.keypoints, dtype=np.float32)
         data["source_contact"] = np.asarray(source.contact, dtype=bool)
         data["source_fps"] = float(source.fps)
-    if ghost is not None and ghost.robot == motion.robot and ghost.frames == motion.frames:
-        _, gpos, gquat = body_poses(ghost)
+        if deformation is None and source.frames != motion.frames:  # another rate: the same fraction of the clip
+            t_src = t_src * ((source.frames - 1) / source.fps) / max((motion.frames - 1) / motion.fps, 1e-9)
+        data["source_frame"] = np.clip(np.rint(t_src * source.fps), 0, source.frames - 1).astype(np.int32)
+    if ghost is not None and ghost.robot == motion.robot:
+        if deformation is not None and ghost.frames != motion.frames:
+            from engine.retarget.quadruped.tmr.deformation import interpolate_qpos
+
+            ghost_qpos = interpolate_qpos(ghost.qpos, float(ghost.fps), t_src)  # LI(s_α(t)) of the kinematic motion
+            _, gpos, gquat = body_poses(SimpleNamespace(robot=ghost.robot, joint_names=ghost.joint_names,
+                                                        qpos=ghost_qpos, frames=len(ghost_qpos)))
+        elif ghost.frames == motion.frames:
+            _, gpos, gquat = body_poses(ghost)
+        else:
+            return data
         data["ghost_pos"], data["ghost_quat"] = gpos, gquat
+        data["ghost_method"] = str(ghost.method)
     return data
 

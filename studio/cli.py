@@ -349,7 +349,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise CliError(f"--tab-nice: expected a niceness 0 ≤ N ≤ 19, got {args.tab_nice}")
     from engine.bench.tmr import check_clip_options
 
-    problem = check_clip_options(args.clips, args.budget)
+    problem = check_clip_options(args.clips, args.budget, args.robots)
     if problem:
         raise CliError(problem)
     rows: list[dict] = []
@@ -361,9 +361,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
     by_section: dict[str, list[dict]] = {}
     for row in rows:
         by_section.setdefault(row["section"], []).append(row)
+    from engine.bench import TEXT_TABLES
+
     for section, srows in by_section.items():
         keys = [k for k in srows[0] if k != "section"]
         print(f"[{section}]")
+        if section in TEXT_TABLES:
+            print(TEXT_TABLES[section](srows))
+            continue
         cells = [[str(r.get(k, "")) for k in keys] for r in srows]
         widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
         print("  ".join(k.rjust(w) for k, w in zip(keys, widths)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import time
 
 import numpy as np
@@ -148,7 +149,71 @@ def test_stmr_job_reports_bo_progress_and_writes_the_dynamic_motion(tmp_path):
     assert any("BO evaluation" in e.message for e in events[:-1])
     assert (tmp_path / "go1" / "d.npz").is_file() and (tmp_path / "go1" / "d.smr.npz").is_file()
     assert result["metrics"]["bo_evaluations"] >= 1 and "alpha" in result["metrics"]
-    assert result["playback"]["body_pos"].shape[0] == result["playback"]["frames"]
+    pb = result["playback"]
+    assert pb["body_pos"].shape[0] == pb["frames"]
+    # the ghost is SMR's motion (re-timed onto the result's frames), the α segments come along
+    assert pb["ghost_method"] == "smr" and pb["ghost_pos"].shape == pb["body_pos"].shape
+    assert pb["segments"]["alpha"] == pytest.approx(result["metrics"]["alpha"], abs=1e-4)
+
+
+def _retimed(kinematic, alpha, fps=100.0):
+    """A re-timed motion as TMR writes one (α, segment knots; its qpos the kinematic motion at s_α(t))."""
+    from engine.retarget.motion import RobotMotion
+    from engine.retarget.quadruped.tmr.deformation import TemporalDeformation, interpolate_qpos, sample_contact
+
+    deformation = TemporalDeformation(tuple(alpha), (kinematic.frames - 1) / kinematic.fps)
+    t = np.arange(int(np.floor(deformation.duration_s * fps + 1e-9)) + 1) / fps
+    qpos = interpolate_qpos(kinematic.qpos, kinematic.fps, deformation(t))
+    qpos[:, 2] += 0.01  # "physics": 1 cm off the kinematic motion
+    return RobotMotion(fps=fps, qpos=qpos, joint_names=kinematic.joint_names,
+                       contact=sample_contact(kinematic.contact, kinematic.fps, deformation(t)), robot=kinematic.robot,
+                       method="stmr", extra={"alpha": np.asarray(alpha), "segment_knots_s": deformation.control_knots_s})
+
+
+def test_playback_of_a_retimed_motion_shows_the_kinematic_ghost_at_the_same_point_of_the_motion():
+    from engine.jobs import body_poses, playback_data, retiming
+    from engine.retarget.quadruped.tmr.kinematic_clips import trot
+    from engine.retarget.synthetic import synthetic_trot
+    from engine.robot.model import load_robot
+
+    kinematic = trot(load_robot("go1"), duration_s=1.0, fps=50.0)  # 51 frames
+    motion = _retimed(kinematic, [0.5, 2.0])  # the first half twice as fast, the second twice as slow
+    source = synthetic_trot(frames=kinematic.frames, fps=kinematic.fps)
+    assert retiming(motion).source_duration_s == pytest.approx(1.0)
+    pb = playback_data(motion, source, kinematic)
+    assert pb["segments"]["alpha"] == [0.5, 2.0]
+    assert pb["segments"]["knots_s"] == pytest.approx([0.0, 0.25, 1.25])
+    assert pb["segments"]["duration_before_s"] == pytest.approx(1.0)
+    assert pb["ghost_method"] == "kinematic" and pb["ghost_pos"].shape == pb["body_pos"].shape
+    _, kin_pos, _ = body_poses(kinematic)
+    # control time 0.25 s (frame 25) is source time 0.5 s (kinematic frame 25); 1.25 s (frame 125) its end
+    for k, f in ((0, 0), (25, 25), (125, 50)):
+        np.testing.assert_allclose(pb["ghost_pos"][k], kin_pos[f], atol=1e-5)
+        assert pb["source_frame"][k] == f
+        np.testing.assert_allclose(pb["body_pos"][k, 0, 2] - pb["ghost_pos"][k, 0, 2], 0.01, atol=1e-6)
+    # second segment: 2× slower — control 0.25 + 0.4 s is source 0.5 + 0.2 s (frame 35)
+    np.testing.assert_allclose(pb["ghost_pos"][65], kin_pos[35], atol=1e-5)
+    assert pb["source_frame"][65] == 35
+    # a motion that was not re-timed: no segments, the ghost frame by frame
+    plain = playback_data(kinematic, source, kinematic)
+    assert "segments" not in plain and plain["source_frame"].tolist() == list(range(kinematic.frames))
+
+
+def test_alpha_segments_drawn_on_the_timeline():
+    from studio.panels.retarget_panel import alpha_bar_html, alpha_marks, segment_at
+
+    segments = {"alpha": [0.5, 1.0, 2.0], "knots_s": [0.0, 0.25, 0.75, 1.75], "duration_before_s": 1.5}
+    html = alpha_bar_html(segments, 1.75)
+    assert html.count('class="alpha-segment"') == 3
+    assert ">α 0.50<" in html and ">α 1.00<" in html and ">α 2.00<" in html
+    widths = [float(w) for w in re.findall(r"flex:0 0 ([\d.]+)%", html)]
+    assert widths == pytest.approx([100 * 0.25 / 1.75, 100 * 0.5 / 1.75, 100 * 1.0 / 1.75], abs=1e-3)
+    assert "0.00 | 0.25 | 0.75 | 1.75 s" in html and "1.50 → 1.75 s" in html
+    marks = alpha_marks(segments, fps=100.0, frames=176)
+    assert [m.value for m in marks] == pytest.approx([0.0, 25.0, 75.0, 175.0])
+    assert [m.label for m in marks] == ["0.00 s", "0.25 s", "0.75 s", "1.75 s"]
+    assert segment_at(segments, 0.0) == (0, 0.5) and segment_at(segments, 0.3) == (1, 1.0)
+    assert segment_at(segments, 1.75) == (2, 2.0)
 
 
 def test_contact_strip_and_metrics_text():

@@ -3,7 +3,7 @@
 Each section is a function returning rows (dicts), its body in this package's module of the
 same concept: ``sim`` (MuJoCo alone), ``reference`` (sampler + planner), ``mpc`` (CoM MPC
 solves), ``wbc`` (our inverse dynamics against placo's), ``qp`` (the QP backends on recorded
-problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables), ``tmr`` (the temporal stage's costs; ``tmr-clips``, only when asked for: SMR against STMR on the paper's clips), ``arms``
+problems), ``estimator``, ``stack`` (the full stack against MuJoCo alone), ``retarget`` (UVM/SMR beside the STMR paper's tables; named on its own, also UVM / SMR / STMR tracked in MuJoCo side by side), ``tmr`` (the temporal stage's costs; ``tmr-clips``, only when asked for: an alias of retarget's UVM / SMR / STMR comparison), ``arms``
 (LWL2 against per-frame IK and a feed-forward baseline) and ``puppet`` (LWL2 driving a standing robot's arms
 live at 60 Hz in physics; only when asked for). The studio
 adds ``edit`` (edit-to-robot latency, :mod:`studio.bench_edit`), ``engine`` (the engine process's pacing
@@ -17,7 +17,7 @@ from typing import Callable
 
 from engine.bench.stats import percentiles_us
 
-__all__ = ["SECTIONS", "percentiles_us"]
+__all__ = ["SECTIONS", "TEXT_TABLES", "percentiles_us"]
 
 
 def _sim() -> list[dict]:
@@ -65,10 +65,11 @@ def _stack() -> list[dict]:
     return bench_stack()
 
 
-def _retarget() -> list[dict]:
+def _retarget(**options) -> list[dict]:
+    from engine.bench.options import call_with_known
     from engine.bench.retarget import bench_retarget
 
-    return bench_retarget()
+    return call_with_known(bench_retarget, options)
 
 
 def _tmr() -> list[dict]:
@@ -116,4 +117,12 @@ SECTIONS: dict[str, Callable[..., list[dict]]] = {
     "stack": _stack, "retarget": _retarget, "tmr": _tmr, "arms": _arms,
     "push": _push, "styles": _styles, "tmr-clips": _tmr_clips, "puppet": _puppet,
 }
+def _methods_table(rows: list[dict]) -> str:
+    from engine.bench.retarget import methods_table
+
+    return methods_table(rows)
+
+
+# sections whose text output is a table of their own (``--json`` prints their rows as they are)
+TEXT_TABLES: dict[str, Callable[[list[dict]], str]] = {"retarget-methods": _methods_table}
 BATCH_SECTIONS = ("push", "styles", "tmr-clips", "puppet")  # minutes to hours of closed-loop runs: only when asked for

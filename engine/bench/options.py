@@ -1,5 +1,5 @@
-"""Command-line options of the bench sections that run batches of closed-loop walks on Ray
-(``styles``, ``push``): kept here so ``studio/cli.py`` only registers them."""
+"""Command-line options of the bench sections that run batches of closed-loop runs (``styles``, ``push`` on Ray;
+``retarget``'s and ``tmr-clips``' tracking): kept here so ``studio/cli.py`` only registers them."""
 
 from __future__ import annotations
 
@@ -20,8 +20,14 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-per-kg", type=float, default=1.5, help="push: force per kg of robot mass")
     parser.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray)")
     parser.add_argument("--out-dir", default=None, help="results folder (resumable; default under ~/.cache/motion-studio)")
-    parser.add_argument("--clips", default=None, help="tmr-clips: comma-separated clips (default: all six)")
-    parser.add_argument("--budget", type=int, default=None, help="tmr-clips: BO evaluations per clip (default 6)")
+    parser.add_argument("--clips", default=None, help="retarget, tmr-clips: comma-separated clips (default: all six)")
+    parser.add_argument("--robots", default=None,
+                        help="retarget, tmr-clips: comma-separated quadrupeds (default: go1,a1,go2,b1,anymal_c for the "
+                             "kinematic tables, go1,a1,anymal_c for UVM / SMR / STMR)")
+    parser.add_argument("--budget", type=int, default=None,
+                        help="retarget, tmr-clips: TMR's BO evaluations per clip (default 6)")
+    parser.add_argument("--kinematic", action="store_true",
+                        help="retarget: the kinematic UVM / SMR tables only (no tracking in MuJoCo, no STMR)")
 
 
 def call_with_known(function: Callable[..., list[dict]], options: dict) -> list[dict]:
@@ -39,5 +45,9 @@ def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) ->
                "robot": args.robot,
                "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
                "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir,
-               "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None)}
+               "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None),
+               "robot_names": getattr(args, "robots", None),
+               # retarget's UVM / SMR / STMR comparison (minutes per clip) when the section is named, not in the
+               # default run of every section
+               "tracked": bool(getattr(args, "sections", None)) and not getattr(args, "kinematic", False)}
     return call_with_known(section, mapping)

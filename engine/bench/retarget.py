@@ -1,5 +1,20 @@
-"""``studio bench retarget``: UVM and SMR over the six STMR clips × go1, a1, go2, b1, anymal_c, beside the
-paper's Table IV (foot slide, IoU), plus baseless recovery (Table V) and SMR's frame rate.
+"""``studio bench retarget``: the spatial and temporal stages of STMR on the paper's six clips.
+
+* ``retarget`` — UVM and SMR (kinematic) over the clips × go1, a1, go2, b1, anymal_c, beside the paper's Table IV
+  (foot slide, IoU), SMR's frame rate; ``retarget-contacts`` (the contact estimate against each clip's schedule);
+  ``retarget-baseless`` (Table V's recovery).
+* ``retarget-methods`` — UVM / SMR / STMR side by side, per clip and robot (go1, a1, anymal_c unless ``--robots``),
+  each judged the same way: the method's motion tracked by the same receding-horizon iLQR in the robot's MuJoCo
+  model — UVM's and SMR's as they are (α = 1), STMR's by TMR (BO over α) — and replayed open-loop: fell or
+  not, DTW-normalised keypoint L1 (%) against the kinematic motion the method delivered (UVM's for UVM, SMR's for
+  SMR and STMR) at its frames, tracking error (mm) against the motion each tracked, duration (s); and the wall
+  time of each stage: UVM and SMR retargeting, the inner solve of UVM's and SMR's motions (one iLQR tracking at
+  α = 1), the whole TMR (``evals`` BO evaluations), plus the CPU time of this process for SMR's inner solve and
+  the TMR (wall times on a shared machine are inflated by its load, CPU times much less) and ``bo_trace``: BO's
+  evaluations in order (α, ✓ stood or ↓ fell at s, wall s). Minutes per clip: ``--clips``, ``--robots`` and
+  ``--budget`` (BO evaluations, default 6) make a small run; it runs when ``retarget`` is named (``studio bench
+  retarget``), not in the default run of every section, and ``--kinematic`` leaves it out.
+  ``studio bench tmr-clips`` is an alias of this part.
 
 Reads the clips from the shared data folder (env MOTION_STUDIO_SHARED, else <repo>/../shared, else
 /work/shared); prints one row saying so when it is absent.
@@ -8,10 +23,14 @@ Reads the clips from the shared data folder (env MOTION_STUDIO_SHARED, else <rep
 from __future__ import annotations
 
 import os
+import sys
+import time
 from typing import Any
 from pathlib import Path
 
 import numpy as np
+
+from engine.bench.tmr import CLIP_BUDGET, CLIP_ROBOTS, PAPER_TABLE_II
 
 CLIPS = ("trot0", "trot1", "pace0", "pace1", "sidesteps", "hopturn")
 ROBOTS = ("go1", "a1", "go2", "b1", "anymal_c")
@@ -41,7 +60,32 @@ def clip_path(shared: Path, clip: str) -> Path:
     return shared / "motions-src" / "stmr_rl" / "datasets" / clip / f"{clip}_keypoints.npz"
 
 
-def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROBOTS, baseless: bool = True) -> list[dict]:
+def _names(value: str | None) -> tuple[str, ...] | None:
+    return None if value is None else tuple(v.strip() for v in value.split(",") if v.strip())
+
+
+def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROBOTS, baseless: bool = True,
+                   clip_names: str | None = None, robot_names: str | None = None, bo_budget: int | None = None,
+                   tracked: bool = True, address: str | None = None) -> list[dict]:
+    """The kinematic tables, then (``tracked``) the UVM / SMR / STMR comparison; see the module docstring.
+    ``clip_names`` / ``robot_names`` (``--clips a,b`` / ``--robots a,b``) select among ``CLIPS`` / ``ROBOTS``
+    (the comparison's robots default to go1, a1, anymal_c), ``bo_budget`` (``--budget``) is TMR's budget."""
+    from engine.bench.tmr import check_clip_options
+
+    problem = check_clip_options(clip_names, bo_budget, robot_names)
+    if problem:
+        raise ValueError(problem)
+    clips = _names(clip_names) or clips
+    rows = bench_retarget_kinematic(clips, _names(robot_names) or robots, baseless)
+    if tracked and shared_dir() is not None:
+        rows += bench_retarget_methods(clips, _names(robot_names) or CLIP_ROBOTS, bo_budget or CLIP_BUDGET,
+                                       address=address)
+    return rows
+
+
+def bench_retarget_kinematic(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROBOTS,
+                             baseless: bool = True) -> list[dict]:
+    """UVM and SMR (kinematic figures) beside the paper's Table IV, the contact estimate, baseless recovery."""
     from engine.retarget.contacts import contact_iou, estimate_contacts
     from engine.retarget.importers import import_source
     from engine.retarget.metrics import recovery_rate_percent, travel_distance_m
@@ -108,3 +152,124 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
                 row[f"{robot}_recovery_pct"] = round(recovery_rate_percent(d_bl, d_wb), 1)
             rows.append(row)
     return rows
+
+
+METHOD_KEYS = ("fell", "dtw_pct", "track_mm", "duration_s")  # per method, side by side
+
+
+def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CLIP_ROBOTS,
+                           budget: int = CLIP_BUDGET, address: str | None = None, parallel: int = 1,
+                           clip_names: str | None = None, bo_budget: int | None = None,
+                           robot_names: str | None = None) -> list[dict]:
+    """UVM / SMR / STMR, each tracked and replayed the same way, per clip and robot (``retarget-methods`` rows;
+    see the module docstring)."""
+    from engine.bench.tmr import check_clip_options
+    from engine.retarget.importers import import_source
+    from engine.retarget.quadruped.pipeline import retarget_detailed
+    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
+    from engine.retarget.quadruped.tmr.tmr import TMRSettings, temporal_retarget, track_motion
+
+    problem = check_clip_options(clip_names, bo_budget, robot_names)
+    if problem:
+        raise ValueError(problem)
+    clips = _names(clip_names) or clips
+    robots = _names(robot_names) or robots
+    budget = bo_budget if bo_budget is not None else budget
+    shared = shared_dir()
+    if shared is None:
+        return [{"section": "retarget-methods", "note": "shared data folder absent: set MOTION_STUDIO_SHARED"}]
+    executor: LocalExecutor | RayExecutor = LocalExecutor()
+    if address is not None or parallel > 1:
+        try:
+            executor = RayExecutor(address=address)
+        except RayAddressError as exc:
+            print(f"bench retarget: {exc}; running the evaluations one at a time in this process", file=sys.stderr)
+            parallel = 1
+    settings = TMRSettings(budget=budget, init_points=min(3, budget), parallel=parallel)
+    rows: list[dict[str, Any]] = []
+    try:
+        for robot in robots:
+            for clip in clips:
+                src = import_source(clip_path(shared, clip))
+                t0 = time.perf_counter()
+                uvm = retarget_detailed(src, robot, "uvm").motion
+                t_uvm = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                smr = retarget_detailed(src, robot, "smr").motion
+                t_smr = time.perf_counter() - t0
+                uvm_tracked = track_motion(uvm, settings)  # UVM's motion as it is (α = 1)
+                c0 = time.process_time()
+                smr_tracked = track_motion(smr, settings)  # one inner solve at α = 1: SMR's motion as it is
+                cpu_inner = time.process_time() - c0
+                t0, c0 = time.perf_counter(), time.process_time()
+                res = temporal_retarget(smr, settings, executor=executor)
+                t_tmr, cpu_tmr = time.perf_counter() - t0, time.process_time() - c0
+                s = res.summary
+                before = s["duration_s"]["before"]
+                paper = PAPER_TABLE_II.get((robot, clip), ("", ""))
+                smr_dtw, stmr_dtw = smr_tracked["dtw_keypoint_l1_pct"], s["dtw_keypoint_l1_pct"]
+                rows.append({
+                    "section": "retarget-methods", "clip": clip, "robot": robot,
+                    "uvm_fell": uvm_tracked["replay_fell"], "uvm_dtw_pct": uvm_tracked["dtw_keypoint_l1_pct"],
+                    "uvm_track_mm": uvm_tracked["tracking_error_mm"], "uvm_duration_s": before,
+                    "smr_fell": smr_tracked["replay_fell"], "smr_dtw_pct": smr_dtw,
+                    "smr_track_mm": smr_tracked["tracking_error_mm"], "smr_duration_s": before,
+                    "stmr_fell": s["replay_fell"], "stmr_dtw_pct": stmr_dtw, "stmr_track_mm": s["tracking_error_mm"],
+                    "stmr_duration_s": s["duration_s"]["after"],
+                    "stmr_alpha": ",".join(f"{a:.3f}" for a in s["alpha"]), "stmr_fell_at_s": s["replay_fell_at_s"],
+                    "stmr_dtw_vs_target_pct": s["dtw_vs_target_pct"],
+                    "stmr_vs_smr_dtw_pct": (round(100.0 * (stmr_dtw - smr_dtw) / smr_dtw, 1)
+                                            if stmr_dtw is not None and smr_dtw else None),
+                    # per-stage wall times (s)
+                    "uvm_s": round(t_uvm, 2), "smr_s": round(t_smr, 2), "uvm_track_s": uvm_tracked["wall_time_s"],
+                    "smr_track_s": smr_tracked["wall_time_s"], "tmr_s": round(t_tmr, 1), "evals": s["bo_evaluations"],
+                    # CPU time of this process (the evaluations' own when they run in process, not on Ray workers)
+                    "smr_track_cpu_s": round(cpu_inner, 1), "tmr_cpu_s": round(cpu_tmr, 1),
+                    "tmr_vs_inner_solve_cpu": round(cpu_tmr / cpu_inner, 2) if cpu_inner > 0 else None,
+                    "paper_smr_dtw_pct": paper[1], "paper_stmr_dtw_pct": paper[0],
+                    "bo_trace": " ".join(f"{e['alpha'][0] if len(e['alpha']) == 1 else e['alpha']}"
+                                         f"{'↓' + str(e['fell_at_s']) if e['replay_fell'] else '✓'}({e['wall_time_s']:g}s)"
+                                         for e in res.evaluations),
+                })
+                print(f"bench retarget: {rows[-1]}", file=sys.stderr, flush=True)
+    finally:
+        if isinstance(executor, RayExecutor):
+            executor.shutdown()
+    return rows
+
+
+def _cell(*values: Any) -> str:
+    out = []
+    for v in values:
+        if isinstance(v, bool):
+            out.append("**yes**" if v else "no")
+        elif v is None or v == "":
+            out.append("–")
+        else:
+            out.append(f"{v:g}" if isinstance(v, float) else str(v))
+    return " / ".join(out)
+
+
+def methods_table(rows: list[dict]) -> str:
+    """The ``retarget-methods`` rows as the side-by-side table ``studio bench retarget`` prints (markdown)."""
+    head = ("| clip | robot | UVM: fell / DTW % / mm / s | SMR: fell / DTW % / mm / s | STMR: fell / DTW % / mm / s "
+            "| STMR α | STMR vs SMR DTW | wall s: UVM / SMR / UVM track / SMR track / TMR (evals) "
+            "| CPU s: SMR track / TMR | BO evaluations (α, ✓ stood / ↓ fell at s) |")
+    lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
+    for r in rows:
+        if "note" in r:
+            lines.append(f"| {r['note']} |")
+            continue
+        fell = r["stmr_fell"]
+        stmr_fell = (f"**yes** (at {r['stmr_fell_at_s']:g} s)" if fell and r.get("stmr_fell_at_s") is not None
+                     else _cell(fell))
+        change = r.get("stmr_vs_smr_dtw_pct")
+        lines.append(
+            f"| {r['clip']} | {r['robot']} "
+            f"| {_cell(r['uvm_fell'], r['uvm_dtw_pct'], r['uvm_track_mm'], r['uvm_duration_s'])} "
+            f"| {_cell(r['smr_fell'], r['smr_dtw_pct'], r['smr_track_mm'], r['smr_duration_s'])} "
+            f"| {stmr_fell} / {_cell(r['stmr_dtw_pct'], r['stmr_track_mm'], r['stmr_duration_s'])} "
+            f"| {r['stmr_alpha']} | {'–' if change is None else f'{change:+.0f} %'} "
+            f"| {_cell(r['uvm_s'], r['smr_s'], r['uvm_track_s'], r['smr_track_s'], r['tmr_s'])} ({r['evals']}) "
+            f"| {_cell(r['smr_track_cpu_s'], r['tmr_cpu_s'])} | {r['bo_trace']} |")
+    return "\n".join(lines)

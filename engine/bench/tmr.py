@@ -6,14 +6,9 @@ start) in this process, on a local Ray with 1 worker and with 2 workers; the spe
 times. A local Ray that does not start (a loaded machine can miss raylet's start-up window) is one row saying
 so; the in-process row is then the serial figure.
 
-``tmr-clips`` (minutes per clip; only when asked for; ``--robot go1|a1|anymal_c`` for one robot) — the paper's
-six clips (§VIII-C, Table II/Fig. 6) × go1, a1 and anymal_c: UVM's and SMR's motions tracked as they are (α = 1) and STMR (SMR + TMR), each judged the same way: open-loop replay
-falls or not, DTW-normalised keypoint L1 (%) against SMR's motion at its frames (the same measure for both;
-STMR's against its own re-timed target too), tracking error (mm) against the motion each tracked, plus α and
-the durations, and the wall time of each stage; the CPU time of this process for the inner solve at α = 1 and the
-whole TMR (the evaluations' own when they run in process) and their ratio — wall times on a shared machine are
-inflated by its load, CPU times much less; ``bo_trace`` lists BO's evaluations in order: α, ✓ (stood) or ↓ and
-the fall time (s), and the evaluation's wall time.
+``tmr-clips`` (minutes per clip; only when asked for; ``--robot go1|a1|anymal_c`` for one robot) — an alias of
+the UVM / SMR / STMR comparison that ``studio bench retarget`` prints (its ``retarget-methods`` rows,
+:func:`engine.bench.retarget.bench_retarget_methods`), over go1, a1 and anymal_c by default.
 """
 
 from __future__ import annotations
@@ -98,13 +93,20 @@ def _warm() -> int:
     return 0
 
 
-def check_clip_options(clip_names: str | None, bo_budget: int | None) -> str | None:
-    """The one-line complaint about ``--clips`` / ``--budget``, or None."""
+def check_clip_options(clip_names: str | None, bo_budget: int | None, robot_names: str | None = None) -> str | None:
+    """The one-line complaint about ``--clips`` / ``--budget`` / ``--robots``, or None."""
+    from engine.bench.retarget import ROBOTS
+
     if clip_names is not None:
         names = [c.strip() for c in clip_names.split(",") if c.strip()]
         unknown = [c for c in names if c not in CLIPS] or ([] if names else [clip_names])
         if unknown:
             return f"--clips: unknown clip {unknown[0]!r}; expected some of {', '.join(CLIPS)}"
+    if robot_names is not None:
+        names = [r.strip() for r in robot_names.split(",") if r.strip()]
+        unknown = [r for r in names if r not in ROBOTS] or ([] if names else [robot_names])
+        if unknown:
+            return f"--robots: unknown robot {unknown[0]!r}; expected some of {', '.join(ROBOTS)}"
     if bo_budget is not None and bo_budget < 1:
         return f"--budget: expected ≥ 1 BO evaluations, got {bo_budget}"
     return None
@@ -112,72 +114,14 @@ def check_clip_options(clip_names: str | None, bo_budget: int | None) -> str | N
 
 def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CLIP_ROBOTS, budget: int = CLIP_BUDGET,
                     address: str | None = None, parallel: int = 1, robot: str | None = None,
-                    clip_names: str | None = None, bo_budget: int | None = None) -> list[dict]:
-    """SMR (tracked at α = 1) against STMR on the paper's clips; see the module docstring. ``robot`` (the
-    bench's ``--robot``) picks one of ``CLIP_ROBOTS``; any other value (the bench's default g1) keeps them all.
-    ``clip_names`` (``--clips a,b``) picks clips among ``CLIPS``, ``bo_budget`` (``--budget``) the BO budget."""
+                    clip_names: str | None = None, bo_budget: int | None = None,
+                    robot_names: str | None = None) -> list[dict]:
+    """An alias of ``studio bench retarget``'s UVM / SMR / STMR comparison (its ``retarget-methods`` rows, without
+    the kinematic tables): ``robot`` (the bench's ``--robot``) picks one of ``CLIP_ROBOTS``, any other value (the
+    bench's default g1) keeps them all; ``robot_names`` (``--robots a,b``) overrides it."""
+    from engine.bench.retarget import bench_retarget_methods
+
     if robot in CLIP_ROBOTS:
         robots = (robot,)
-    problem = check_clip_options(clip_names, bo_budget)
-    if problem:
-        raise ValueError(problem)
-    if clip_names:
-        clips = tuple(c.strip() for c in clip_names.split(",") if c.strip())
-    if bo_budget is not None:
-        budget = bo_budget
-    from engine.bench.retarget import clip_path, shared_dir
-    from engine.retarget.importers import import_source
-    from engine.retarget.quadruped.pipeline import retarget_detailed
-    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
-    from engine.retarget.quadruped.tmr.tmr import TMRSettings, temporal_retarget, track_motion
-
-    shared = shared_dir()
-    if shared is None:
-        return [{"section": "tmr-clips", "note": "shared data folder absent: set MOTION_STUDIO_SHARED"}]
-    executor: LocalExecutor | RayExecutor = LocalExecutor()
-    if address is not None or parallel > 1:
-        try:
-            executor = RayExecutor(address=address)
-        except RayAddressError as exc:
-            print(f"bench tmr-clips: {exc}; running the evaluations one at a time in this process", file=sys.stderr)
-            parallel = 1
-    settings = TMRSettings(budget=budget, init_points=min(3, budget), parallel=parallel)
-    rows = []
-    for robot in robots:
-        for clip in clips:
-            src = import_source(clip_path(shared, clip))
-            t0 = time.perf_counter()
-            smr = retarget_detailed(src, robot, "smr").motion
-            t_smr = time.perf_counter() - t0
-            c0 = time.process_time()
-            tracked = track_motion(smr, settings)  # one inner solve at α = 1: SMR's motion as it is
-            cpu_inner = time.process_time() - c0
-            uvm = track_motion(retarget_detailed(src, robot, "uvm").motion, settings)  # UVM's, the same way
-            t0, c0 = time.perf_counter(), time.process_time()
-            res = temporal_retarget(smr, settings, executor=executor)
-            t_tmr, cpu_tmr = time.perf_counter() - t0, time.process_time() - c0
-            s = res.summary
-            paper = PAPER_TABLE_II.get((robot, clip), ("", ""))
-            rows.append({
-                "section": "tmr-clips", "robot": robot, "clip": clip, "duration_s": s["duration_s"]["before"],
-                "uvm_fell": uvm["replay_fell"], "uvm_dtw_pct": uvm["dtw_keypoint_l1_pct"],
-                "uvm_track_mm": uvm["tracking_error_mm"],
-                "smr_fell": tracked["replay_fell"], "smr_dtw_pct": tracked["dtw_keypoint_l1_pct"],
-                "smr_track_mm": tracked["tracking_error_mm"],
-                "stmr_alpha": ",".join(f"{a:.3f}" for a in s["alpha"]), "stmr_after_s": s["duration_s"]["after"],
-                "stmr_fell": s["replay_fell"], "stmr_fell_at_s": s["replay_fell_at_s"],
-                "stmr_dtw_pct": s["dtw_keypoint_l1_pct"], "stmr_dtw_vs_target_pct": s["dtw_vs_target_pct"], "stmr_track_mm": s["tracking_error_mm"],
-                "evals": s["bo_evaluations"], "smr_s": round(t_smr, 2), "inner_solve_s": tracked["wall_time_s"],
-                "tmr_s": round(t_tmr, 1),
-                # CPU time of this process (the evaluations' own when they run in process, not on Ray workers)
-                "inner_solve_cpu_s": round(cpu_inner, 1), "tmr_cpu_s": round(cpu_tmr, 1),
-                "tmr_vs_inner_solve_cpu": round(cpu_tmr / cpu_inner, 2) if cpu_inner > 0 else None,
-                "bo_trace": " ".join(f"{e['alpha'][0] if len(e['alpha']) == 1 else e['alpha']}"
-                                     f"{'↓' + str(e['fell_at_s']) if e['replay_fell'] else '✓'}({e['wall_time_s']:g}s)"
-                                     for e in res.evaluations),
-                "paper_stmr_dtw_pct": paper[0], "paper_smr_dtw_pct": paper[1],
-            })
-            print(f"bench tmr-clips: {rows[-1]}", file=sys.stderr, flush=True)
-    if isinstance(executor, RayExecutor):
-        executor.shutdown()
-    return rows
+    return bench_retarget_methods(clips, robots, budget, address=address, parallel=parallel, clip_names=clip_names,
+                                  bo_budget=bo_budget, robot_names=robot_names)

@@ -3,7 +3,9 @@
 The panel only views and starts: the engine process imports, retargets, computes every frame's body poses
 (forward kinematics) and exports, as jobs (``StartJob`` / ``JobProgress`` / ``CancelJob``, engine/jobs.py). The
 panel plays back what the engine sent: the result robot, the source keypoints as a skeleton beside it, an
-optional UVM ghost over the result, a timeline scrubber, a contact strip (source vs result) and the metrics.
+optional kinematic ghost over the result (UVM's motion beside an SMR result; SMR's — the motion TMR started from,
+at the same point of the motion — beside an STMR result, which plays the open-loop replay in physics), a timeline
+scrubber (an STMR result's α segments drawn on it), a contact strip (source vs result) and the metrics.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
+from viser._messages import GuiSliderMark  # viser 1.1.1: the Slider's marks (no public name for them)
 
 from engine import protocol as msg
 from engine.jobs import DEMO_SOURCES
@@ -37,6 +40,60 @@ SEGMENTS = [(4 * leg + k, 4 * leg + k + 1) for leg in range(4) for k in range(3)
 STANCE_RGB = np.array([20, 150, 60])
 SWING_RGB = np.array([230, 120, 20])
 BODY_RGB = np.array([60, 60, 200])
+GHOST_RGB = (200, 60, 190)  # the kinematic ghost: see-through magenta over the result (light grey-blue robots)
+# the α bar lines up with the Frame slider's track (measured in viser 1.1.1: label column on the left, the
+# slider's number box on the right, inside the Mocap › Retarget › Playback folder)
+ALPHA_BAR_INSET_LEFT, ALPHA_BAR_INSET_RIGHT = "7.45rem", "4.45rem"
+
+
+def alpha_color(alpha: float) -> str:
+    """Faster segments (α < 1) blue, slower (α > 1) orange, untouched grey; stronger the further from 1."""
+    x = float(np.clip(np.log2(alpha), -2.0, 2.0)) / 2.0
+    if abs(x) < 1e-3:
+        return "#9e9e9e"
+    base = np.array([40, 110, 230]) if x < 0 else np.array([230, 120, 20])
+    rgb = (np.array([190, 190, 190]) * (1 - abs(x) ** 0.5) + base * abs(x) ** 0.5).astype(int)
+    return "#" + "".join(f"{c:02x}" for c in rgb)
+
+
+def alpha_bar_html(segments: dict, span_s: float) -> str:
+    """An STMR result's α segments as blocks over the playback time (the Frame slider's range ``span_s``): each
+    block is one of the S equal segments of the source motion, as long as it plays after re-timing, labelled
+    with its α; below, the boundaries in seconds and the durations before → after."""
+    alpha = [float(a) for a in segments["alpha"]]
+    knots = [float(k) for k in segments["knots_s"]]
+    span_s = max(float(span_s), 1e-9)
+    cells = []
+    for i, a in enumerate(alpha):
+        t0, t1 = knots[i], min(knots[i + 1], span_s)
+        cells.append(
+            f'<div class="alpha-segment" data-alpha="{a:.4f}" title="segment {i + 1} of {len(alpha)}: '
+            f'{knots[i]:.2f}–{knots[i + 1]:.2f} s, α {a:.3f}" style="flex:0 0 {100 * max(t1 - t0, 0.0) / span_s:.3f}%;'
+            f'background:{alpha_color(a)};color:#fff;font-size:11px;text-align:center;overflow:hidden;'
+            f'white-space:nowrap;border-left:{"2px solid #222" if i else "0"}">α {a:.2f}</div>')
+    boundaries = " | ".join(f"{k:.2f}" for k in knots)
+    before = float(segments.get("duration_before_s", knots[-1]))
+    return (f'<div style="display:flex;height:18px;border-radius:3px;overflow:hidden;'
+            f'margin:2px {ALPHA_BAR_INSET_RIGHT} 0 {ALPHA_BAR_INSET_LEFT}">{"".join(cells)}</div>'
+            f'<div class="alpha-caption" style="font-size:11px;color:#666;margin-left:{ALPHA_BAR_INSET_LEFT}">'
+            f'α segments {boundaries} s · {before:.2f} → {knots[-1]:.2f} s</div>')
+
+
+def alpha_marks(segments: dict, fps: float, frames: int) -> tuple[GuiSliderMark, ...]:
+    """Slider marks at the α segments' boundaries (frames), labelled with their time in seconds."""
+    last = max(frames - 1, 1)
+    out = []
+    for k in segments["knots_s"]:
+        f = float(min(max(float(k) * fps, 0.0), last))
+        out.append(GuiSliderMark(f, f"{float(k):.2f} s"))
+    return tuple(out)
+
+
+def segment_at(segments: dict, t_s: float) -> tuple[int, float]:
+    """(index, α) of the segment playing at ``t_s``."""
+    knots = np.asarray(segments["knots_s"], float)
+    i = int(np.clip(np.searchsorted(knots, t_s, side="right") - 1, 0, len(segments["alpha"]) - 1))
+    return i, float(segments["alpha"][i])
 
 
 def contact_strip(source: np.ndarray | None, result: np.ndarray, frame: int, columns: int = STRIP_COLUMNS) -> str:
@@ -120,9 +177,13 @@ class RetargetPanel:
             self.method = gui.add_dropdown("Method", METHODS)
             self.baseless = gui.add_checkbox("Baseless", False)
             self.terrain = gui.add_text("Terrain boxes", "", hint="box:x,y,w,d,h; box:…  (metres)")
-            self.with_ghost = gui.add_checkbox("Compute UVM ghost", True)
+            self.with_ghost = gui.add_checkbox("Compute UVM ghost", True,
+                                               hint="smr: also retarget with UVM, shown as a ghost to compare "
+                                                    "(an stmr result's ghost is always its SMR motion)")
             self.budget = gui.add_slider("TMR budget", min=1, max=30, step=1, initial_value=6,
                                          hint="stmr: Bayesian-optimisation evaluations at most")
+            self.segments = gui.add_slider("TMR segments", min=1, max=6, step=1, initial_value=1,
+                                           hint="stmr: S equal segments of the motion, each re-timed by its own α")
             self.run = gui.add_button("Run", icon=viser.Icon.PLAYER_PLAY)
             self.cancel = gui.add_button("Cancel", icon=viser.Icon.PLAYER_STOP, disabled=True)
             self.progress = gui.add_progress_bar(0.0, animated=False)
@@ -131,11 +192,13 @@ class RetargetPanel:
         with gui.add_folder("Playback"):
             self.results = gui.add_dropdown("Result", self._result_options())
             self.view_button = gui.add_button("View result", icon=viser.Icon.EYE)
+            self.alpha_bar = gui.add_html("")  # an STMR result's α segments, aligned with the Frame slider
             self.timeline = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0, disabled=True)
             self.clock = gui.add_markdown("No motion loaded")
             self.play = gui.add_button("Play / pause", icon=viser.Icon.PLAYER_PAUSE, disabled=True)
             self.speed = gui.add_slider("Speed", min=0.1, max=2.0, step=0.05, initial_value=1.0)
-            self.show_ghost = gui.add_checkbox("Show UVM ghost", True)
+            self.show_ghost = gui.add_checkbox("Show ghost", True, hint="the kinematic motion over the result: "
+                                               "UVM's beside SMR, SMR's (re-timed by α) beside STMR's physics")
             self.show_skeleton = gui.add_checkbox("Show source skeleton", True)
             self.playing = False
             self.strip = gui.add_markdown("")
@@ -248,7 +311,7 @@ class RetargetPanel:
         self.job_id = self._start("retarget", {
             "source": source, "robot": self.robot.value, "method": method, "baseless": self.baseless.value,
             "terrain": terrain, "name": name, "uvm_ghost": self.with_ghost.value,
-            "budget": int(self.budget.value),
+            "budget": int(self.budget.value), "segments": int(self.segments.value),
         })
         self._source_of_job = source
         self.run.disabled = True
@@ -265,10 +328,12 @@ class RetargetPanel:
     def view_result(self, path: str) -> None:
         if not path or path.startswith("("):
             return
-        ghost = path[:-4] + ".uvm.npz"
         params: dict[str, Any] = {"motion": path}
-        if (self.root / ghost).is_file():
-            params["ghost"] = ghost
+        for suffix in (".smr.npz", ".uvm.npz"):  # an STMR result's SMR motion, else an SMR result's UVM comparison
+            ghost = path[:-4] + suffix
+            if (self.root / ghost).is_file():
+                params["ghost"] = ghost
+                break
         source = self._source_for(path)
         if source:
             params["source"] = source
@@ -356,10 +421,21 @@ class RetargetPanel:
         self.robot_view.load(robot, names)
         if "ghost_pos" in playback:
             self.ghost_view.load(robot, names)
+            for body in list(self.ghost_view.meshes):
+                self.ghost_view.tint(body, GHOST_RGB)
         else:
             self.ghost_view.load(robot, ())
         T = int(playback["frames"])
         self.timeline.max = max(T - 1, 1)
+        segments = playback.get("segments")
+        if segments:
+            self.alpha_bar.content = alpha_bar_html(segments, (T - 1) / float(playback["fps"]))
+            self.timeline._marks = alpha_marks(segments, float(playback["fps"]), T)
+        else:
+            self.alpha_bar.content = ""
+            self.timeline._marks = None
+        ghost_method = playback.get("ghost_method")
+        self.show_ghost.label = f"Show {ghost_method.upper()} ghost" if ghost_method else "Show ghost"
         self.timeline.disabled = False
         self.play.disabled = False
         self.export_button.disabled = False
@@ -426,6 +502,9 @@ class RetargetPanel:
         if "source_keypoints" in pb and self.show_skeleton.value:
             self._draw_skeleton(pb, frame)
         clock = f"Frame {frame} of {int(pb['frames'])} · {frame / pb['fps']:.2f} s · {'playing' if self.playing else 'paused'}"
+        if pb.get("segments"):
+            i, a = segment_at(pb["segments"], frame / pb["fps"])
+            clock += f" · segment {i + 1} of {len(pb['segments']['alpha'])}, α {a:.2f}"
         if clock != self.clock.content:
             self.clock.content = clock
         source_contact = pb.get("source_contact")
@@ -442,8 +521,8 @@ class RetargetPanel:
 
     def _draw_skeleton(self, pb: dict, frame: int) -> None:
         kp = pb["source_keypoints"]
-        T = int(pb["frames"])  # the result may be re-timed (TMR): show the source at the same fraction of the clip
-        f = int(round(frame / max(T - 1, 1) * (len(kp) - 1))) if len(kp) != T else frame
+        # the result may be re-timed (TMR): the engine says which source frame each frame shows (s_α(t))
+        f = int(pb["source_frame"][frame]) if "source_frame" in pb else min(frame, len(kp) - 1)
         points = np.array([[kp[f, a], kp[f, b]] for a, b in SEGMENTS], dtype=np.float32)
         contact = pb["source_contact"][min(f, len(kp) - 1)]
         colors = np.array([[STANCE_RGB if contact[i // 3] else SWING_RGB] * 2 for i in range(12)]
