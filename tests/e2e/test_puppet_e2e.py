@@ -260,7 +260,7 @@ def test_puppet_capsules_ride_the_robot_and_a_recorded_take_exports(tmp_path, ar
     busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     busy.bind(("127.0.0.1", 0))
     try:
-        assert studio.loaded.wait(240)
+        assert studio.loaded.wait(stall_s(240))
         with open_page(studio.url, 820, 560) as page:
             wait_for_text(page, "Engine running", 240_000)
             close_software_webgl_notice(page)
@@ -281,7 +281,7 @@ def test_puppet_capsules_ride_the_robot_and_a_recorded_take_exports(tmp_path, ar
             page.get_by_role("button", name="Start puppet").click()
             page.wait_for_function(
                 "re => { const m = document.body.innerText.match(new RegExp(re)); return m && +m[1] >= 30; }",
-                arg=FRAMES_RE, timeout=240_000)
+                arg=FRAMES_RE, timeout=stall_ms(240_000))
             client = next(iter(studio.server.get_clients().values()))
             t_asked = time.time()
             client.camera.position, client.camera.look_at = (1.05, -0.6, 1.2), (0.0, 0.05, 0.85)

@@ -10,7 +10,7 @@ import pytest
 
 from engine.motion_files import shared_root
 from tests.conftest import ServedStudio
-from tests.e2e.browser import open_page, stall_ms, wait_for_text
+from tests.e2e.browser import open_page, stall_ms, stall_s, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -164,7 +164,7 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
     import_source(shared / "motions-src" / TROT0).save(motions / "source" / "trot0.npz")
     studio = Studio("go1", port=free_port()).start()
     try:
-        assert studio.loaded.wait(180)
+        assert studio.loaded.wait(stall_s(180))
         panel = studio.retarget
         with open_page(studio.url, 900, 700) as page:
             wait_for_text(page, "Job: idle", 240_000)
@@ -216,7 +216,7 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
             # paused and scrubbed: the robot is the physics replay's frame, the ghost SMR's frame at s_α(t)
             page.get_by_role("button", name="Play / pause", exact=True).click()
             page.wait_for_function("() => /Frame \\d+ of \\d+ · [\\d.]+ s · paused/.test(document.body.innerText)",
-                                   timeout=60_000)
+                                   timeout=stall_ms(60_000))
             frames = _kinematic_frames(result, smr)
             gap = {k: float(np.abs(body_pos[k] - smr_pos[f]).max()) for k, f in frames.items()}
             far = max(gap, key=gap.__getitem__)
@@ -227,7 +227,7 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
                 slider.fill(str(k))
                 slider.press("Enter")
                 page.wait_for_function("k => new RegExp(`Frame ${k} of \\\\d+ · [\\\\d.]+ s · paused`)"
-                                       ".test(document.body.innerText)", arg=k, timeout=60_000)
+                                       ".test(document.body.innerText)", arg=k, timeout=stall_ms(60_000))
                 wait_value(lambda: _max_diff(page, "/retarget/robot", names, body_pos[k]) < 1e-3, 60,
                            f"the page's robot to show the replay's frame {k}", page)
                 wait_value(lambda: _max_diff(page, "/retarget/ghost", names, smr_pos[frames[k]]) < 1e-3, 60,
@@ -250,7 +250,7 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
             # three.js is y-up (viser rotates the z-up world about the origin): compare distances to the origin
             page.wait_for_function("""r => { const c = window.__viserMutable && window.__viserMutable.camera;
                 return c && Math.abs(c.position.length() - r) < 0.05; }""",
-                                   arg=float(np.linalg.norm(eye)), timeout=60_000)
+                                   arg=float(np.linalg.norm(eye)), timeout=stall_ms(60_000))
             close_software_webgl_notice(page)
             page.locator("canvas").first.screenshot(path=str(artifacts / "retarget_stmr_closeup.png"))
     finally:
