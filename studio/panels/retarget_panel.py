@@ -277,14 +277,14 @@ class RetargetPanel:
 
     def _source_for(self, path: str) -> str | None:
         """The studio source a result was made from, if it is still in the library (or a demo)."""
-        try:
-            import json
+        from engine.safe_io import ReadError, parse_json, read_npz
 
-            with np.load(self.root / path, allow_pickle=False) as f:
-                meta = json.loads(str(f["source"])) if "source" in f.files else {}
-        except Exception:  # noqa: BLE001 - then the result plays without its source
+        try:  # only the source entry, through safe_io (a bomb elsewhere in the file is never inflated)
+            source = read_npz(self.root / path, only=("source",)).get("source")
+            meta = parse_json(str(source), path) if source is not None and source.ndim == 0 else {}
+        except ReadError:  # then the result plays without its source
             return None
-        spec = meta.get("studio_source")
+        spec = meta.get("studio_source") if isinstance(meta, dict) else None
         if spec in DEMO_SOURCES or (spec and (self.root / spec).is_file()):
             return spec
         return None
