@@ -284,6 +284,7 @@ class JobRunner:
             from engine.walk_recording import load_run_motion
 
             motion = load_run_motion(src, take)
+        check_playable(motion, src.name)
         amp_full = bool(params.get("amp_full", False))
         stem = (f"{motion.robot}_{src.stem}" + ("_full" if amp_full and fmt == "amp-json" else "")
                 + ("" if take == "simulated" else f"_{take}") + (f"_{fps:g}fps" if fps is not None else ""))
@@ -296,15 +297,35 @@ class JobRunner:
     def _job_poses(self, params: dict, report: Callable, cancel: threading.Event) -> dict:
         from engine.retarget.motion import KeypointMotion, RobotMotion
 
-        motion = RobotMotion.load(confined(self.root, str(params.get("motion", ""))))
+        path = confined(self.root, str(params.get("motion", "")))
+        motion = check_playable(RobotMotion.load(path), path.name)
         source = params.get("source")
         source_motion = self._load_source(str(source)) if source else None
         ghost = params.get("ghost")
-        ghost_motion = RobotMotion.load(confined(self.root, str(ghost))) if ghost else None
+        ghost_path = confined(self.root, str(ghost)) if ghost else None
+        ghost_motion = check_playable(RobotMotion.load(ghost_path), ghost_path.name) if ghost_path else None
         if source_motion is not None and not isinstance(source_motion, KeypointMotion):
             raise JobError(f"{source}: expected a keypoint motion")
         return {"path": str(params.get("motion")), "metrics": dict(motion.metrics or {}),
                 "playback": playback_data(motion, source_motion, ghost_motion)}
+
+
+def check_playable(motion, where: str):  # noqa: ANN001, ANN201 - RobotMotion in, the same out
+    """A robot motion whose robot exists and whose joints are that robot's (what :func:`body_poses` needs), else a
+    JobError naming the file and the field (a loadable file may still name another robot or unknown joints)."""
+    from engine.robot.config import RobotConfigError, load_robot_config
+    from engine.robot.model import load_robot
+
+    try:
+        load_robot_config(motion.robot)
+    except RobotConfigError as exc:
+        raise JobError(f"{where}: robot: expected a known robot, {exc}") from None
+    model = load_robot(motion.robot).mj_model
+    known = {model.joint(i).name for i in range(model.njnt)}
+    unknown = [name for name in motion.joint_names if name not in known]
+    if unknown:
+        raise JobError(f"{where}: joint_names: expected joints of {motion.robot}, got {unknown[0][:40]!r}")
+    return motion
 
 
 def body_poses(motion) -> tuple[list[str], np.ndarray, np.ndarray]:

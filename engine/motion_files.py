@@ -82,12 +82,18 @@ def list_files(root: str | os.PathLike, sub: str = "", suffixes: tuple[str, ...]
     return out
 
 
+MOTION_KINDS = ("keypoint-motion/1", "robot-motion/1")
+
+
 def motion_kind(path: str | os.PathLike) -> str:
-    """'keypoint-motion/1', 'robot-motion/1' or '' (reads only the npz's ``format`` entry)."""
-    import numpy as np
+    """'keypoint-motion/1', 'robot-motion/1' or '' (reads only the npz's ``format`` entry, through
+    engine/safe_io.py: a zip bomb or a huge declared array elsewhere in the file is never inflated)."""
+    from engine.safe_io import ReadError, read_npz
 
     try:
-        with np.load(path, allow_pickle=False) as f:
-            return str(f["format"]) if "format" in f.files else ""
-    except Exception:  # noqa: BLE001 - anything unreadable is simply not a motion
+        fmt = read_npz(path, only=("format",)).get("format")
+    except ReadError:  # anything unreadable is simply not a motion (the loaders name what is wrong)
         return ""
+    if fmt is None or fmt.ndim != 0 or fmt.dtype.kind != "U" or str(fmt) not in MOTION_KINDS:
+        return ""
+    return str(fmt)

@@ -127,7 +127,7 @@ class Studio:
         self.sample_editor: SampleEditor | None = None
         self.curve_editor: CurveEditor | None = None
 
-        self.link = EngineLink(robot, self._on_event, self._on_status)
+        self.link = EngineLink(robot, self._on_event, self._on_status, on_lost=self._on_engine_lost)
         self.server.on_client_connect(self._on_client)
         self._stop = threading.Event()
         self._status_thread = threading.Thread(target=self._status_loop, name="studio-status", daemon=True)
@@ -371,6 +371,13 @@ class Studio:
 
     def _on_status(self, level: str, text: str) -> None:
         self._notify(level, text)
+
+    def _on_engine_lost(self, pid: int | None) -> None:
+        """The engine died: jobs and a recording that ran in it are gone (the link restarts the engine next)."""
+        lost = self.retarget.on_engine_lost(pid) + self.record.on_engine_lost(pid)
+        if lost:
+            self._notify("warning", f"Lost with the engine (pid {pid}): {', '.join(lost)}. Nothing was half-written; "
+                                    "start it again when the engine is back.")
 
     def _notify(self, level: str, text: str) -> None:
         if not text:

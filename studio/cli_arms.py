@@ -105,7 +105,11 @@ def cmd_train_arms(args: argparse.Namespace) -> int:
 
 
 def _load_clip(path_spec: str):
-    from engine.retarget.humanoid_arm.pose15 import bvh_points
+    """The clip and its key points; CliError (one line naming the file) for anything unusable, including a
+    skeleton whose arm joints coincide (its poses would be zero vectors)."""
+    import numpy as np
+
+    from engine.retarget.humanoid_arm.pose15 import bvh_points, degenerate_frame
     from engine.retarget.importers.bvh import BvhError, load_bvh
 
     path = Path(path_spec)
@@ -113,9 +117,14 @@ def _load_clip(path_spec: str):
         raise CliError(f"{path_spec}: no such BVH file")
     try:
         motion = load_bvh(path)
-        return motion, bvh_points(motion)
+        with np.errstate(all="ignore"):  # overflowing coordinates become NaN, refused below
+            points = bvh_points(motion)
+            bad = degenerate_frame(points.pose15())
     except BvhError as exc:
         raise CliError(str(exc)) from None
+    if bad is not None:
+        raise CliError(f"{path.name}: MOTION: frame {bad}: expected a skeleton, got coincident arm joints (degenerate)")
+    return motion, points
 
 
 def cmd_puppet(args: argparse.Namespace) -> int:
@@ -126,8 +135,6 @@ def cmd_puppet(args: argparse.Namespace) -> int:
         raise CliError(f"--fps: expected 0 < fps ≤ 1000, got {args.fps}")
     motion, points = _load_clip(args.bvh)
     poses = points.pose15()
-    if not np.all(np.isfinite(poses)):
-        raise CliError(f"{args.bvh}: degenerate skeleton (coincident arm joints)")
     stride = max(1, int(round(points.fps / args.fps)))
     poses = poses[::stride]
     from engine.retarget.humanoid_arm.metadata import weights_path
@@ -210,8 +217,6 @@ def cmd_stream_bvh(args: argparse.Namespace) -> int:
     if not (0 < args.fps <= 1000):
         raise CliError(f"--fps: expected 0 < fps ≤ 1000, got {args.fps}")
     _, points = _load_clip(args.bvh)
-    if not np.all(np.isfinite(points.pose15())):
-        raise CliError(f"{args.bvh}: degenerate skeleton (coincident arm joints)")
     stride = max(1, int(round(points.fps / args.fps)))
     sent = 0
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:

@@ -123,16 +123,17 @@ def run_tmr(motion, settings, address: str | None, parallel: int):  # noqa: ANN0
         return None
 
 
-def _quadruped(name: str):  # noqa: ANN202
+def _quadruped(name: str, where: str = "--robot"):  # noqa: ANN202
+    """The robot model of a quadruped; ``where`` names what gave the name (``--robot`` or ``FILE: robot``)."""
     from engine.robot.config import RobotConfigError, load_robot_config
     from engine.robot.model import load_robot
 
     try:
         cfg = load_robot_config(name)
     except RobotConfigError as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(str(exc) if where == "--robot" else f"{where}: expected a known robot, {exc}") from None
     if cfg.kind != "quadruped":
-        raise CliError(f"--robot: expected a quadruped (TMR retargets quadruped motions), {name} is a {cfg.kind}")
+        raise CliError(f"{where}: expected a quadruped (TMR retargets quadruped motions), {name} is a {cfg.kind}")
     return load_robot(name)
 
 
@@ -187,7 +188,7 @@ def cmd_tmr(args: argparse.Namespace) -> int:
     out = _out_npz(args.out)
     _check_address(args.address)
     motion = _load_motion(args.motion)
-    robot = _quadruped(args.robot or motion.robot)
+    robot = _quadruped(args.robot) if args.robot else _quadruped(motion.robot, f"{Path(args.motion).name}: robot")
     _check_motion(motion, robot, Path(args.motion).name, settings)
     result = run_tmr(motion, settings, args.address, args.parallel)
     if result is None:
@@ -212,16 +213,15 @@ def _batch_clip(spec: str):  # noqa: ANN202
     from engine.retarget.importers import import_source
     from engine.retarget.motion import ROBOT_FORMAT, MotionFormatError, RobotMotion
 
+    from engine.safe_io import ReadError, read_npz
+
     path = Path(spec)
     if path.suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as f:
-                robot_motion = "format" in f.files and str(f["format"]) == ROBOT_FORMAT
-        except FileNotFoundError:
-            raise CliError(f"{path.name}: file not found") from None
-        except Exception:  # noqa: BLE001 - any unreadable file is one line (named below by the loader)
-            robot_motion = True
-        if robot_motion:
+        try:  # only the format entry (safe_io: nothing else inflated)
+            fmt = read_npz(path, source=path.name, only=("format",)).get("format")
+        except ReadError as exc:
+            raise CliError(str(exc)) from None
+        if fmt is not None and fmt.ndim == 0 and str(fmt) == ROBOT_FORMAT:
             try:
                 return RobotMotion.load(path)
             except MotionFormatError as exc:
@@ -313,7 +313,8 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
             continue
         targets = robots or [motion.robot]
         for r in targets:
-            _check_motion(motion, _quadruped(r), Path(spec).name, settings)
+            model = _quadruped(r) if robots else _quadruped(r, f"{Path(spec).name}: robot")
+            _check_motion(motion, model, Path(spec).name, settings)
             jobs.append((spec, r))
     if args.jobs is not None and args.jobs < 1:
         raise CliError(f"--jobs: expected ≥ 1, got {args.jobs}")

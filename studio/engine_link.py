@@ -2,8 +2,10 @@
 
 Events from the engine are delivered to ``on_event`` on the link's thread (frames are
 coalesced: only the newest pending frame is delivered). If the engine process dies, the
-link reports it through ``on_status`` and starts a new one at once, replaying the commands
-that define the engine's state (robot, style, mode, ...), so the user loses nothing.
+link reports it through ``on_status``, tells ``on_lost(pid)`` (what ran only in that process —
+retargeting, import and export jobs, a recording — is gone: the panels say so and let the user
+start it again) and starts a new engine at once, replaying the commands that define the engine's
+state (robot, style, mode, ...), so the user loses no edits.
 """
 
 from __future__ import annotations
@@ -28,10 +30,12 @@ class EngineLink:
         robot: str,
         on_event: Callable[[msg.Event], None],
         on_status: Callable[[str, str], None] = lambda level, text: None,
+        on_lost: Callable[[int | None], None] = lambda pid: None,
     ):
         self.robot = robot
         self.on_event = on_event
         self.on_status = on_status
+        self.on_lost = on_lost
         self.engine: EngineProcess | None = None
         self.restarts = 0
         self.last_event_time = 0.0
@@ -126,6 +130,11 @@ class EngineLink:
         pid = engine.pid if engine else None
         self.restarts += 1
         self.on_status("error", f"The engine process (pid {pid}) stopped (exit code {code}); restarting it.")
+        try:
+            self.on_lost(pid)  # its jobs died with it (every event it sent has been delivered: we read to EOF)
+        except Exception as exc:  # a UI bug must not stop the restart
+            LOG.exception("studio failed to report the jobs lost with engine %s", pid)
+            self.on_status("error", f"studio failed to report the lost jobs: {exc}")
         try:
             self._spawn()
             self.on_status("info", f"Engine restarted (pid {self.pid}).")

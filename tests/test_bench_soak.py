@@ -21,3 +21,38 @@ def test_soak_smoke():
     assert math.isfinite(studio["sim_clock_drift_pct"]) and studio["engine_frames_per_s"] > 0
     assert studio["edits"] >= 2
     assert studio["tabs"] == 1 and float(studio["tab_fps"]) > 0  # the tab rendered the studio
+
+
+def test_headless_clients_run_in_their_own_process():
+    """The soak's clients live in a child process (the studio process's RSS is the studio's): they connect,
+    decode what the server streams and report their rates and errors over the line protocol, then stop."""
+    import time
+
+    import numpy as np
+    import viser
+
+    from studio.bench_soak import _ClientProcess
+    from tests.conftest import free_port
+
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    node = server.scene.add_frame("/robot/pelvis")
+    pool = _ClientProcess(f"ws://127.0.0.1:{server.get_port()}/", 2)
+    try:
+        assert pool.proc.stdout is not None and pool.proc.stdout.readline().strip() == "ready"
+        deadline = time.monotonic() + 60
+        while len(server.get_clients()) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert len(server.get_clients()) == 2
+        pool.mark()
+        for i in range(40):  # 40 moves of a robot body, 25 ms apart
+            node.position = (0.01 * i, 0.0, 0.0)
+            time.sleep(0.025)
+        time.sleep(0.5)
+        reports = pool.report()
+        assert len(reports) == 2 and all(not r["error"] for r in reports), reports
+        assert all(r["rates"][0] > 0 and r["rates"][2] > 0 for r in reports), reports  # messages, robot frames
+        assert pool.pid != __import__("os").getpid() and np.isfinite(reports[0]["rates"][1])
+    finally:
+        pool.stop()
+        server.stop()
+    assert pool.proc.returncode == 0

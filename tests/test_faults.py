@@ -267,3 +267,134 @@ def test_kill_9_of_the_engine_during_a_test_mode_walk(tmp_path):
              60, "the new engine to run the edited style")
     finally:
         studio.stop()
+
+
+# ----------------------------------------------------------------------------- kill -9 of the engine mid-retarget
+
+
+@pytest.mark.slow
+def test_kill_9_of_the_engine_during_a_retargeting_job(tmp_path, monkeypatch):
+    """A retargeting job started in the Retarget workspace dies with its engine: the studio says the engine
+    stopped, restarts it, reports the job as lost (Run is enabled again), nothing of the job's output exists —
+    no file, no temporary — and the same Run then works on the new engine."""
+    from engine.retarget.motion import RobotMotion
+    from studio.app import Studio
+    from tests.conftest import free_port
+
+    def wait(predicate, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return
+            time.sleep(0.05)
+        pytest.fail(f"timed out waiting for {what} (status: {studio.retarget.status.content!r}, "
+                    f"notices: {studio.notices[-3:]})")
+
+    motions = tmp_path / "motions"
+    (motions / "go2").mkdir(parents=True)
+    monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(motions))  # the studio's panel and its engine's jobs
+    studio = Studio("go2", port=free_port(), styles_folder=tmp_path / "styles").start()
+    panel = studio.retarget
+    try:
+        assert studio.loaded.wait(180)
+        panel.source.value = "demo:trot"
+        panel.method.value = "stmr"  # SMR, then TMR's Bayesian optimisation in MuJoCo: minutes, killed long before
+        panel.budget.value = 6
+        panel.start_retarget()
+        job = panel.job_id
+        assert job is not None and panel.run.disabled
+        wait(lambda: "TMR: BO evaluation" in panel.status.content, 300, "the job to reach TMR")
+        old_pid = studio.link.pid
+        os.kill(old_pid, signal.SIGKILL)
+        wait(lambda: "Retarget lost" in panel.status.content, 60, "the job reported as lost")
+        status = panel.status.content
+        assert f"pid {old_pid}" in status and "nothing was written" in status and "Press Run" in status, status
+        assert panel.job_id is None and not panel.run.disabled and panel.cancel.disabled
+        assert any("stopped" in text and str(old_pid) in text for _, text in studio.notices)
+        assert any("Lost with the engine" in text and "retarget job" in text for _, text in studio.notices)
+        wait(lambda: studio.link.pid not in (None, old_pid), 60, "a new engine")
+        wait(lambda: any("Engine restarted" in text for _, text in studio.notices), 60, "the restart notice")
+        assert sorted(p.name for p in (motions / "go2").iterdir()) == []  # no output, no temporary
+        assert not any("is a quadruped" in text for _, text in studio.notices)  # the same robot: no hint again
+        # the user starts it again (SMR this time: seconds) and the new engine writes the result whole
+        panel.method.value = "smr"
+        panel.with_ghost.value = False
+        panel.start_retarget()
+        wait(lambda: "Result:" in panel.status.content or "failed" in panel.status.content, 300, "the new job")
+        assert panel.status.content == "Result: `go2/trot_smr.npz` written", panel.status.content
+        assert RobotMotion.load(motions / "go2" / "trot_smr.npz").robot == "go2"
+        assert [p.name for p in (motions / "go2").iterdir()] == ["trot_smr.npz"]
+    finally:
+        studio.stop()
+
+
+def test_a_lost_retarget_job_removes_what_a_cut_write_left(tmp_path):
+    """What a kill -9 that lands inside the atomic write leaves (a hidden temporary beside the output; the output
+    itself whole or absent) is removed when the studio reports the job as lost; other files stay."""
+    import itertools
+    from types import SimpleNamespace
+
+    import viser
+
+    from studio.panels.retarget_panel import RetargetPanel
+    from tests.conftest import free_port
+
+    sent: list = []
+    notes: list = []
+    studio = SimpleNamespace(link=SimpleNamespace(send=sent.append), _notify=lambda level, text: notes.append(text))
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    (tmp_path / "go2").mkdir()
+    try:
+        panel = RetargetPanel(server, studio, root=tmp_path)  # type: ignore[arg-type]
+        panel._ids = itertools.count(7)  # noqa: SLF001
+        panel.source.value = "demo:trot"
+        panel.robot.value = "go2"
+        panel.method.value = "smr"
+        panel.start_retarget()
+        assert sent and sent[0].job == "retarget" and sent[0].params["name"] == "trot_smr"
+        cut = tmp_path / "go2" / ".trot_smr.npz.k3j2_x.tmp"  # mkstemp's name for go2/trot_smr.npz
+        cut.write_bytes(b"PK\x03\x04 half")
+        other = tmp_path / "go2" / "keep.npz"
+        other.write_bytes(b"x")
+        lost = panel.on_engine_lost(4242)
+        assert lost == ["the retarget job"]
+        assert not cut.exists() and other.exists()
+        assert panel.status.content.startswith("Retarget lost: the engine (pid 4242) stopped during the job; "
+                                               "nothing was written.")
+        assert panel.job_id is None and not panel.run.disabled
+        assert panel.on_engine_lost(4243) == []  # nothing pending any more
+        panel.stop()
+    finally:
+        server.stop()
+
+
+def test_a_recording_and_an_export_lost_with_the_engine_are_reported(tmp_path):
+    """The Record panel's recording lives in the engine's memory, its export runs there: when the engine dies
+    the panel says both are lost and lets the user start again (no "Saving…" / "Exporting…" forever)."""
+    from types import SimpleNamespace
+
+    import viser
+
+    from studio.panels.record_panel import RecordPanel
+    from tests.conftest import free_port
+
+    sent: list = []
+    studio = SimpleNamespace(link=SimpleNamespace(send=sent.append), mode="test", view=SimpleNamespace(last_frame=None))
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        panel = RecordPanel(server, studio)  # type: ignore[arg-type]
+        assert panel.on_engine_lost(1) == []
+        panel.toggle()  # ● Record
+        assert panel.recording and sent[-1].kind == "set_recording"
+        panel.toggle()  # ■ Stop: the engine is saving it
+        assert panel.status.content == "Saving the recording…"
+        panel.run_path = "runs/walk.npz"
+        panel.start_export()
+        assert panel.export.disabled
+        assert panel.on_engine_lost(4242) == ["the recording", "the export job"]
+        assert panel.status.content.startswith("Recording lost: the engine (pid 4242) stopped")
+        assert panel.export_status.content.startswith("Export lost: the engine (pid 4242) stopped")
+        assert not panel.recording and panel.record.label == "● Record" and not panel.export.disabled
+        assert panel.on_engine_lost(4243) == []
+    finally:
+        server.stop()

@@ -47,7 +47,7 @@ def test_bad_options_exit_2_with_one_line_and_write_nothing(clips, tmp_path, ext
 
 @pytest.mark.parametrize("name, extra, expected", [
     ("short.npz", ["--segments", "3"], "short.npz: qpos: expected a clip of at least two frames per segment"),
-    ("junk.npz", [], "junk.npz: expected an npz motion file"),
+    ("junk.npz", [], "junk.npz: expected an npz archive (a zip of .npy arrays)"),
     ("missing.npz", [], "missing.npz: file not found"),
 ])
 def test_bad_clips_exit_2_naming_the_file(clips, tmp_path, name, extra, expected) -> None:  # noqa: ANN001

@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import io
 import json
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from engine.atomic_io import atomic_write_bytes
+from engine.safe_io import ReadError, parse_json, read_npz, split_message
 
 LEGS = ("FL", "FR", "RL", "RR")
 KEYPOINT_KINDS = ("hip", "thigh", "knee", "foot")
@@ -37,12 +38,20 @@ ROBOT_FORMAT = "robot-motion/1"
 DYNAMIC_FIELDS = ("pd_targets", "pd_kp", "pd_kd", "alpha", "segment_knots_s", "contact_sim")
 
 
-class MotionFormatError(ValueError):
-    """A malformed motion: the message is one line naming the file and the field."""
+class MotionFormatError(ReadError):
+    """A malformed motion: one line naming the file and the field (engine/safe_io.py's ReadError).
+
+    ``MotionFormatError(source, field_path, detail)``; the one-string form (``f"{name}: {field}: expected …"``, as
+    the importers raise it) is split into those parts by :func:`engine.safe_io.split_message`."""
+
+    def __init__(self, source: str, field_path: str | None = None, detail: str | None = None):
+        if field_path is None and detail is None:
+            source, field_path, detail = split_message(source)
+        super().__init__(source, field_path or "", detail or "")
 
 
 def _fail(where: str, field_name: str, what: str) -> MotionFormatError:
-    return MotionFormatError(f"{where}: {field_name}: {what}")
+    return MotionFormatError(where, field_name, what)
 
 
 def _finite(where: str, name: str, arr: np.ndarray) -> None:
@@ -51,14 +60,24 @@ def _finite(where: str, name: str, arr: np.ndarray) -> None:
         raise _fail(where, name, f"expected finite numbers, found {arr[tuple(bad)]} at index {tuple(int(b) for b in bad)}")
 
 
+MAX_ABS_VALUE = 1e9  # no field of a motion (m, rad, m/s, N·m, gains, s) is meaningful beyond this
+
+
 def _float_array(where: str, name: str, value: Any, shape: tuple) -> np.ndarray:
     try:
+        kind = np.asarray(value).dtype.kind
+        if kind not in "iuf":  # text, booleans, complex or objects are not numbers here (np.array parses "1.5")
+            raise TypeError
         arr = np.array(value, dtype=float)  # a copy: arrays from Ray or np.load may be read-only
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise _fail(where, name, f"expected numbers of shape {_shape_text(shape)}") from None
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
         raise _fail(where, name, f"expected shape {_shape_text(shape)}, got {arr.shape}")
     _finite(where, name, arr)
+    if arr.size and np.abs(arr).max() > MAX_ABS_VALUE:
+        bad = np.unravel_index(int(np.argmax(np.abs(arr))), arr.shape)
+        raise _fail(where, name, f"expected |x| ≤ {MAX_ABS_VALUE:g}, found {arr[bad]:g} at index "
+                    f"{tuple(int(b) for b in bad)}")
     return arr
 
 
@@ -68,23 +87,46 @@ def _shape_text(shape: tuple) -> str:
 
 def _fps(where: str, value: Any) -> float:
     try:
-        fps = float(np.asarray(value).reshape(()))
-    except (TypeError, ValueError):
-        raise _fail(where, "fps", f"expected a number, got {value!r}") from None
+        arr = np.asarray(value)
+        if arr.dtype.kind not in "iuf":
+            raise TypeError
+        fps = float(arr.reshape(()))
+    except (TypeError, ValueError, OverflowError):
+        shown = f"shape {arr.shape} {arr.dtype}" if isinstance(value, np.ndarray) else repr(value)[:40]
+        raise _fail(where, "fps", f"expected a number, got {shown}") from None
     if not np.isfinite(fps) or fps <= 0 or fps > 10000:
         raise _fail(where, "fps", f"expected 0 < fps ≤ 10000, got {fps}")
     return fps
 
 
-def _names(where: str, name: str, value: Any, n: int) -> list[str]:
-    arr = np.asarray(value)
-    if arr.ndim != 1 or len(arr) != n or arr.dtype.kind not in "US":
-        raise _fail(where, name, f"expected {n} names, got {arr.shape} {arr.dtype}")
+def _names(where: str, name: str, value: Any, n: int | None) -> list[str]:
+    """``n`` names (``None``: one or more) as a 1-D text array or list."""
+    count = "one or more" if n is None else str(n)
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # a ragged list
+        raise _fail(where, name, f"expected {count} names") from None
+    if arr.ndim != 1 or (len(arr) != n if n is not None else not len(arr)) or arr.dtype.kind != "U":
+        raise _fail(where, name, f"expected {count} names, got {arr.shape} {arr.dtype}")
     return [str(x) for x in arr]
 
 
-def _contact(where: str, value: Any, t: int, k: int, name: str = "contact") -> np.ndarray:
+def _text(where: str, name: str, value: Any) -> str:
+    """A one-line name (robot, method) stored as a 0-d text array (or given as a str)."""
     arr = np.asarray(value)
+    if arr.ndim != 0 or arr.dtype.kind != "U":
+        raise _fail(where, name, f"expected a name (text), got shape {arr.shape} {arr.dtype}")
+    text = str(arr)
+    if not text or len(text) > 64 or not text.isprintable() or "/" in text or "\\" in text:
+        raise _fail(where, name, f"expected a name of at most 64 printable characters, got {text[:40]!r}")
+    return text
+
+
+def _contact(where: str, value: Any, t: int, k: int, name: str = "contact") -> np.ndarray:
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # a ragged list
+        raise _fail(where, name, f"expected shape ({t}, {k})") from None
     if arr.shape != (t, k):
         raise _fail(where, name, f"expected shape ({t}, {k}), got {arr.shape}")
     if arr.dtype != bool:
@@ -116,9 +158,10 @@ class KeypointMotion:
     base_quat: np.ndarray | None = None  # (T, 4) w,x,y,z
     source: dict = field(default_factory=dict)  # free metadata: file, format, licence note, …
     known: np.ndarray | None = None  # (16,) bool: keypoints the source measured (False: filled from the target)
+    loaded_from: InitVar[str | None] = None  # the file's name in error messages (``source["file"]`` is metadata)
 
-    def __post_init__(self) -> None:
-        self.validate(self.source.get("file", "<keypoint motion>"))
+    def __post_init__(self, loaded_from: str | None = None) -> None:
+        self.validate(loaded_from or self.source.get("file", "<keypoint motion>"))
 
     @property
     def frames(self) -> int:
@@ -151,7 +194,10 @@ class KeypointMotion:
             self.base_quat = _quat(where, "base_quat", self.base_quat, t)
         if self.known is None:
             self.known = np.ones(N_KEYPOINTS, dtype=bool)
-        self.known = np.asarray(self.known, dtype=bool).reshape(N_KEYPOINTS)
+        known = np.asarray(self.known)
+        if known.shape != (N_KEYPOINTS,) or known.dtype.kind not in "biu" or not np.all(np.isin(known, (0, 1))):
+            raise _fail(where, "known", f"expected {N_KEYPOINTS} booleans, got {known.shape} {known.dtype}")
+        self.known = known.astype(bool)
         if not isinstance(self.source, dict):
             raise _fail(where, "source", "expected a JSON object")
 
@@ -183,7 +229,7 @@ class KeypointMotion:
             fps=data["fps"], keypoints=data["keypoints"], contact=data["contact"],
             keypoint_names=data.get("keypoint_names", np.array(KEYPOINT_NAMES)),
             foot_names=data.get("foot_names", np.array(LEGS)), base_pos=data.get("base_pos"),
-            base_quat=data.get("base_quat"), source=source, known=data.get("known"),
+            base_quat=data.get("base_quat"), source=source, known=data.get("known"), loaded_from=where,
         )
 
 
@@ -205,9 +251,10 @@ class RobotMotion:
     source: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)  # the dynamic fields (DYNAMIC_FIELDS), see the module docstring
+    loaded_from: InitVar[str | None] = None  # the file's name in error messages (``source["file"]`` is metadata)
 
-    def __post_init__(self) -> None:
-        self.validate(self.source.get("file", "<robot motion>"))
+    def __post_init__(self, loaded_from: str | None = None) -> None:
+        self.validate(loaded_from or self.source.get("file", "<robot motion>"))
 
     @property
     def frames(self) -> int:
@@ -239,12 +286,10 @@ class RobotMotion:
             raise _fail(where, "qpos", f"expected (T, 7 + n) columns, got {nq}")
         self.qpos[:, 3:7] = _quat(where, "qpos[:, 3:7]", self.qpos[:, 3:7], t)
         self.joint_names = _names(where, "joint_names", self.joint_names, nq - 7)
-        self.foot_names = _names(where, "foot_names", self.foot_names, len(self.foot_names))
+        self.foot_names = _names(where, "foot_names", self.foot_names, None)
         self.contact = _contact(where, self.contact, t, len(self.foot_names))
-        if not isinstance(self.robot, str) or not self.robot:
-            raise _fail(where, "robot", "expected a robot name")
-        if not isinstance(self.method, str) or not self.method:
-            raise _fail(where, "method", "expected a method name")
+        self.robot = _text(where, "robot", self.robot)
+        self.method = _text(where, "method", self.method)
         if self.keypoints is not None:
             self.keypoints = _float_array(where, "keypoints", self.keypoints, (t, None, 3))
             k = self.keypoints.shape[1]
@@ -290,14 +335,14 @@ class RobotMotion:
                 raise _fail(where, key, "missing")
         source = _source(where, data)
         source.setdefault("file", where)
-        metrics = json.loads(str(data["metrics"])) if "metrics" in data else {}
+        metrics = _json_field(where, data, "metrics")
         return cls(
             fps=data["fps"], qpos=data["qpos"], joint_names=data["joint_names"], contact=data["contact"],
-            robot=str(data["robot"]), method=str(data["method"]),
+            robot=_text(where, "robot", data["robot"]), method=_text(where, "method", data["method"]),
             foot_names=data.get("foot_names", np.array(LEGS)), keypoints=data.get("keypoints"),
             keypoint_names=data.get("keypoint_names"), qvel=data.get("qvel"), ctrl=data.get("ctrl"),
-            source=source, metrics=metrics if isinstance(metrics, dict) else {},
-            extra={k: data[k] for k in DYNAMIC_FIELDS if k in data},
+            source=source, metrics=metrics,
+            extra={k: data[k] for k in DYNAMIC_FIELDS if k in data}, loaded_from=where,
         )
 
 
@@ -332,16 +377,24 @@ def load_motion(path: str | Path) -> KeypointMotion | RobotMotion:
     raise _fail(Path(path).name, "format", f"expected {KEYPOINT_FORMAT!r} or {ROBOT_FORMAT!r}, got {fmt or 'nothing'!r}")
 
 
-def _source(where: str, data: dict) -> dict:
-    if "source" not in data:
+def _json_field(where: str, data: dict, key: str) -> dict:
+    """A JSON object stored as a 0-d text array (``source``, ``metrics``), parsed with safe_io's limits."""
+    if key not in data:
         return {}
+    arr = np.asarray(data[key])
+    if arr.ndim != 0 or arr.dtype.kind != "U":
+        raise _fail(where, key, f"expected a JSON object as text, got shape {arr.shape} {arr.dtype}")
     try:
-        source = json.loads(str(data["source"]))
-    except json.JSONDecodeError:
-        raise _fail(where, "source", "expected a JSON object") from None
-    if not isinstance(source, dict):
-        raise _fail(where, "source", "expected a JSON object")
-    return source
+        value = parse_json(str(arr), where)
+    except ReadError as exc:
+        raise _fail(where, key, f"{exc.field_path + ': ' if exc.field_path else ''}{exc.detail}") from None
+    if not isinstance(value, dict):
+        raise _fail(where, key, f"expected a JSON object, got {type(value).__name__}")
+    return value
+
+
+def _source(where: str, data: dict) -> dict:
+    return _json_field(where, data, "source")
 
 
 def _write_npz(path: str | Path, arrays: Mapping[str, np.ndarray | None]) -> None:
@@ -352,14 +405,10 @@ def _write_npz(path: str | Path, arrays: Mapping[str, np.ndarray | None]) -> Non
 
 
 def _read_npz(path: str | Path) -> dict[str, Any]:
-    """The file's arrays, unvalidated (the dataclasses' ``__post_init__`` checks every field)."""
+    """The file's arrays, unvalidated (the dataclasses' ``__post_init__`` checks every field); the archive itself
+    through :func:`engine.safe_io.read_npz` (sizes and dtypes checked before anything is allocated)."""
     where = Path(path).name
     try:
-        with np.load(path, allow_pickle=False) as f:
-            return {k: f[k] for k in f.files}
-    except FileNotFoundError:
-        raise MotionFormatError(f"{where}: file not found") from None
-    except (ValueError, OSError, EOFError) as exc:
-        raise MotionFormatError(f"{where}: expected an npz motion file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
-    except Exception as exc:  # zipfile.BadZipFile and friends
-        raise MotionFormatError(f"{where}: expected an npz motion file ({type(exc).__name__})") from None
+        return read_npz(path, source=where)
+    except ReadError as exc:
+        raise MotionFormatError(exc.source, exc.field_path, exc.detail) from None

@@ -38,6 +38,7 @@ class RecordPanel:
         self.run_path: str | None = None  # the last saved recording, relative to the motion library
         self.export_path: str | None = None
         self._export_job: str | None = None
+        self._saving = False  # ■ Stop was pressed: the engine is writing the recording
         with server.gui.add_folder("Record (test mode)"):
             self.record = server.gui.add_button("● Record", color="red",
                                                 hint="record the walk (simulated and reference) until ■ Stop")
@@ -66,6 +67,7 @@ class RecordPanel:
                 self.studio.link.send(msg.SetRecording(True, request_id=f"{JOB_PREFIX}{next(self._ids)}"))
             else:
                 self.recording = False
+                self._saving = True
                 self.record.label = "● Record"
                 self.status.content = "Saving the recording…"
                 self.studio.link.send(msg.SetRecording(False, request_id=f"{JOB_PREFIX}{next(self._ids)}"))
@@ -82,6 +84,24 @@ class RecordPanel:
             "motion": self.run_path, "format": self.format.value, "fps": EXPORT_RATES[self.rate.value],
             "take": self.take.value}, job_id=job_id))
 
+    def on_engine_lost(self, pid: int | None) -> list[str]:
+        """The engine died (the link's thread): a recording in progress lived in it, and so did an export job."""
+        lost = []
+        if self.recording or self._saving:
+            self.recording = self._saving = False
+            self.record.label = "● Record"
+            self.status.content = (f"Recording lost: the engine (pid {pid}) stopped; the recording was in its memory "
+                                   "and is not saved (a saved run is written whole or not at all). Press ● Record to "
+                                   "record again.")
+            lost.append("the recording")
+        if self._export_job is not None:
+            self._export_job = None
+            self.export.disabled = False
+            self.export_status.content = (f"Export lost: the engine (pid {pid}) stopped during the export; exports "
+                                          "are written whole or not at all. Press Export recording to start it again.")
+            lost.append("the export job")
+        return lost
+
     # ------------------------------------------------------------------ engine events (the link's thread)
     def on_job(self, event: msg.JobProgress) -> None:
         if event.result is None:
@@ -89,6 +109,7 @@ class RecordPanel:
         result = event.result
         if event.job == "record":
             self.recording = False
+            self._saving = False
             self.record.label = "● Record"
             if result.get("ok"):
                 self.run_path = result["path"]

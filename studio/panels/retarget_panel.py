@@ -144,6 +144,27 @@ def metrics_markdown(metrics: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
+def _written_since(path: Path, started_s: float) -> bool:
+    """``path`` exists and was (re)written after ``started_s`` (wall clock)."""
+    try:
+        return path.stat().st_mtime >= started_s - 1.0
+    except OSError:
+        return False
+
+
+def _remove_temporaries(path: Path) -> list[Path]:
+    """The atomic writer's temporaries of ``path`` (``.NAME.XXXX.tmp``, engine/atomic_io.py) that a killed writer
+    left behind: hidden, never listed, but half-written; removed."""
+    removed = []
+    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+        try:
+            tmp.unlink()
+            removed.append(tmp)
+        except OSError:
+            pass
+    return removed
+
+
 class RetargetPanel:
     def __init__(self, server: viser.ViserServer, studio: "Studio", root: Path | None = None):
         self.server = server
@@ -155,6 +176,7 @@ class RetargetPanel:
         self.result_path: str | None = None
         self.results_seen = 0
         self._robots_seen = 0
+        self._last_robot = ""
         self.frame = 0
         self._time_s = 0.0
         self._setting_slider = False
@@ -231,6 +253,7 @@ class RetargetPanel:
         self.skeleton_root = server.scene.add_frame("/retarget/skeleton", position=SKELETON_OFFSET, show_axes=False)
         self.skeleton: viser.LineSegmentsHandle | None = None
         self._pending: dict[str, str] = {}  # job id → kind of the jobs this panel waits for
+        self._outputs: dict[str, tuple[float, list[str]]] = {}  # job id → (start time, files it will write)
         self._thread = threading.Thread(target=self._playback_loop, name="retarget-playback", daemon=True)
         self._thread.start()
 
@@ -239,9 +262,10 @@ class RetargetPanel:
         if kind != "quadruped" or robot not in QUADRUPEDS:
             return
         self.robot.value = robot  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
-        if self._robots_seen:
+        if self._robots_seen and robot != self._last_robot:  # not again when a restarted engine loads it anew
             self.studio._notify("info", f"{robot} is a quadruped: retarget motions onto it in the Retarget tab.")
         self._robots_seen += 1
+        self._last_robot = robot
 
     # ------------------------------------------------------------------ lists
     def _source_options(self) -> tuple[str, ...]:
@@ -262,11 +286,44 @@ class RetargetPanel:
             self.results.value = select_result  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
 
     # ------------------------------------------------------------------ jobs
-    def _start(self, job: str, params: dict) -> str:
+    def _start(self, job: str, params: dict, outputs: tuple[str, ...] = ()) -> str:
         job_id = f"{job}-{next(self._ids)}"
         self._pending[job_id] = job
+        self._outputs[job_id] = (time.time(), list(outputs))
         self.studio.link.send(msg.StartJob(job, params, job_id=job_id))
         return job_id
+
+    def on_engine_lost(self, pid: int | None) -> list[str]:
+        """The engine process died (the link's thread, before it restarts the engine): every job this panel
+        waited for is lost. Say so where each job reports, re-enable Run, remove the temporaries a write cut
+        short may have left next to the outputs (the outputs themselves are written atomically: whole or not at
+        all). Returns what was lost, for the studio's notice."""
+        lost = []
+        for job_id, kind in list(self._pending.items()):
+            self._pending.pop(job_id, None)
+            started, outputs = self._outputs.pop(job_id, (0.0, []))
+            written = [o for o in outputs if _written_since(self.root / o, started)]
+            for output in outputs:
+                _remove_temporaries(self.root / output)
+            again = {"retarget": "press Run", "poses": "press View result", "import": "press Import",
+                     "export": "press Export"}.get(kind, "start it")
+            what = (f"its output `{written[0]}` is complete" if written else "nothing was written")
+            text = f"the engine (pid {pid}) stopped during the job; {what}. {again[0].upper()}{again[1:]} to start it again."
+            if kind == "retarget":
+                self.job_id = None
+                self.run.disabled = False
+                self.cancel.disabled = True
+                self.progress.animated = False
+                self.progress.value = 0.0  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
+                self._set_status(f"Retarget lost: {text}")
+                if written:
+                    self.refresh_lists(select_result=written[0])
+            elif kind == "export":
+                self.export_status.content = f"Export lost: {text}"
+            else:
+                self._set_status(f"{kind.capitalize()} lost: {text}")
+            lost.append(f"the {kind} job")
+        return lost
 
     def _import_root(self) -> Path | None:
         if self.import_root.value.startswith("shared"):
@@ -299,7 +356,7 @@ class RetargetPanel:
             self._set_status(f"Import refused: {self.import_check.content.lstrip('✗ ')}")
             return
         self._set_status(f"Importing `{path}`…")
-        self._start("import", {"root": root, "path": path})
+        self._start("import", {"root": root, "path": path}, (f"source/{Path(path).stem.replace(' ', '_')}.npz",))
 
     def start_retarget(self) -> None:
         if self.job_id is not None:
@@ -308,11 +365,13 @@ class RetargetPanel:
         method = self.method.value
         terrain = [s.strip() for s in self.terrain.value.split(";") if s.strip()]
         name = f"{Path(source.split(':')[-1]).stem}_{method}" + ("_baseless" if self.baseless.value else "")
+        robot = self.robot.value
+        outputs = (f"{robot}/{name}.npz", f"{robot}/{name}.uvm.npz", f"{robot}/{name}.smr.npz")
         self.job_id = self._start("retarget", {
-            "source": source, "robot": self.robot.value, "method": method, "baseless": self.baseless.value,
+            "source": source, "robot": robot, "method": method, "baseless": self.baseless.value,
             "terrain": terrain, "name": name, "uvm_ghost": self.with_ghost.value,
             "budget": int(self.budget.value), "segments": int(self.segments.value),
-        })
+        }, outputs)
         self._source_of_job = source
         self.run.disabled = True
         self.cancel.disabled = False
@@ -342,14 +401,14 @@ class RetargetPanel:
 
     def _source_for(self, path: str) -> str | None:
         """The studio source a result was made from, if it is still in the library (or a demo)."""
-        try:
-            import json
+        from engine.safe_io import ReadError, parse_json, read_npz
 
-            with np.load(self.root / path, allow_pickle=False) as f:
-                meta = json.loads(str(f["source"])) if "source" in f.files else {}
-        except Exception:  # noqa: BLE001 - then the result plays without its source
+        try:  # only the source entry, through safe_io (a bomb elsewhere in the file is never inflated)
+            source = read_npz(self.root / path, only=("source",)).get("source")
+            meta = parse_json(str(source), path) if source is not None and source.ndim == 0 else {}
+        except ReadError:  # then the result plays without its source
             return None
-        spec = meta.get("studio_source")
+        spec = meta.get("studio_source") if isinstance(meta, dict) else None
         if spec in DEMO_SOURCES or (spec and (self.root / spec).is_file()):
             return spec
         return None
@@ -372,6 +431,7 @@ class RetargetPanel:
                 self._set_status(f"Retarget running: {event.message} ({100 * event.fraction:.0f} %)")
             return
         self._pending.pop(event.job_id, None)
+        self._outputs.pop(event.job_id, None)
         result = event.result
         if kind == "retarget":
             self.job_id = None

@@ -64,12 +64,12 @@ def test_bad_sources_exit_2_and_write_nothing(tmp_path, capsys, case):
     if case == "truncated":
         src = frames_file(tmp_path / "clip.txt", [good_frame(), good_frame()])
         src.write_text(src.read_text()[:-40])
-        needles = ("clip.txt", "expected JSON")
+        needles = ("clip.txt", "expected valid JSON", "truncated?")
     elif case == "non_numeric":
         row = good_frame()
         row[9] = "abc"
         src = frames_file(tmp_path / "clip.txt", [good_frame(), row])
-        needles = ("clip.txt", "Frames[1][9]", "expected a finite number")
+        needles = ("clip.txt", "Frames[1][9]", "expected a number, got 'abc'")
     elif case == "short_row":
         src = frames_file(tmp_path / "clip.txt", [good_frame(), good_frame()[:15]])
         needles = ("clip.txt", "Frames[1]", "expected 19 numbers")

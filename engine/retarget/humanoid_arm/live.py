@@ -14,11 +14,11 @@ Extra keys are ignored. A datagram is at most 64 KiB.
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 
 from engine.retarget.humanoid_arm.pose15 import MocapPoints, body_frame, pose15_from_points
+from engine.safe_io import ReadError, decode_text, finite_number, parse_json
 
 FORMAT = "mocap-joints/1"
 JOINTS = ("hips", "right_hip", "left_hip", "right_shoulder", "right_elbow", "right_hand",
@@ -40,47 +40,66 @@ def datagrams_from_points(points: MocapPoints, up=(0.0, 1.0, 0.0), stride: int =
         yield f / points.fps, json.dumps(msg, separators=(",", ":")).encode()
 
 
-class DatagramError(ValueError):
-    """A malformed datagram (one line)."""
+class DatagramError(ReadError):
+    """A malformed datagram: one line, ``datagram: field.path: what was expected`` (a ReadError whose source is
+    ``datagram``, or the sender's address when the receiver knows it)."""
+
+    def __init__(self, field_path: str, detail: str, source: str = "datagram"):
+        super().__init__(source, field_path, detail)
+
+    def __reduce__(self):
+        return type(self), (self.field_path, self.detail, self.source)
+
+
+def _point(value, field_path: str) -> np.ndarray:
+    """[x, y, z] of finite numbers (bool, text, 400-digit integers refused without an OverflowError)."""
+    if not (isinstance(value, list) and len(value) == 3):
+        raise DatagramError(field_path, f"expected [x, y, z], got {_shown(value)}")
+    try:
+        return np.array([finite_number(c, f"{field_path}[{i}]") for i, c in enumerate(value)])
+    except ReadError as exc:
+        raise DatagramError(exc.field_path, exc.detail) from None
+
+
+def _shown(value) -> str:
+    text = repr(value) if not isinstance(value, (dict, list)) or len(repr(value)) < 60 else type(value).__name__
+    return text[:60]
 
 
 def parse_datagram(data: bytes) -> tuple[int, np.ndarray]:
-    """(frame, 15-d pose) of one datagram; DatagramError naming the field otherwise."""
+    """(frame, 15-d pose) of one datagram; DatagramError naming the field otherwise. The JSON goes through
+    engine/safe_io.py (nesting limit, duplicate keys refused, no int-conversion error on huge integers)."""
     if len(data) > MAX_DATAGRAM_BYTES:
-        raise DatagramError(f"datagram: expected at most {MAX_DATAGRAM_BYTES} bytes, got {len(data)}")
+        raise DatagramError("", f"expected at most {MAX_DATAGRAM_BYTES} bytes, got {len(data)}")
     try:
-        msg = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DatagramError(f"datagram: expected UTF-8 JSON ({exc.__class__.__name__})") from None
+        msg = parse_json(decode_text(bytes(data), "datagram"), "datagram", max_depth=8)
+    except ReadError as exc:
+        detail = exc.detail.replace("expected valid JSON", "expected UTF-8 JSON", 1)
+        raise DatagramError(exc.field_path, detail) from None
     if not isinstance(msg, dict):
-        raise DatagramError("datagram: expected a JSON object")
+        raise DatagramError("", f"expected a JSON object, got {type(msg).__name__}")
     if msg.get("format") != FORMAT:
-        raise DatagramError(f"datagram.format: expected {FORMAT!r}, got {msg.get('format')!r}")
+        raise DatagramError("format", f"expected {FORMAT!r}, got {_shown(msg.get('format'))}")
     joints = msg.get("joints")
     if not isinstance(joints, dict):
-        raise DatagramError("datagram.joints: expected an object of joint positions")
-    pts = {}
-    for name in JOINTS:
-        v = joints.get(name)
-        if not (isinstance(v, list) and len(v) == 3 and all(isinstance(c, (int, float)) for c in v)):
-            raise DatagramError(f"datagram.joints.{name}: expected [x, y, z], got {v!r}"[:200])
-        if not all(math.isfinite(c) for c in v):
-            raise DatagramError(f"datagram.joints.{name}: expected finite numbers, got {v!r}")
-        pts[name] = np.array(v, dtype=float)
-    up = msg.get("up", [0.0, 1.0, 0.0])
-    if not (isinstance(up, list) and len(up) == 3 and all(isinstance(c, (int, float)) and math.isfinite(c) for c in up)
-            and any(c != 0 for c in up)):
-        raise DatagramError(f"datagram.up: expected a non-zero [x, y, z], got {up!r}")
+        raise DatagramError("joints", f"expected an object of joint positions, got {_shown(joints)}")
+    pts = {name: _point(joints.get(name), f"joints.{name}") for name in JOINTS}
+    up_value = msg.get("up", [0.0, 1.0, 0.0])
+    up = _point(up_value, "up")
+    if not np.any(up != 0):
+        raise DatagramError("up", "expected a non-zero [x, y, z], got [0, 0, 0]")
     frame = msg.get("frame", 0)
-    if not isinstance(frame, int):
-        raise DatagramError(f"datagram.frame: expected an integer, got {frame!r}")
+    if not isinstance(frame, int) or isinstance(frame, bool) or not 0 <= frame < 2 ** 63:
+        raise DatagramError("frame", f"expected an integer 0 ≤ frame < 2⁶³, got {_shown(frame)}")
     shoulder = np.stack([pts["right_shoulder"], pts["left_shoulder"]])
     elbow = np.stack([pts["right_elbow"], pts["left_elbow"]])
     hand = np.stack([pts["right_hand"], pts["left_hand"]])
-    rot = body_frame(pts["hips"], pts["right_hip"], pts["left_hip"], np.array(up, dtype=float))
-    pose = pose15_from_points(pts["hips"], shoulder, elbow, hand, rot)
-    if not np.all(np.isfinite(pose)):
-        raise DatagramError("datagram.joints: degenerate skeleton (coincident joints)")
+    with np.errstate(all="ignore"):  # a degenerate skeleton gives NaN: refused below
+        rot = body_frame(pts["hips"], pts["right_hip"], pts["left_hip"], up)
+        pose = pose15_from_points(pts["hips"], shoulder, elbow, hand, rot)
+    bone_norms = np.sqrt((pose * pose).reshape(5, 3).sum(axis=1))
+    if not np.all(np.isfinite(pose)) or np.any(np.abs(bone_norms - 1.0) > 0.05):
+        raise DatagramError("joints", "expected a skeleton, got coincident joints (degenerate)")
     return frame, pose
 
 

@@ -127,6 +127,14 @@ def pose15_from_robot(upper_body, x: np.ndarray) -> np.ndarray:
     return pose15_from_points(p["pelvis"], p["shoulder"], p["elbow"], p["hand"], np.eye(3))
 
 
+def degenerate_frame(poses: np.ndarray) -> int | None:
+    """The first frame of (F, 15) poses whose bones are not five unit vectors (coincident joints give zero
+    bones, overflowing coordinates NaN), or None when every frame is a skeleton."""
+    n = np.sqrt((np.asarray(poses, dtype=float).reshape(len(poses), 5, 3) ** 2).sum(axis=2))
+    bad = ~np.all(np.isfinite(n) & (np.abs(n - 1.0) <= 0.05), axis=1)
+    return int(np.argmax(bad)) if bad.any() else None
+
+
 def check_pose15(v: np.ndarray, what: str = "pose") -> np.ndarray:
     """Validate a (15,) or (N, 15) array: finite, five unit vectors (±5 %). ValueError with one line."""
     v = np.asarray(v, dtype=float)

@@ -23,6 +23,7 @@ from engine.control.walking_controller import WalkingController
 from engine.retarget.humanoid_arm.live import DatagramError, parse_datagram
 from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
 from engine.retarget.humanoid_arm.realtime import CallTiming, RealtimeSection
+from engine.safe_io import one_line
 
 RATE_HZ = 60.0
 LIVE_CLEARANCE_M = 0.01  # targets keep 1 cm between capsules: the simulated arm lags its target by a few mm
@@ -63,7 +64,7 @@ class UdpSource:
         newest = None
         for _ in range(MAX_DRAIN):
             try:
-                data = self.sock.recv(65_536)
+                data, sender = self.sock.recvfrom(65_536)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError as exc:
@@ -72,9 +73,9 @@ class UdpSource:
             self.received += 1
             try:
                 _, pose = parse_datagram(data)
-            except DatagramError as exc:
+            except DatagramError as exc:  # the only error it raises (tests/fuzz/test_fuzz_motion_readers.py)
                 self.bad += 1
-                self.last_error = str(exc)
+                self.last_error = one_line(f"datagram from {sender[0]}:{sender[1]}", exc.field_path, exc.detail)
                 continue
             if newest is not None:
                 self.dropped += 1  # an older frame superseded within the same period
@@ -291,7 +292,7 @@ def open_source(options: dict):
     or ``{"source": "clip", "clip": "mocap-src/…/X.bvh"}`` (a BVH inside the shared data folder).
     ValueError naming the option otherwise."""
     from engine.retarget.humanoid_arm import sources
-    from engine.retarget.humanoid_arm.pose15 import bvh_points
+    from engine.retarget.humanoid_arm.pose15 import bvh_points, degenerate_frame
     from engine.retarget.importers.bvh import BvhError, load_bvh
 
     kind = options.get("source", "clip")
@@ -313,12 +314,14 @@ def open_source(options: dict):
     if not path.is_relative_to(root.resolve()) or path.suffix.lower() != ".bvh" or not path.is_file():
         raise ValueError(f"clip: expected a .bvh file inside the shared data folder, got {clip!r}")
     try:
-        points = bvh_points(load_bvh(path))
+        with np.errstate(all="ignore"):  # overflowing coordinates become NaN, refused below
+            points = bvh_points(load_bvh(path))
+            poses = points.pose15()
     except BvhError as exc:
         raise ValueError(str(exc)) from None
-    poses = points.pose15()
-    if not np.all(np.isfinite(poses)):
-        raise ValueError(f"{path.name}: degenerate skeleton (coincident arm joints)")
+    bad = degenerate_frame(poses)
+    if bad is not None:
+        raise ValueError(f"{path.name}: MOTION: frame {bad}: expected a skeleton, got coincident arm joints (degenerate)")
     return ClipSource(poses, points.fps, path.name)
 
 

@@ -6,14 +6,21 @@ an ``ImportFormatError`` whose message is one line naming the file, the field an
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from engine.retarget.motion import KeypointMotion, MotionFormatError
+from engine.safe_io import ReadError, read_npz
+from engine.safe_io import read_json as _safe_read_json
+
+MAX_SOURCE_BYTES = 64 * 1024 * 1024  # the largest shared source is < 1 MB
 
 
 class ImportFormatError(MotionFormatError):
     pass
+
+
+def _import_error(exc: ReadError) -> ImportFormatError:
+    return ImportFormatError(exc.source, exc.field_path, exc.detail)
 
 
 FORMATS = ("keypoint-npz", "stmr-keypoints", "motion-imitation", "dog-keypoints", "videowalk", "dog-bvh")
@@ -25,15 +32,16 @@ def detect_format(path: Path) -> str:
         raise ImportFormatError(f"{name}: expected a motion file, got a directory")
     if not path.is_file():
         raise ImportFormatError(f"{name}: file not found")
-    head = path.read_bytes()[:4096]
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError as exc:
+        raise ImportFormatError(name, "", f"expected a readable file ({exc.strerror or exc})") from None
     if head[:2] == b"PK":
-        import numpy as np
-
         try:
-            with np.load(path, allow_pickle=False) as f:
-                keys = set(f.files)
-        except Exception:
-            raise ImportFormatError(f"{name}: expected an npz archive") from None
+            keys = set(read_npz(path, source=name))
+        except ReadError as exc:
+            raise _import_error(exc) from None
         if "format" in keys:
             return "keypoint-npz"
         if {"keypoints", "keypoint_names", "base_pos", "base_rotmat"} <= keys:
@@ -84,9 +92,16 @@ def import_source(path: str | Path, fmt: str | None = None) -> KeypointMotion:
 
 
 def read_json(path: Path) -> object:
+    """A source's JSON through engine/safe_io.py (size and nesting limits, duplicate keys, encoding named)."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise ImportFormatError(f"{path.name}: expected UTF-8 JSON text") from None
-    except json.JSONDecodeError as exc:
-        raise ImportFormatError(f"{path.name}: expected JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") from None
+        return _safe_read_json(path, max_bytes=MAX_SOURCE_BYTES, source=path.name)
+    except ReadError as exc:
+        raise _import_error(exc) from None
+
+
+def read_source_npz(path: Path) -> dict:
+    """A source's npz arrays through engine/safe_io.py (headers checked before anything is allocated)."""
+    try:
+        return read_npz(path, source=path.name)
+    except ReadError as exc:
+        raise _import_error(exc) from None

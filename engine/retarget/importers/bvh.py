@@ -19,22 +19,43 @@ units: it computes in float32 through PyGLM), but it poses the skeleton frame by
 to read 131_01 and pose three frames, against 0.14 s here for all 994 frames, vectorised over frames) and
 adds PyGLM + SpatialTransform for nothing this project needs.
 
-Errors are :class:`BvhError` with one line naming the file and what was expected.
+Errors are :class:`BvhError` (engine/safe_io.py's ReadError: ``source``, ``field_path``, ``detail``) with one
+line naming the file, where and what was expected. Bounded: at most :data:`MAX_BVH_BYTES` read (UTF-8 or
+ASCII text, NUL bytes refused), :data:`MAX_DEPTH` nested joints (no RecursionError), :data:`MAX_JOINTS` joints,
+a frame time of 0.1 ms to 10 s, and at most :data:`MAX_JOINT_FRAMES` joints × frames (posing allocates
+(F, J, 3, 3) matrices: a file declaring millions of frames over zero channels is refused, not posed).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from engine.safe_io import ReadError, decode_text, read_bytes, split_message
+
 _AXES = {"X": 0, "Y": 1, "Z": 2}
+MAX_BVH_BYTES = 32 * 1024 * 1024  # CMU / Bandai Namco clips are < 1 MB; values parse to ≤ 128 MB
+MAX_DEPTH = 200
+MAX_JOINTS = 2000
+MAX_JOINT_FRAMES = 4_000_000  # 131_01: 994 frames × 38 joints ≈ 38 000
+MIN_FRAME_TIME_S, MAX_FRAME_TIME_S = 1e-4, 10.0
 
 
-class BvhError(ValueError):
-    """A malformed or unusable BVH file (one line: file, where, what was expected)."""
+class BvhError(ReadError):
+    """A malformed or unusable BVH file (one line: file, where, what was expected).
+
+    ``BvhError(source, field_path, detail)`` or one string ``"file: where: expected …"`` (split into those)."""
+
+    def __init__(self, source: str, field_path: str | None = None, detail: str | None = None):
+        if field_path is None and detail is None:
+            source, field_path, detail = split_message(source)
+        super().__init__(source, field_path or "", detail or "")
 
 
 @dataclass(frozen=True)
@@ -151,27 +172,31 @@ def load_bvh(path: str | Path) -> BvhMotion:
     """Read a BVH file; BvhError (one line) on anything malformed."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise BvhError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        text = decode_text(read_bytes(path, MAX_BVH_BYTES, path.name), path.name)
+    except ReadError as exc:
+        raise BvhError(exc.source, exc.field_path, exc.detail) from None
     return parse_bvh(text, str(path))
 
 
 def parse_bvh(text: str, name: str = "<bvh>") -> BvhMotion:
     label = Path(name).name
-    tokens = text.split()
-    pos = 0
+    tokens = _TOKEN.finditer(text)  # lazily: the hierarchy is tokenized, the motion values are parsed by numpy
+    end = 0
 
     def fail(what: str) -> BvhError:
-        return BvhError(f"{label}: {what}")
+        at = what.find(": expected")
+        if at >= 0:
+            return BvhError(label, what[:at], what[at + 2:])
+        where, sep, detail = what.partition(": ")
+        return BvhError(label, where, detail) if sep else BvhError(label, "", what)
 
     def take() -> str:
-        nonlocal pos
-        if pos >= len(tokens):
+        nonlocal end
+        match = next(tokens, None)
+        if match is None:
             raise fail("unexpected end of file in HIERARCHY (truncated?)")
-        tok = tokens[pos]
-        pos += 1
-        return tok
+        end = match.end()
+        return match.group()
 
     def number(where: str) -> float:
         tok = take()
@@ -192,6 +217,8 @@ def parse_bvh(text: str, name: str = "<bvh>") -> BvhMotion:
         nonlocal n_channels
         if offset is None:
             raise fail(f"joint {jname}: missing OFFSET")
+        if len(joints) >= MAX_JOINTS:
+            raise fail(f"joint {jname}: expected at most {MAX_JOINTS} joints")
         parent_index = _parent_stack[-1] if _parent_stack else -1
         joints.append(BvhJoint(jname, parent_index, offset, tuple(c[0].upper() + c[1:].lower() for c in channels),
                                n_channels, is_end_site=jname.endswith("_End") and not channels))
@@ -211,6 +238,8 @@ def parse_bvh(text: str, name: str = "<bvh>") -> BvhMotion:
             jname = take()
         if take() != "{":
             raise fail(f"joint {jname}: expected '{{'")
+        if len(_parent_stack) >= MAX_DEPTH:
+            raise fail(f"joint {jname}: expected at most {MAX_DEPTH} nested joints")
         offset = None
         channels: tuple[str, ...] = ()
         appended = False
@@ -222,8 +251,8 @@ def parse_bvh(text: str, name: str = "<bvh>") -> BvhMotion:
                 offset = np.array([number(f"joint {jname}: OFFSET") for _ in range(3)])
             elif up == "CHANNELS":
                 count_tok = take()
-                if not count_tok.isdigit():
-                    raise fail(f"joint {jname}: CHANNELS: expected a count, got {count_tok!r}")
+                if not (count_tok.isascii() and count_tok.isdigit()) or len(count_tok) > 2 or int(count_tok) > 6:
+                    raise fail(f"joint {jname}: CHANNELS: expected a count of 0 to 6, got {count_tok[:20]!r}")
                 channels = tuple(take() for _ in range(int(count_tok)))
                 for ch in channels:
                     if len(ch) < 9 or ch[0].upper() not in _AXES or ch[1:].lower() not in ("position", "rotation"):
@@ -244,49 +273,66 @@ def parse_bvh(text: str, name: str = "<bvh>") -> BvhMotion:
     if take().upper() != "ROOT":
         raise fail("expected 'ROOT' after HIERARCHY")
     parse_joint_stacked("ROOT")
-    if pos < len(tokens) and tokens[pos].upper() == "ROOT":
+    after = take().upper()
+    if after == "ROOT":
         raise fail("more than one ROOT is not supported")
-    if take().upper() != "MOTION":
+    if after != "MOTION":
         raise fail("expected 'MOTION' after the hierarchy")
     if take().rstrip(":").lower() != "frames":
         raise fail("MOTION: expected 'Frames:'")
     frames_tok = take()
-    if not frames_tok.isdigit():
-        raise fail(f"MOTION: Frames: expected a count, got {frames_tok!r}")
+    if not (frames_tok.isascii() and frames_tok.isdigit()) or len(frames_tok) > 12:
+        raise fail(f"MOTION: Frames: expected a count, got {frames_tok[:20]!r}")
     n_frames = int(frames_tok)
     if take().lower() != "frame" or take().rstrip(":").lower() != "time":
         raise fail("MOTION: expected 'Frame Time:'")
     frame_time = number("MOTION: Frame Time")
-    if not frame_time > 0:
-        raise fail(f"MOTION: Frame Time: expected > 0 s, got {frame_time}")
-    body = tokens[pos:]
+    if not MIN_FRAME_TIME_S <= frame_time <= MAX_FRAME_TIME_S:
+        raise fail(f"MOTION: Frame Time: expected {MIN_FRAME_TIME_S:g} to {MAX_FRAME_TIME_S:g} s, got {frame_time:g}")
     if n_frames == 0:
-        raise fail("MOTION: Frames: 0 (no motion)")
-    if len(body) < n_frames * n_channels:
-        got = len(body) // n_channels if n_channels else 0
+        raise fail("MOTION: Frames: expected at least 1 frame, got 0")
+    if n_channels == 0:
+        raise fail("HIERARCHY: CHANNELS: expected at least one channel (the root's motion), got none")
+    if n_frames * len(joints) > MAX_JOINT_FRAMES:
+        raise fail(f"MOTION: Frames: expected at most {MAX_JOINT_FRAMES} joints × frames, got {n_frames} frames of "
+                   f"{len(joints)} joints")
+    body = text[end:]
+    flat = _numbers(body)
+    if flat is None:
+        bad, tok = next(((i, m.group()) for i, m in enumerate(_TOKEN.finditer(body))
+                         if not _NUMBER.fullmatch(m.group())), (0, ""))
+        raise fail(f"MOTION: frame {bad // n_channels}, channel {bad % n_channels}: expected a number, got {tok[:20]!r}")
+    if len(flat) < n_frames * n_channels:
+        got = len(flat) // n_channels
         raise fail(f"MOTION: expected {n_frames} frames of {n_channels} channels, the file ends after {got} "
                    f"complete frames (truncated?)")
-    if len(body) > n_frames * n_channels:
+    if len(flat) > n_frames * n_channels:
         raise fail(f"MOTION: expected {n_frames} frames of {n_channels} channels, found "
-                   f"{len(body) - n_frames * n_channels} extra values")
-    try:
-        values = np.array(body, dtype=float).reshape(n_frames, n_channels)
-    except ValueError:
-        bad = next(i for i, t in enumerate(body) if not _is_float(t))
-        raise fail(f"MOTION: frame {bad // n_channels}, channel {bad % n_channels}: expected a number, "
-                   f"got {body[bad]!r}") from None
+                   f"{len(flat) - n_frames * n_channels} extra values")
+    values = flat.reshape(n_frames, n_channels)
     if not np.all(np.isfinite(values)):
         f, c = np.argwhere(~np.isfinite(values))[0]
         raise fail(f"MOTION: frame {f}, channel {c}: expected a finite number")
     return BvhMotion(path=name, joints=joints, frame_time_s=frame_time, values=values)
 
 
-def _is_float(tok: str) -> bool:
-    try:
-        float(tok)
-        return True
-    except ValueError:
-        return False
+_TOKEN = re.compile(r"\S+")
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+
+
+def _numbers(body: str) -> np.ndarray | None:
+    """The whitespace-separated numbers of the MOTION section as float64 (numpy's C parser: no list of token
+    strings), or None when a token is not a number."""
+    if not body.strip():
+        return np.zeros(0)
+    if not all(_NUMBER.fullmatch(m.group()) for m in itertools.islice(_TOKEN.finditer(body), 64)):
+        return None  # the common bad case, found without parsing the whole section
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy warns (and stops) at the first token that is not a number
+        try:
+            return np.fromstring(body, dtype=float, sep=" ")
+        except (DeprecationWarning, ValueError):
+            return None
 
 
 __all__ = ["BvhError", "BvhJoint", "BvhMotion", "load_bvh", "parse_bvh"]

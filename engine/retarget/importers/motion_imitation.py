@@ -22,6 +22,7 @@ import numpy as np
 from engine.retarget.contacts import estimate_contacts
 from engine.retarget.importers import ImportFormatError, read_json
 from engine.retarget.motion import LEGS, KeypointMotion
+from engine.safe_io import ReadError, finite_number
 
 PYBULLET_ORDER = ("FR", "FL", "RR", "RL")
 ENGINE_ORDER = LEGS
@@ -35,8 +36,8 @@ def read_frames(path: Path) -> tuple[np.ndarray, float, dict]:
     if not isinstance(data, dict):
         raise ImportFormatError(f"{name}: expected a JSON object with FrameDuration and Frames")
     dt = data.get("FrameDuration")
-    if not isinstance(dt, (int, float)) or isinstance(dt, bool) or not (0 < dt < 10):
-        raise ImportFormatError(f"{name}: FrameDuration: expected a positive number of seconds, got {dt!r}")
+    if not isinstance(dt, (int, float)) or isinstance(dt, bool) or not (0.0001 <= dt < 10):
+        raise ImportFormatError(f"{name}: FrameDuration: expected 0.0001 ≤ seconds < 10, got {dt!r}"[:200])
     frames = data.get("Frames")
     if not isinstance(frames, list) or len(frames) < 2:
         n = len(frames) if isinstance(frames, list) else "no"
@@ -48,8 +49,10 @@ def read_frames(path: Path) -> tuple[np.ndarray, float, dict]:
         if not isinstance(row, list) or len(row) != width:
             raise ImportFormatError(f"{name}: Frames[{i}]: expected {width} numbers, got {len(row) if isinstance(row, list) else type(row).__name__}")
         for j, v in enumerate(row):
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v):
-                raise ImportFormatError(f"{name}: Frames[{i}][{j}]: expected a finite number, got {v!r}")
+            try:
+                finite_number(v, f"Frames[{i}][{j}]", name)  # also a 400-digit integer (no OverflowError)
+            except ReadError as exc:
+                raise ImportFormatError(exc.source, exc.field_path, exc.detail) from None
     arr = np.array(frames, dtype=float)
     norms = np.linalg.norm(arr[:, 3:7], axis=1)
     if np.any(np.abs(norms - 1) > 0.05):

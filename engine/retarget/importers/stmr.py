@@ -15,26 +15,23 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from engine.retarget.importers import ImportFormatError, read_json
-from engine.retarget.motion import KEYPOINT_KINDS, LEGS, KeypointMotion
+from engine.retarget.importers import ImportFormatError, read_json, read_source_npz
+from engine.retarget.motion import KEYPOINT_KINDS, LEGS, KeypointMotion, _contact, _float_array, _names
 
 _SITE = {"hip": "hip", "thigh": "thigh", "knee": "calf", "foot": "foot"}
 
 
 def import_stmr_keypoints(path: Path) -> KeypointMotion:
     name = path.name
-    with np.load(path, allow_pickle=False) as f:
-        data = {k: f[k] for k in f.files}
+    data = read_source_npz(path)
     for key in ("keypoints", "keypoint_names", "base_pos", "base_rotmat"):
         if key not in data:
             raise ImportFormatError(f"{name}: {key}: missing")
-    kp = np.asarray(data["keypoints"], dtype=float)
-    if kp.ndim != 3 or kp.shape[1:] != (16, 3):
-        raise ImportFormatError(f"{name}: keypoints: expected shape (T, 16, 3), got {kp.shape}")
+    kp = _float_array(name, "keypoints", data["keypoints"], (None, 16, 3))
     t = kp.shape[0]
     if t < 2:
         raise ImportFormatError(f"{name}: keypoints: expected at least 2 frames, got {t}")
-    names = [str(n) for n in data["keypoint_names"]]
+    names = _names(name, "keypoint_names", data["keypoint_names"], 16)
     order = []
     for leg in LEGS:
         for kind in KEYPOINT_KINDS:
@@ -43,17 +40,17 @@ def import_stmr_keypoints(path: Path) -> KeypointMotion:
                 raise ImportFormatError(f"{name}: keypoint_names: expected {site!r}")
             order.append(names.index(site))
     kp = kp[:, order]
-    base_pos = np.asarray(data["base_pos"], dtype=float)
-    rot = np.asarray(data["base_rotmat"], dtype=float)
-    if base_pos.shape != (t, 3) or rot.shape != (t, 3, 3):
-        raise ImportFormatError(f"{name}: base_pos/base_rotmat: expected ({t}, 3) and ({t}, 3, 3)")
-    for key, arr in (("keypoints", kp), ("base_pos", base_pos), ("base_rotmat", rot)):
-        if not np.all(np.isfinite(arr)):
-            raise ImportFormatError(f"{name}: {key}: expected finite numbers, found NaN/inf")
-    if "time" in data and len(data["time"]) > 1:
-        dt = float(np.median(np.diff(np.asarray(data["time"], dtype=float))))
-        if not dt > 0:
-            raise ImportFormatError(f"{name}: time: expected increasing times")
+    base_pos = _float_array(name, "base_pos", data["base_pos"], (t, 3))
+    rot = _float_array(name, "base_rotmat", data["base_rotmat"], (t, 3, 3))
+    off = np.abs(np.einsum("tij,tkj->tik", rot, rot) - np.eye(3)).max(axis=(1, 2))
+    if np.any(off > 1e-3) or np.any(np.linalg.det(rot) < 0):
+        i = int(np.argmax(off)) if np.any(off > 1e-3) else int(np.argmax(np.linalg.det(rot) < 0))
+        raise ImportFormatError(f"{name}: base_rotmat: expected rotation matrices, frame {i} is not one")
+    if "time" in data and np.asarray(data["time"]).size > 1:
+        times = _float_array(name, "time", data["time"], (None,))
+        dt = float(np.median(np.diff(times)))
+        if not 0.0001 <= dt <= 10:
+            raise ImportFormatError(f"{name}: time: expected increasing times (0.1 ms to 10 s apart), median step {dt:g} s")
         fps = round(1.0 / dt, 6)
     else:
         fps = 20.0
@@ -74,8 +71,10 @@ def import_stmr_keypoints(path: Path) -> KeypointMotion:
         contact = np.array(cols).T
         contact_source = contact_file.name
     elif "contact" in data:
-        order_feet = [str(x) for x in data.get("foot_order", np.array(["FR", "FL", "RR", "RL"]))]
-        c = np.asarray(data["contact"]).astype(bool)
+        order_feet = _names(name, "foot_order", data.get("foot_order", np.array(["FR", "FL", "RR", "RL"])), 4)
+        if sorted(order_feet) != sorted(LEGS):
+            raise ImportFormatError(f"{name}: foot_order: expected FR, FL, RR, RL in some order, got {order_feet}")
+        c = _contact(name, data["contact"], t, 4)
         contact = c[:, [order_feet.index(leg) for leg in LEGS]]
     else:
         raise ImportFormatError(f"{name}: contact: missing (and no {contact_file.name})")

@@ -38,7 +38,10 @@ def import_videowalk(path: Path) -> KeypointMotion:
         for leg_i, leg in enumerate(LEGS):
             for slot, part in ((1, "thigh"), (3, "foot")):
                 value = frame.get(f"{leg}_{part}") if isinstance(frame, dict) else None
-                arr = np.asarray(value, dtype=float) if isinstance(value, list) else None
+                try:
+                    arr = np.asarray(value, dtype=float) if isinstance(value, list) else None
+                except (TypeError, ValueError, OverflowError):  # text, nested lists, a 400-digit integer
+                    arr = None
                 if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
                     raise ImportFormatError(f"{name}: {key}.{leg}_{part}: expected [x, y, z]")
                 kp[t, 4 * leg_i + slot] = arr
