@@ -347,7 +347,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
                        f"got {args.minutes}, {args.clients}, {args.tabs}")
     if not 0 <= args.tab_nice <= 19:
         raise CliError(f"--tab-nice: expected a niceness 0 ≤ N ≤ 19, got {args.tab_nice}")
-    from engine.bench.tmr import check_clip_options
+    from engine.bench.retarget import check_clip_options
 
     problem = check_clip_options(args.clips, args.budget, args.robots)
     if problem:

@@ -80,7 +80,7 @@ def _tmr() -> list[dict]:
 
 def _tmr_clips(**options) -> list[dict]:
     from engine.bench.options import call_with_known
-    from engine.bench.tmr import bench_tmr_clips
+    from engine.bench.retarget import bench_tmr_clips
 
     return call_with_known(bench_tmr_clips, options)
 

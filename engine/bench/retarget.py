@@ -30,9 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.bench.tmr import CLIP_BUDGET, CLIP_ROBOTS, PAPER_TABLE_II
+from engine.bench.tmr import CLIP_BUDGET, CLIP_ROBOTS, CLIPS, PAPER_TABLE_II
 
-CLIPS = ("trot0", "trot1", "pace0", "pace1", "sidesteps", "hopturn")
 ROBOTS = ("go1", "a1", "go2", "b1", "anymal_c")
 BASELESS_CLIPS = ("trot0", "trot1", "pace0", "pace1")
 BASELESS_ROBOTS = ("go1", "a1", "anymal_c")
@@ -70,7 +69,6 @@ def bench_retarget(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = ROB
     """The kinematic tables, then (``tracked``) the UVM / SMR / STMR comparison; see the module docstring.
     ``clip_names`` / ``robot_names`` (``--clips a,b`` / ``--robots a,b``) select among ``CLIPS`` / ``ROBOTS``
     (the comparison's robots default to go1, a1, anymal_c), ``bo_budget`` (``--budget``) is TMR's budget."""
-    from engine.bench.tmr import check_clip_options
 
     problem = check_clip_options(clip_names, bo_budget, robot_names)
     if problem:
@@ -163,7 +161,6 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
                            robot_names: str | None = None) -> list[dict]:
     """UVM / SMR / STMR, each tracked and replayed the same way, per clip and robot (``retarget-methods`` rows;
     see the module docstring)."""
-    from engine.bench.tmr import check_clip_options
     from engine.retarget.importers import import_source
     from engine.retarget.quadruped.pipeline import retarget_detailed
     from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
@@ -273,3 +270,33 @@ def methods_table(rows: list[dict]) -> str:
             f"| {_cell(r['uvm_s'], r['smr_s'], r['uvm_track_s'], r['smr_track_s'], r['tmr_s'])} ({r['evals']}) "
             f"| {_cell(r['smr_track_cpu_s'], r['tmr_cpu_s'])} | {r['bo_trace']} |")
     return "\n".join(lines)
+
+
+def check_clip_options(clip_names: str | None, bo_budget: int | None, robot_names: str | None = None) -> str | None:
+    """The one-line complaint about ``--clips`` / ``--budget`` / ``--robots``, or None."""
+    if clip_names is not None:
+        names = [c.strip() for c in clip_names.split(",") if c.strip()]
+        unknown = [c for c in names if c not in CLIPS] or ([] if names else [clip_names])
+        if unknown:
+            return f"--clips: unknown clip {unknown[0]!r}; expected some of {', '.join(CLIPS)}"
+    if robot_names is not None:
+        names = [r.strip() for r in robot_names.split(",") if r.strip()]
+        unknown = [r for r in names if r not in ROBOTS] or ([] if names else [robot_names])
+        if unknown:
+            return f"--robots: unknown robot {unknown[0]!r}; expected some of {', '.join(ROBOTS)}"
+    if bo_budget is not None and bo_budget < 1:
+        return f"--budget: expected ≥ 1 BO evaluations, got {bo_budget}"
+    return None
+
+
+def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CLIP_ROBOTS, budget: int = CLIP_BUDGET,
+                    address: str | None = None, parallel: int = 1, robot: str | None = None,
+                    clip_names: str | None = None, bo_budget: int | None = None,
+                    robot_names: str | None = None) -> list[dict]:
+    """An alias of ``studio bench retarget``'s UVM / SMR / STMR comparison (its ``retarget-methods`` rows, without
+    the kinematic tables): ``robot`` (the bench's ``--robot``) picks one of ``CLIP_ROBOTS``, any other value (the
+    bench's default g1) keeps them all; ``robot_names`` (``--robots a,b``) overrides it."""
+    if robot in CLIP_ROBOTS:
+        robots = (robot,)
+    return bench_retarget_methods(clips, robots, budget, address=address, parallel=parallel, clip_names=clip_names,
+                                  bo_budget=bo_budget, robot_names=robot_names)

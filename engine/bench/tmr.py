@@ -91,37 +91,3 @@ def _warm() -> int:
 
     load_robot("go1")
     return 0
-
-
-def check_clip_options(clip_names: str | None, bo_budget: int | None, robot_names: str | None = None) -> str | None:
-    """The one-line complaint about ``--clips`` / ``--budget`` / ``--robots``, or None."""
-    from engine.bench.retarget import ROBOTS
-
-    if clip_names is not None:
-        names = [c.strip() for c in clip_names.split(",") if c.strip()]
-        unknown = [c for c in names if c not in CLIPS] or ([] if names else [clip_names])
-        if unknown:
-            return f"--clips: unknown clip {unknown[0]!r}; expected some of {', '.join(CLIPS)}"
-    if robot_names is not None:
-        names = [r.strip() for r in robot_names.split(",") if r.strip()]
-        unknown = [r for r in names if r not in ROBOTS] or ([] if names else [robot_names])
-        if unknown:
-            return f"--robots: unknown robot {unknown[0]!r}; expected some of {', '.join(ROBOTS)}"
-    if bo_budget is not None and bo_budget < 1:
-        return f"--budget: expected ≥ 1 BO evaluations, got {bo_budget}"
-    return None
-
-
-def bench_tmr_clips(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ...] = CLIP_ROBOTS, budget: int = CLIP_BUDGET,
-                    address: str | None = None, parallel: int = 1, robot: str | None = None,
-                    clip_names: str | None = None, bo_budget: int | None = None,
-                    robot_names: str | None = None) -> list[dict]:
-    """An alias of ``studio bench retarget``'s UVM / SMR / STMR comparison (its ``retarget-methods`` rows, without
-    the kinematic tables): ``robot`` (the bench's ``--robot``) picks one of ``CLIP_ROBOTS``, any other value (the
-    bench's default g1) keeps them all; ``robot_names`` (``--robots a,b``) overrides it."""
-    from engine.bench.retarget import bench_retarget_methods
-
-    if robot in CLIP_ROBOTS:
-        robots = (robot,)
-    return bench_retarget_methods(clips, robots, budget, address=address, parallel=parallel, clip_names=clip_names,
-                                  bo_budget=bo_budget, robot_names=robot_names)
