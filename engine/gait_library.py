@@ -223,14 +223,14 @@ class LibraryRun:
 
         return self.out / "exports" / fmt / f"{cell_id(velocity)}_{take}{SUFFIXES[fmt][0]}"
 
-    def export_cells(self, formats: Iterable[str], fps: float | None = None) -> int:
+    def export_cells(self, formats: Iterable[str], fps: float | None = None) -> tuple[int, int]:
         """Every finished cell's takes in ``formats`` (files already written are kept: resumable).
-        Returns how many files were written."""
+        Returns how many files were written and how many were found already written."""
         from engine.export import export_motion
         from engine.retarget.motion import MotionFormatError
         from engine.walk_recording import TAKES, load_run_motion
 
-        written = 0
+        written = kept = 0
         for velocity in self.grid.velocities():
             if not self.finished(velocity):
                 continue
@@ -244,7 +244,9 @@ class LibraryRun:
                     if not path.is_file():
                         export_motion(motion, fmt, path, fps=fps)
                         written += 1
-        return written
+                    else:
+                        kept += 1
+        return written, kept
 
     def index(self) -> dict:
         cells = []
@@ -317,14 +319,14 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
         finally:
             if started_here:
                 ray.shutdown()
-    exported = run.export_cells(export_formats, export_fps) if export_formats else 0
+    exported, exports_kept = run.export_cells(export_formats, export_fps) if export_formats else (0, 0)
     wall = time.perf_counter() - t0
     index = run.index()
     index["wall_time_s"] = round(wall, 2)
     index["workers"] = workers
     atomic_write_text(run.out / "index.json", json.dumps(index, indent=1))
     write_summary_png(index, run.out / "summary.png")
-    return {**index, "ran": done, "skipped": skipped, "exported": exported}
+    return {**index, "ran": done, "skipped": skipped, "exported": exported, "exports_kept": exports_kept}
 
 
 def _start_ray(ray, runtime_env: dict, kwargs: dict, attempts: int = RAY_START_ATTEMPTS) -> None:  # noqa: ANN001

@@ -76,5 +76,6 @@ def cmd_library(args: argparse.Namespace) -> int:
         print(f"{args.out}: {index['cells_done']}/{index['cells_total']} cells ({index['ran']} run, "
               f"{index['skipped']} already done) in {index['wall_time_s']:.1f} s; {fell} fell; "
               f"index.json and summary.png written"
-              + (f"; {index['exported']} exported files in {args.out}/exports" if formats else ""))
+              + (f"; {index['exported']} exported files written, {index['exports_kept']} kept, in {args.out}/exports"
+                 if formats else ""))
     return 0

@@ -128,14 +128,14 @@ def test_library_exports_each_cell_in_the_learning_formats_and_resumes(tmp_path)
         arrays.update(run_fields(robot, "neutral", arrays, {}, 125.0))
         save_run(run.cell_dir(v) / "simulated.npz", arrays)
     formats = ("unitree-csv", "beyondmimic-npz", "amp-json")
-    assert run.export_cells(formats, fps=50.0) == 2 * 2 * 3
+    assert run.export_cells(formats, fps=50.0) == (2 * 2 * 3, 0)
     csv = np.loadtxt(run.export_path((0.2, 0.0, 0.0), "unitree-csv", "reference"), delimiter=",", ndmin=2)
     # 25 frames at 125 fps span 0.192 s: 10 frames at 50 fps, the last at 0.18 s (x lerped: 0.2 · 0.18 / 0.192)
     assert csv.shape == (10, 36) and np.isclose(csv[-1, 0], 0.2 * 0.18 / 0.192)
     with np.load(run.export_path((0.0, 0.0, 0.0), "beyondmimic-npz", "simulated")) as bm:
         assert bm["fps"].tolist() == [50] and bm["joint_pos"].shape == (10, 29)
     stamp = run.export_path((0.0, 0.0, 0.0), "amp-json", "simulated").stat().st_mtime_ns
-    assert run.export_cells(formats, fps=50.0) == 0
+    assert run.export_cells(formats, fps=50.0) == (0, 2 * 2 * 3)  # a second run keeps what it finds
     assert run.export_path((0.0, 0.0, 0.0), "amp-json", "simulated").stat().st_mtime_ns == stamp
     cells = run.index()["cells"]
     assert len(cells[0]["exports"]) == 6 and all(p.startswith("exports/") for p in cells[0]["exports"])
