@@ -152,6 +152,28 @@ def test_amp_json_keys_and_frames(run_file, tmp_path):
     assert np.abs(qpos - written.qpos).max() < 2e-6  # 6 decimals
 
 
+def test_amp_json_replays_the_recording_in_mujoco(run_file, g1, tmp_path):
+    """The AMP frames, read back as motion_imitation reads them (root x,y,z, quaternion x,y,z,w, joints),
+    replayed through MuJoCo's kinematics: every body within 1 mm / 0.01 rad of the recording at the instants
+    both have (30 fps and 125 fps coincide every 0.2 s), and of the resampled recording at every frame."""
+    motion = load_run_motion(run_file)
+    written = export_motion(motion, "amp-json", tmp_path / "walk.json", fps=30)
+    frames = np.asarray(json.loads((tmp_path / "walk.json").read_text())["Frames"], dtype=float)
+    root_wxyz = frames[:, [6, 3, 4, 5]]  # motion_imitation stores x,y,z,w
+    replay = RobotMotion(fps=30.0, qpos=np.concatenate([frames[:, :3], root_wxyz, frames[:, 7:]], axis=1),
+                         joint_names=list(motion.joint_names), contact=np.ones((len(frames), 2), bool), robot="g1",
+                         method="replay", foot_names=["left", "right"])
+    pos, quat = _body_poses(g1, replay)
+    pos_w, quat_w = _body_poses(g1, written)
+    assert np.abs(pos - pos_w).max() < 1e-3 and _angle(quat, quat_w).max() < 0.01
+    pos0, quat0 = _body_poses(g1, motion)
+    k = np.arange(0, len(frames), 6)  # 0, 0.2, 0.4 s
+    k = k[25 * (k // 6) < motion.frames]
+    assert len(k) >= 3
+    assert np.abs(pos[k] - pos0[25 * (k // 6)]).max() < 1e-3
+    assert _angle(quat[k], quat0[25 * (k // 6)]).max() < 0.01
+
+
 # ----------------------------------------------------------------------------- resampling invariants
 
 
