@@ -263,5 +263,5 @@ def test_export_unknown_format_and_unreadable_file(tmp_path, capsys):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     rc = cli.main(["export", str(tmp_path / "bad.npz"), "--format", "beyondmimic-npz", "--out", str(tmp_path / "o.npz")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and err[0].startswith("studio: error: bad.npz: expected an npz motion file")
+    assert rc == 2 and len(err) == 1 and err[0].startswith("studio: error: bad.npz: expected an npz archive"), err
     assert not (tmp_path / "o.npz").exists()

@@ -41,6 +41,7 @@ class EngineTap:
         self.idx = np.array([names.index(j) for j in joints])
         self.lock = threading.Lock()
         self.frames: list[tuple[float, int, np.ndarray]] = []  # Edit mode's frames only
+        self.events: list[str] = []  # what a failure message should say: falls, clock jumps, mode changes
         self.phases: list[tuple[float, float]] = []
         # (time, phase, the tracked arm joint's reference, in_place's blend weight)
         self.tracked: list[tuple[float, float, float, float]] = []
@@ -48,6 +49,13 @@ class EngineTap:
 
         def frame(event):
             view_update(event)
+            with self.lock:
+                last = self.events[-1] if self.events else ""
+                what = f"{event.mode}{' fallen' if event.fallen else ''}"
+                if not last.endswith(what):
+                    self.events.append(f"t {float(event.sim_time_s):.2f}: {what}")
+                if self.frames and float(event.sim_time_s) < self.frames[-1][0]:
+                    self.events.append(f"t {float(event.sim_time_s):.2f}: the clock went back from {self.frames[-1][0]:.2f}")
             if len(event.joint_q) and event.mode == "edit":
                 with self.lock:
                     self.frames.append((float(event.sim_time_s), int(event.style_revision),
@@ -66,6 +74,10 @@ class EngineTap:
 
         studio.view.update = frame
         studio._on_telemetry = telemetry
+
+    def diagnosis(self) -> str:
+        with self.lock:
+            return "; ".join(self.events[-12:])
 
     def shown_at(self, revision: int) -> float | None:
         """Simulated time of the first Edit-mode frame computed with style ``revision`` (or later)."""
@@ -203,7 +215,8 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
             rms_gesture, rms_previous = _walk_follows(studio, tap, page, studio.style_revision,
                                                       gesture, before.sample("in_place"), joints)
             print(f"walk with the gesture curves: RMS {rms_gesture:.3f} rad to them, {rms_previous:.3f} to the previous")
-            assert rms_gesture < 0.12, f"the simulated arms do not follow the recorded curves (RMS {rms_gesture:.3f} rad)"
+            assert rms_gesture < 0.12, (f"the simulated arms do not follow the recorded curves (RMS {rms_gesture:.3f} rad): "
+                                        f"{tap.diagnosis()}; notices {studio.notices[-5:]}")
             assert rms_gesture < 0.4 * rms_previous, (rms_gesture, rms_previous, studio.notices[-5:])
             page.screenshot(path=str(artifacts / "puppet_gesture_walk_robot.png"))  # the robot walking in_place
             page.get_by_text("Curves", exact=True).first.click()

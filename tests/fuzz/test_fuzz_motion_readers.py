@@ -502,8 +502,12 @@ def test_datagram_mutations(changes, raw):
     for path, value in changes:
         node = doc
         for k in path[:-1]:
-            node = node[k] if isinstance(node, (dict, list)) and (k in node if isinstance(node, dict)
-                                                                   else k < len(node)) else None
+            if isinstance(node, dict):
+                node = node.get(k)
+            elif isinstance(node, list) and isinstance(k, int) and k < len(node):
+                node = node[k]
+            else:  # an earlier change replaced this part by something else (a list by a dict, ...)
+                node = None
             if node is None:
                 break
         if isinstance(node, dict) or (isinstance(node, list) and isinstance(path[-1], int) and path[-1] < len(node)):
