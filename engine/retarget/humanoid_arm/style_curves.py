@@ -1,10 +1,16 @@
 """Mocap → walking style (issue §7): a recorded span of LWL2's upper-body output becomes the ``joints.<joint>``
 curves of one gait sample, so a performed gesture becomes part of a walking style.
 
-The span is stretched over the sample's cycle (its start at phase 0, its end at phase 1): each joint gets a
-periodic curve with ``n_knots`` equally spaced knots (auto-clamped tangents) whose values are the recording
-linearly interpolated at those phases, clipped to the joint's limits. The result is a new
-:class:`~engine.gait.style.Style` — the studio applies it as one undoable edit.
+The span is stretched over the sample's cycle (its start at phase 0, its end at phase 1) and closed into a
+loop: a recording rarely ends where it began, and a periodic curve through its raw samples would jump back
+from the end value to the start value in the last knot interval (an eighth of a cycle with 8 knots: several
+rad/s, more than an arm can follow). So each joint's span has the straight line from its start to its end
+value taken out and half of that difference put back (``q(φ) − (φ − ½)(q(1) − q(0))``): the start and the
+end meet at their mean, the gesture's shape and mean are kept, only its drift over the span is removed (a
+cycle can't drift). Each joint then gets a periodic curve with ``n_knots`` equally spaced knots
+(auto-clamped tangents) whose values are that loop linearly interpolated at those phases, clipped to the
+joint's limits. The result is a new :class:`~engine.gait.style.Style` — the studio applies it as one
+undoable edit.
 """
 
 from __future__ import annotations
@@ -32,7 +38,8 @@ def gesture_curves(t_s: np.ndarray, q: np.ndarray, joint_names: list[str] | tupl
     knot_phase = np.arange(n_knots) / n_knots
     out = {}
     for k, name in enumerate(joint_names):
-        values = np.interp(knot_phase, phase, q[:, k])
+        drift = q[-1, k] - q[0, k]
+        values = np.interp(knot_phase, phase, q[:, k]) - (knot_phase - 0.5) * drift  # closed into a loop
         if limits is not None and name in limits:
             lo, hi = limits[name]
             values = np.clip(values, lo, hi)
