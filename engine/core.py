@@ -36,6 +36,12 @@ MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
 RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
+#: Stand asked of a walking robot: it first comes to rest under the walking controller (zero command: its
+#: rate-limited command ramps down, then it steps in place) and holds its joints only once that command has
+#: been zero for STAND_SETTLE_QUIET_S and both soles are flat on the ground; a joint hold mid-stride or at
+#: walking speed topples it (G1: 14 of 16 tries fell, from 0–0.5 m/s).
+STAND_SETTLE_QUIET_S = 0.4
+STAND_SETTLE_MAX_S = 6.0  # after this, the hold starts at the next moment both soles are down, however fast
 RUNS_DIR = "runs"  # recordings, in the motion library
 
 
@@ -51,6 +57,8 @@ class EngineCore:
         self.real_time_factor = 0.0
         self.playback_speed = 1.0
         self.mode = "stand"
+        self._stand_by_s: float | None = None  # Stand asked while walking: settling until this sim time at most
+        self._stand_quiet_since_s: float | None = None  # ... and its walking command has been zero since
         self.edit_sample = "in_place"
         self.velocity_command = np.zeros(3)
         self.style: Style | None = None
@@ -78,6 +86,7 @@ class EngineCore:
             self._stop_recording()  # what was recorded of the previous robot is kept
         self.robot = load_robot(name)
         self.style = self.ctx = self.walker = self.ghost = None
+        self._stand_by_s = None
         self.ghost_q = None
         self._ghost_data = None
         self.mode = "stand"
@@ -202,12 +211,38 @@ class EngineCore:
         if mode == self.mode:
             return
         self.mode = mode
+        self._stand_by_s = self._stand_quiet_since_s = None
         if mode == "stand":
-            self.walker = None
             assert self.sim is not None
-            self.sim.set_controller(standing_controller(self.robot))
+            if self.walker is not None:  # come to rest first (see STAND_SETTLE_SPEED_MPS), then hold
+                self._stand_by_s = self.sim.time_s + STAND_SETTLE_MAX_S
+            else:
+                self.sim.set_controller(standing_controller(self.robot))
         else:
             self._start_walking()
+
+    def _settle_to_stand(self) -> None:
+        """Stand mode reached while walking: the walking controller steps with a zero command until both soles
+        are flat on the ground and the pelvis is slow, then the joints are held where they are (with the
+        static-balance torques of that posture)."""
+        from engine.control.controller import StandingPdController
+        from engine.control.static_balance import static_contact_torques
+
+        walker, sim = self.walker, self.sim
+        assert walker is not None and sim is not None and self._stand_by_s is not None
+        if np.all(np.abs(walker.command_filtered) < (0.01, 0.01, 0.02)):
+            if self._stand_quiet_since_s is None:
+                self._stand_quiet_since_s = sim.time_s
+        else:
+            self._stand_quiet_since_s = None
+        quiet = self._stand_quiet_since_s is not None and sim.time_s - self._stand_quiet_since_s >= STAND_SETTLE_QUIET_S
+        if not bool(np.all(walker.wbc_contact)) or not (quiet or sim.time_s >= self._stand_by_s):
+            return
+        state = sim.state()
+        sim.set_controller(StandingPdController(state.q[7:], self.robot.kp, self.robot.kd,
+                                                static_contact_torques(self.robot, state.q)))
+        self.walker = None
+        self._stand_by_s = None
 
     def _start_puppet(self, options: dict) -> None:
         from engine.retarget.humanoid_arm.puppet_session import LIVE_CLEARANCE_M, PuppetSession, open_source
@@ -266,7 +301,7 @@ class EngineCore:
         self.ghost = KinematicPreview(self.robot, self.ctx.upper_joints)
 
     def command_now(self) -> np.ndarray:
-        if self.mode == "puppet":
+        if self.mode in ("puppet", "stand"):  # stand: a walker still running is coming to rest
             return np.zeros(3)
         if self.mode == "edit" and self.style is not None:
             return np.array(self.style.velocities.velocity_of(self.edit_sample))
@@ -276,6 +311,9 @@ class EngineCore:
         if self.sim is not None:
             if self.mode != "stand" and self.style is not None:
                 self._start_walking()
+            elif self.mode == "stand":  # the standing pose again (a hold of where it came to rest ends here)
+                self.walker, self._stand_by_s = None, None
+                self.sim.set_controller(standing_controller(self.robot))
             self.sim.reset()
         self._fallen_at_s = None
 
@@ -289,6 +327,8 @@ class EngineCore:
             self.walker.set_command(self.command_now())
             if self.puppet is not None:
                 self._puppet_tick()
+            if self._stand_by_s is not None:
+                self._settle_to_stand()
         self.sim.step()
         self._ticks += 1
         if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
