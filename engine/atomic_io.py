@@ -1,13 +1,30 @@
 """Atomic file writes: a temporary file next to the target, flushed, then renamed over it.
 
 A crash or a full disk never leaves a half-written style, motion, cache or recording behind.
+
+Fault injection, for tests only: with ``MOTION_STUDIO_TEST_HOLD_WRITES`` set to a file-name pattern (fnmatch,
+e.g. ``*.csv``), a write of a matching file stops after its temporary is written and flushed, before the rename,
+for ``MOTION_STUDIO_TEST_HOLD_SECONDS`` (default 120) — so that a test can kill -9 the process while it is
+certainly inside the write (tests/test_faults.py). Unset (always, outside those tests), nothing changes.
 """
 
 from __future__ import annotations
 
+import fnmatch
 import os
 import tempfile
+import time
 from pathlib import Path
+
+HOLD_WRITES_ENV = "MOTION_STUDIO_TEST_HOLD_WRITES"
+HOLD_SECONDS_ENV = "MOTION_STUDIO_TEST_HOLD_SECONDS"
+
+
+def _hold_for_tests(path: Path) -> None:
+    """The fault-injection hook (see the module docstring): a no-op unless the test-only variable is set."""
+    pattern = os.environ.get(HOLD_WRITES_ENV)
+    if pattern and fnmatch.fnmatch(path.name, pattern):
+        time.sleep(float(os.environ.get(HOLD_SECONDS_ENV) or 120.0))
 
 
 def _umask() -> int:
@@ -37,6 +54,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
+            _hold_for_tests(path)
             os.fchmod(f.fileno(), mode)
             os.fsync(f.fileno())
         os.replace(tmp, path)

@@ -286,9 +286,7 @@ class JobRunner:
             motion = load_run_motion(src, take)
         check_playable(motion, src.name)
         amp_full = bool(params.get("amp_full", False))
-        stem = (f"{motion.robot}_{src.stem}" + ("_full" if amp_full and fmt == "amp-json" else "")
-                + ("" if take == "simulated" else f"_{take}") + (f"_{fps:g}fps" if fps is not None else ""))
-        out = confined(self.root, f"{EXPORTS_DIR}/{check_name(stem)}{EXPORT_SUFFIX[fmt]}")
+        out = confined(self.root, export_name(motion.robot, src.stem, fmt, amp_full, take, fps))
         report(0.5, f"exporting {fmt}")
         written = export_motion(motion, fmt, out, amp_full=amp_full, fps=fps)
         return {"path": str(out.relative_to(self.root.resolve())), "format": fmt, "frames": written.frames,
@@ -308,6 +306,38 @@ class JobRunner:
             raise JobError(f"{source}: expected a keypoint motion")
         return {"path": str(params.get("motion")), "metrics": dict(motion.metrics or {}),
                 "playback": playback_data(motion, source_motion, ghost_motion)}
+
+
+def export_name(robot: str, stem: str, fmt: str, amp_full: bool = False, take: str = "simulated",
+                fps: float | None = None) -> str:
+    """``exports/<robot>_<stem>[_full][_<take>][_<fps>fps].<ext>``: the file the ``export`` job writes for a motion
+    of ``robot`` read from ``<stem>.npz`` (the one naming rule of the job and of the panels that start it)."""
+    name = (f"{robot}_{stem}" + ("_full" if amp_full and fmt == "amp-json" else "")
+            + ("" if take == "simulated" else f"_{take}") + (f"_{fps:g}fps" if fps is not None else ""))
+    return f"{EXPORTS_DIR}/{check_name(name)}{EXPORT_SUFFIX[fmt]}"
+
+
+def export_outputs(root: Path, params: dict[str, Any]) -> tuple[str, ...]:
+    """The file (relative to the motion library ``root``) an ``export`` job with ``params`` will write, known before
+    it starts — so that a studio whose engine dies during the export removes the temporary a cut write left. Read
+    from the motion file's ``robot`` entry only (engine/safe_io.py); () when the file or the parameters cannot say
+    (the job then fails before it writes anything)."""
+    from engine.export.resample import check_fps
+    from engine.safe_io import ReadError, read_npz
+
+    try:
+        fmt = str(params.get("format", ""))
+        if fmt not in EXPORT_SUFFIX:
+            return ()
+        src = confined(root, str(params.get("motion", "")))
+        robot = read_npz(src, source=src.name, only=("robot",)).get("robot")
+        if robot is None or robot.ndim != 0 or robot.dtype.kind != "U":
+            return ()
+        fps = params.get("fps")
+        return (export_name(str(robot), src.stem, fmt, bool(params.get("amp_full", False)),
+                            str(params.get("take", "simulated")), None if fps is None else check_fps(fps)),)
+    except (ReadError, ValueError):  # OutsideLibrary and check_name's refusals are ValueErrors too
+        return ()
 
 
 def check_playable(motion, where: str):  # noqa: ANN001, ANN201 - RobotMotion in, the same out

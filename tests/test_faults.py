@@ -398,3 +398,214 @@ def test_a_recording_and_an_export_lost_with_the_engine_are_reported(tmp_path):
         assert panel.on_engine_lost(4243) == []
     finally:
         server.stop()
+
+
+# ----------------------------------------------------------------------------- exports lost with the engine
+
+
+def _motion_library(root: Path) -> Path:
+    """A motion library with a go2 robot motion (``go2/standing.npz``) and a walk run of it (``runs/walk.npz``:
+    the same motion, its reference = the simulated take), as the Retarget workspace and the Record panel export."""
+    import numpy as np
+
+    from tests.fuzz_corpus import make_corpus as mc
+
+    arrays = mc.valid_robot_npz()
+    for folder, name, extra in (("go2", "standing.npz", {}), ("runs", "walk.npz", {"reference_qpos": arrays["qpos"]})):
+        (root / folder).mkdir(parents=True, exist_ok=True)
+        np.savez(root / folder / name, **arrays, **extra)
+    return root
+
+
+@pytest.mark.parametrize("params", [
+    {"motion": "go2/standing.npz", "format": "amp-json"},
+    {"motion": "go2/standing.npz", "format": "amp-json", "amp_full": True},
+    {"motion": "go2/standing.npz", "format": "unitree-csv"},
+    {"motion": "go2/standing.npz", "format": "npz"},
+    {"motion": "runs/walk.npz", "format": "unitree-csv", "fps": 30.0, "take": "simulated"},
+    {"motion": "runs/walk.npz", "format": "beyondmimic-npz", "fps": 50.0, "take": "reference"},
+    {"motion": "runs/walk.npz", "format": "amp-json", "fps": None, "take": "reference"},
+], ids=lambda p: "-".join(f"{v}" for v in p.values()))
+def test_export_outputs_are_what_the_export_job_writes(tmp_path, params):
+    """The panels know an export's output before it starts (engine/jobs.py export_outputs, read from the motion's
+    ``robot`` entry): the very file the engine's export job then writes."""
+    from engine.jobs import JobRunner, export_outputs
+
+    root = _motion_library(tmp_path)
+    outputs = export_outputs(root, params)
+    runner = JobRunner(root=root)
+    runner.start("export", params, "export-1")
+    runner.join(120)
+    (result,) = [e.result for e in runner.drain() if e.result is not None]
+    assert result["ok"], result
+    assert outputs == (result["path"],) and (root / result["path"]).is_file()
+    assert sorted(p.name for p in (root / "exports").iterdir()) == [Path(result["path"]).name]
+
+
+def test_export_outputs_of_bad_parameters_are_empty(tmp_path):
+    from engine.jobs import export_outputs
+
+    root = _motion_library(tmp_path)
+    (root / "go2" / "junk.npz").write_bytes(b"PK\x03\x04 junk")
+    for params in ({"motion": "go2/standing.npz", "format": "gif"}, {"motion": "../x.npz", "format": "npz"},
+                   {"motion": "go2/missing.npz", "format": "npz"}, {"motion": "go2/junk.npz", "format": "npz"},
+                   {"motion": "go2/standing.npz", "format": "npz", "fps": -1}):
+        assert export_outputs(root, params) == (), params
+
+
+def _planted_temporary(root: Path, output: str) -> Path:
+    """What a kill -9 inside the atomic write of ``output`` leaves: mkstemp's hidden temporary beside it."""
+    target = root / output
+    target.parent.mkdir(parents=True, exist_ok=True)
+    cut = target.parent / f".{target.name}.q8w_3z.tmp"
+    cut.write_bytes(b"{\"LoopMode\": \"Wr")
+    return cut
+
+
+def test_a_lost_export_job_removes_what_a_cut_write_left(tmp_path):
+    """The Retarget workspace's Export and the Record panel's export pass their output up front: when the engine
+    dies during the export, the temporary a cut write left is removed, the panel says the export was lost and
+    nothing was written, Export is usable again; other files in exports/ stay."""
+    import itertools
+    from types import SimpleNamespace
+
+    import viser
+
+    from studio.panels.record_panel import RecordPanel
+    from studio.panels.retarget_panel import RetargetPanel
+    from tests.conftest import free_port
+
+    root = _motion_library(tmp_path)
+    sent: list = []
+    studio = SimpleNamespace(link=SimpleNamespace(send=sent.append), _notify=lambda level, text: None, mode="test",
+                             view=SimpleNamespace(last_frame=None))
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        retarget = RetargetPanel(server, studio, root=root)  # type: ignore[arg-type]
+        retarget._ids = itertools.count(3)  # noqa: SLF001
+        retarget.result_path = "go2/standing.npz"  # what viewing a result sets
+        retarget.export_format.value = "amp-json"
+        retarget.start_export()
+        assert sent[-1].job == "export" and sent[-1].params["motion"] == "go2/standing.npz"
+        cut = _planted_temporary(root, "exports/go2_standing.json")
+        other = root / "exports" / "go2_other.json"
+        other.write_text("{}")
+        assert retarget.on_engine_lost(4242) == ["the export job"]
+        assert not cut.exists() and other.exists() and not (root / "exports" / "go2_standing.json").exists()
+        assert retarget.export_status.content == ("Export lost: the engine (pid 4242) stopped during the job; "
+                                                  "nothing was written. Press Export to start it again.")
+        assert retarget.on_engine_lost(4243) == []
+        retarget.stop()
+
+        record = RecordPanel(server, studio, root=root)  # type: ignore[arg-type]
+        record.run_path = "runs/walk.npz"  # what ■ Stop's saved recording sets
+        record.format.value = "unitree-csv"
+        record.rate.value = "30 fps"
+        record.start_export()
+        assert sent[-1].job == "export" and sent[-1].params == {"motion": "runs/walk.npz", "format": "unitree-csv",
+                                                                 "fps": 30.0, "take": "simulated"}
+        cut = _planted_temporary(root, "exports/go2_walk_30fps.csv")
+        assert record.on_engine_lost(4244) == ["the export job"]
+        assert not cut.exists() and other.exists() and not record.export.disabled
+        assert record.export_status.content == ("Export lost: the engine (pid 4244) stopped during the job; nothing "
+                                                "was written. Press Export recording to start it again.")
+        # an export whose rename happened before the engine died is complete, and said so
+        record.start_export()
+        (root / "exports" / "go2_walk_30fps.csv").write_text("0\n")
+        assert record.on_engine_lost(4245) == ["the export job"]
+        assert "its output `exports/go2_walk_30fps.csv` is complete" in record.export_status.content
+    finally:
+        server.stop()
+
+
+def test_the_write_hold_hook_is_off_unless_a_test_sets_it(tmp_path, monkeypatch):
+    """engine/atomic_io.py's fault-injection hook: without its variable a write never waits; with it, only files
+    matching its pattern do (here for 0 s), and the write completes."""
+    from engine import atomic_io
+
+    slept: list[float] = []
+    monkeypatch.setattr(atomic_io.time, "sleep", slept.append)
+    monkeypatch.delenv(atomic_io.HOLD_WRITES_ENV, raising=False)
+    atomic_io.atomic_write_text(tmp_path / "go2_a.json", "a")
+    assert slept == []
+    monkeypatch.setenv(atomic_io.HOLD_WRITES_ENV, "go2_*.json")
+    monkeypatch.setenv(atomic_io.HOLD_SECONDS_ENV, "0")
+    atomic_io.atomic_write_text(tmp_path / "other.json", "b")
+    atomic_io.atomic_write_text(tmp_path / "go2_b.json", "c")
+    assert slept == [0.0] and (tmp_path / "go2_b.json").read_text() == "c"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["go2_a.json", "go2_b.json", "other.json"]
+
+
+@pytest.mark.slow
+def test_kill_9_of_the_engine_inside_an_export_write(tmp_path, monkeypatch):
+    """A real kill -9 that lands inside the atomic write of an export (the engine's write held by the test-only
+    hook of engine/atomic_io.py after its temporary is written, before the rename): for the Retarget workspace's
+    Export and the Record panel's export, the panel says the export was lost and nothing was written, neither the
+    output nor a temporary exists, and Export then writes the file whole on the restarted engine."""
+    from engine import atomic_io
+    from studio.app import Studio
+    from tests.conftest import free_port
+
+    def wait(predicate, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return
+            time.sleep(0.05)
+        pytest.fail(f"timed out waiting for {what} (retarget: {studio.retarget.export_status.content!r}, record: "
+                    f"{studio.record.export_status.content!r}, notices: {studio.notices[-3:]})")
+
+    root = _motion_library(tmp_path / "motions")
+    exports = root / "exports"
+    monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(root))  # the studio's panels and its engine's jobs
+    monkeypatch.setenv(atomic_io.HOLD_WRITES_ENV, "go2_*")  # the engine started now holds its export writes
+    studio = Studio("go2", port=free_port(), styles_folder=tmp_path / "styles").start()
+    retarget, record = studio.retarget, studio.record
+    try:
+        assert studio.loaded.wait(180)
+
+        def kill_inside_the_write(status, output: str) -> int:
+            wait(lambda: exports.is_dir() and any(exports.glob(f".{output}.*.tmp")), 120, f"the write of {output}")
+            assert not (exports / output).exists()
+            old_pid = studio.link.pid
+            os.kill(old_pid, signal.SIGKILL)
+            wait(lambda: "Export lost" in status(), 60, "the export reported as lost")
+            assert status() == (f"Export lost: the engine (pid {old_pid}) stopped during the job; nothing was written. "
+                                f"Press {'Export' if status == retarget_status else 'Export recording'} to start it "
+                                "again."), status()
+            assert list(exports.iterdir()) == []  # no output, no temporary
+            wait(lambda: studio.link.pid not in (None, old_pid), 60, "a new engine")
+            return old_pid
+
+        def retarget_status() -> str:
+            return retarget.export_status.content
+
+        def record_status() -> str:
+            return record.export_status.content
+
+        retarget.view_result("go2/standing.npz")
+        wait(lambda: not retarget.export_button.disabled, 180, "the result on view")
+        retarget.export_format.value = "amp-json"
+        retarget.start_export()
+        first = kill_inside_the_write(retarget_status, "go2_standing.json")
+        assert any("Lost with the engine" in text and "export job" in text and str(first) in text
+                   for _, text in studio.notices)
+
+        record.run_path = "runs/walk.npz"  # a saved recording (■ Stop)
+        record.export.disabled = False
+        record.format.value = "unitree-csv"
+        record.rate.value = "30 fps"
+        record.start_export()
+        monkeypatch.delenv(atomic_io.HOLD_WRITES_ENV)  # the next engine (after this kill) writes normally
+        kill_inside_the_write(record_status, "go2_walk_30fps.csv")
+
+        record.start_export()
+        wait(lambda: record.export_status.content.startswith(("Exported", "Export failed")), 120, "the new export")
+        assert record.export_status.content.startswith("Exported `exports/go2_walk_30fps.csv` (")
+        retarget.start_export()
+        wait(lambda: retarget.export_status.content.startswith(("Exported", "Export failed")), 120, "the export")
+        assert retarget.export_status.content == "Exported: `motions/exports/go2_standing.json`"
+        assert sorted(p.name for p in exports.iterdir()) == ["go2_standing.json", "go2_walk_30fps.csv"]
+        assert json.loads((exports / "go2_standing.json").read_text())["Frames"]
+    finally:
+        studio.stop()

@@ -12,11 +12,16 @@ from __future__ import annotations
 
 import itertools
 import threading
+import time
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import viser
 
 from engine import protocol as msg
+from engine.jobs import export_outputs
+from engine.motion_files import motions_root
+from studio.job_outputs import cleanup_lost_outputs, lost_job_text
 
 if TYPE_CHECKING:
     from studio.app import Studio
@@ -28,9 +33,10 @@ JOB_PREFIX = "rec-"  # job ids of this panel (the app routes their JobProgress h
 
 
 class RecordPanel:
-    def __init__(self, server: viser.ViserServer, studio: "Studio"):
+    def __init__(self, server: viser.ViserServer, studio: "Studio", root: Path | None = None):
         self.server = server
         self.studio = studio
+        self.root = Path(root) if root is not None else motions_root()  # the engine's motion library
         self._ids = itertools.count(1)
         self._lock = threading.Lock()
         self.recording = False
@@ -38,6 +44,7 @@ class RecordPanel:
         self.run_path: str | None = None  # the last saved recording, relative to the motion library
         self.export_path: str | None = None
         self._export_job: str | None = None
+        self._export_outputs: tuple[float, tuple[str, ...]] = (0.0, ())  # (start time, files the export writes)
         self._saving = False  # ■ Stop was pressed: the engine is writing the recording
         with server.gui.add_folder("Record (test mode)"):
             self.record = server.gui.add_button("● Record", color="red",
@@ -80,9 +87,10 @@ class RecordPanel:
         self._export_job = job_id
         self.export.disabled = True
         self.export_status.content = f"Exporting `{self.run_path}` as {self.format.value}…"
-        self.studio.link.send(msg.StartJob("export", {
-            "motion": self.run_path, "format": self.format.value, "fps": EXPORT_RATES[self.rate.value],
-            "take": self.take.value}, job_id=job_id))
+        params = {"motion": self.run_path, "format": self.format.value, "fps": EXPORT_RATES[self.rate.value],
+                  "take": self.take.value}
+        self._export_outputs = (time.time(), export_outputs(self.root, params))  # known before the job starts
+        self.studio.link.send(msg.StartJob("export", params, job_id=job_id))
 
     def on_engine_lost(self, pid: int | None) -> list[str]:
         """The engine died (the link's thread): a recording in progress lived in it, and so did an export job."""
@@ -97,8 +105,10 @@ class RecordPanel:
         if self._export_job is not None:
             self._export_job = None
             self.export.disabled = False
-            self.export_status.content = (f"Export lost: the engine (pid {pid}) stopped during the export; exports "
-                                          "are written whole or not at all. Press Export recording to start it again.")
+            started, outputs = self._export_outputs
+            self._export_outputs = (0.0, ())
+            written = cleanup_lost_outputs(self.root, outputs, started)  # a cut write's temporary is removed
+            self.export_status.content = f"Export lost: {lost_job_text(pid, written, 'press Export recording')}"
             lost.append("the export job")
         return lost
 
@@ -120,6 +130,7 @@ class RecordPanel:
                 self.status.content = f"Not saved: {result.get('error', 'failed')}"
         elif event.job_id == self._export_job:
             self._export_job = None
+            self._export_outputs = (0.0, ())
             self.export.disabled = False
             if result.get("ok"):
                 self.export_path = result["path"]

@@ -21,8 +21,9 @@ import viser
 from viser._messages import GuiSliderMark  # viser 1.1.1: the Slider's marks (no public name for them)
 
 from engine import protocol as msg
-from engine.jobs import DEMO_SOURCES
+from engine.jobs import DEMO_SOURCES, export_outputs
 from engine.motion_files import OutsideLibrary, confined, list_files, motion_kind, motions_root, shared_root
+from studio.job_outputs import cleanup_lost_outputs, lost_job_text
 
 if TYPE_CHECKING:
     from studio.app import Studio
@@ -142,27 +143,6 @@ def metrics_markdown(metrics: dict[str, Any]) -> str:
                 text = str(value)
             out.append(f"| {label} | {text} {unit} |")
     return "\n".join(out)
-
-
-def _written_since(path: Path, started_s: float) -> bool:
-    """``path`` exists and was (re)written after ``started_s`` (wall clock)."""
-    try:
-        return path.stat().st_mtime >= started_s - 1.0
-    except OSError:
-        return False
-
-
-def _remove_temporaries(path: Path) -> list[Path]:
-    """The atomic writer's temporaries of ``path`` (``.NAME.XXXX.tmp``, engine/atomic_io.py) that a killed writer
-    left behind: hidden, never listed, but half-written; removed."""
-    removed = []
-    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
-        try:
-            tmp.unlink()
-            removed.append(tmp)
-        except OSError:
-            pass
-    return removed
 
 
 class RetargetPanel:
@@ -302,13 +282,10 @@ class RetargetPanel:
         for job_id, kind in list(self._pending.items()):
             self._pending.pop(job_id, None)
             started, outputs = self._outputs.pop(job_id, (0.0, []))
-            written = [o for o in outputs if _written_since(self.root / o, started)]
-            for output in outputs:
-                _remove_temporaries(self.root / output)
+            written = cleanup_lost_outputs(self.root, outputs, started)
             again = {"retarget": "press Run", "poses": "press View result", "import": "press Import",
                      "export": "press Export"}.get(kind, "start it")
-            what = (f"its output `{written[0]}` is complete" if written else "nothing was written")
-            text = f"the engine (pid {pid}) stopped during the job; {what}. {again[0].upper()}{again[1:]} to start it again."
+            text = lost_job_text(pid, written, again)
             if kind == "retarget":
                 self.job_id = None
                 self.run.disabled = False
@@ -417,8 +394,8 @@ class RetargetPanel:
         if not self.result_path:
             return
         self.export_status.content = "Exporting…"
-        self._start("export", {"motion": self.result_path, "format": self.export_format.value,
-                               "amp_full": self.amp_full.value})
+        params = {"motion": self.result_path, "format": self.export_format.value, "amp_full": self.amp_full.value}
+        self._start("export", params, export_outputs(self.root, params))
 
     def on_job(self, event: msg.JobProgress) -> None:
         """JobProgress from the engine (the link's thread)."""

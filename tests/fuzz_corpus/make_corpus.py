@@ -9,9 +9,11 @@ Readers: ``style`` (style JSON), ``robot_toml``, ``keyframes`` (``--command`` fi
 motions: ``studio retarget --source``, the Retarget workspace), ``robot_npz`` (robot motions: ``studio tmr
 --motion``, results the studio plays), ``bvh`` (``studio puppet`` / ``stream-bvh``, the Puppeteer's clips),
 ``datagram`` (live mocap datagrams, one file = one UDP payload), ``motion_frames`` (motion_imitation /
-AMP_for_hardware frame files, ``studio import``). The valid files the mutations start from are
-:func:`valid_keypoint_npz`, :func:`valid_robot_npz`, :data:`VALID_BVH`, :func:`valid_datagram` and
-:data:`VALID_FRAMES`.
+AMP_for_hardware frame files, ``studio import``), ``dog_keypoints`` (motion_imitation's ``dog_*_joint_pos.txt``)
+and ``dog_bvh`` (MANN dog BVH clips) — both ``studio import / retarget --source`` and the Retarget workspace's
+Import. The valid files the mutations start from are :func:`valid_keypoint_npz`, :func:`valid_robot_npz`,
+:data:`VALID_BVH`, :func:`valid_datagram`, :data:`VALID_FRAMES`, :data:`VALID_DOG_KEYPOINTS` and
+:data:`VALID_DOG_BVH`.
 """
 
 from __future__ import annotations
@@ -472,6 +474,205 @@ def _bvh_cases() -> dict[str, bytes]:
     }
 
 
+# ----------------------------------------------------------------------------- dog clips (MANN skeleton)
+
+def _dog_node(name: str, offset: str, children: str = "", end: str | None = None) -> str:
+    """A JOINT of the dog skeleton (3 rotation channels), with its children or an End Site at ``end``."""
+    inner = children + (f"End Site\n{{\nOFFSET {end}\n}}\n" if end is not None else "")
+    return f"JOINT {name}\n{{\nOFFSET {offset}\nCHANNELS 3 Zrotation Xrotation Yrotation\n{inner}}}\n"
+
+
+def _dog_leg(upper: str, lower: str, foot: str, offsets: tuple[str, str, str], end: str) -> str:
+    return _dog_node(upper, offsets[0], _dog_node(lower, offsets[1], _dog_node(foot, offsets[2], end=end)))
+
+
+def _dog_front(side: str, z: str) -> str:
+    return _dog_node(f"{side}Shoulder", f"20 -4 {z}", _dog_leg(f"{side}Arm", f"{side}ForeArm", f"{side}Hand",
+                                                             ("0 -8 0", "0 -15 0", "0 -14 0"), "0 -6 0"))
+
+
+# A small MANN-named dog (not the MANN data: the names and the depth-first order of its 21 joints + 6 end sites,
+# with made-up centimetre offsets; Y up, body along x): Hips, Spine…Head, the front legs under Spine1, the hind
+# legs and the tail under Hips. 66 channels, like the MANN clips.
+_DOG_HIERARCHY = (
+    "HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+    + _dog_node("Spine", "0 0 0", _dog_node("Spine1", "19 0 0", _dog_node("Neck", "22 1 0", _dog_node(
+        "Head", "14 0 0", end="17 0 0")) + _dog_front("Left", "5") + _dog_front("Right", "-5")))
+    + _dog_leg("LeftUpLeg", "LeftLeg", "LeftFoot", ("-2 -6 5", "0 -16 0", "0 -17 0"), "0 -10 0")
+    + _dog_leg("RightUpLeg", "RightLeg", "RightFoot", ("-2 -6 -5", "0 -16 0", "0 -17 0"), "0 -10 0")
+    + _dog_node("Tail", "-6 1 0", _dog_node("Tail1", "-12 0 0", end="-12 0 0")) + "}\n")
+_DOG_CHANNELS = 6 + 3 * 20
+_DOG_FRAMES = 8
+
+
+def _dog_motion(frames: int = _DOG_FRAMES) -> str:
+    """A walk-like clip: the root moves forward 1 cm a frame, the legs swing about z (the BVH's 'Zrotation')."""
+    rows = []
+    for f in range(frames):
+        values = [1.0 * f, 55.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * (_DOG_CHANNELS - 6)
+        swing = 15.0 * np.sin(2 * np.pi * f / frames)
+        for joint, sign in ((6, 1), (11, -1), (15, -1), (18, 1)):  # LeftArm, RightArm, LeftUpLeg, RightUpLeg
+            values[6 + 3 * (joint - 1)] = sign * swing
+        rows.append("\t".join(f"{v:.4f}" for v in values))
+    return f"MOTION\nFrames: {frames}\nFrame Time: 0.0166667\n" + "\n".join(rows) + "\n"
+
+
+VALID_DOG_BVH = _DOG_HIERARCHY + _dog_motion()
+
+
+def _dog_points_text(bvh_text: str) -> str:
+    """motion_imitation's ``dog_*_joint_pos.txt`` of a dog BVH: 27 points × (x, y, z) in metres, Y up, one row
+    per frame, ``,\\t``-separated (the general BVH reader's forward kinematics)."""
+    from engine.retarget.importers.bvh import parse_bvh
+
+    points = parse_bvh(bvh_text, "dog.bvh").global_positions() * 0.01
+    return "".join(",\t".join(f"{v:.5f}" for v in row) + "\n" for row in points.reshape(len(points), -1))
+
+
+VALID_DOG_KEYPOINTS = _dog_points_text(VALID_DOG_BVH)
+
+
+def _dog_keypoint_cases() -> dict[str, bytes]:
+    text = VALID_DOG_KEYPOINTS
+    rows = text.splitlines(keepends=True)
+    cells = [r.rstrip("\n").split(",\t") for r in rows]
+
+    def cell(value: str, row: int = 2, col: int = 24) -> bytes:  # col 24: the front left paw's x (a used point)
+        c = [list(r) for r in cells]
+        c[row][col] = value
+        return "".join(",\t".join(r) + "\n" for r in c).encode()
+
+    def row_of(row: int, values: list[str]) -> bytes:
+        return "".join(rows[:row] + [",\t".join(values) + "\n"] + rows[row + 1:]).encode()
+
+    zeros = ",".join(["0"] * 81) + "\n"
+    flat_leg = [list(r) for r in cells]
+    for r in flat_leg:  # the front left leg's shoulder, elbow and paw at one point
+        r[21:24] = r[24:27] = r[30:33] = r[21:24]
+    return {
+        "empty.txt": b"",
+        "whitespace.txt": b" \n\t\n\r\n",
+        "one_row.txt": rows[0].encode(),
+        "truncated_mid_row.txt": (text[: len(text) - len(rows[-1]) // 2]).encode(),
+        "truncated_after_comma.txt": "".join(rows[:-1]).encode() + ",\t".join(cells[-1][:40]).encode() + b",",
+        "row_80.txt": row_of(3, cells[3][:-1]),
+        "row_82.txt": row_of(3, cells[3] + ["0.1"]),
+        "rows_joined.txt": ("".join(rows[:2]).rstrip("\n") + ",\t" + "".join(rows[2:])).encode(),
+        "header_row.txt": (",".join(f"p{i // 3}{'xyz'[i % 3]}" for i in range(81)) + "\n" + text).encode(),
+        "single_column.txt": b"0.1\n0.2\n0.3\n",
+        "very_long_line.txt": (",".join(["0.5"] * 2_000) + "\n").encode(),
+        "nan.txt": cell("nan"),
+        "nan_caps.txt": cell("NaN"),
+        "inf.txt": cell("inf"),
+        "neg_infinity.txt": cell("-Infinity"),
+        "overflow_1e999.txt": cell("1e999"),
+        "huge_1e308.txt": cell("1e308"),
+        "beyond_1e9.txt": cell("1e10"),
+        "unused_point_huge.txt": cell("1e300", row=0, col=1),  # the spine's y: not a keypoint, still checked
+        "int_400_digits.txt": cell("9" * 400),
+        "int_5000_digits.txt": cell("9" * 5000),
+        "text_cell.txt": cell("abc"),
+        "bool_cell.txt": cell("True"),
+        "quoted_cell.txt": cell('"0.5"'),
+        "empty_cell.txt": cell(""),
+        "comma_decimal.txt": cell("0,5"),
+        "dot_only.txt": cell("."),
+        "exponent_only.txt": cell("1e"),
+        "double_sign.txt": cell("+-1"),
+        "underscore_digits.txt": cell("1_000"),
+        "hex_float.txt": cell("0x1p3"),
+        "unicode_digits.txt": cell("\u0664\u0665"),
+        "semicolons.txt": text.replace(",\t", ";").encode(),
+        "spaces.txt": text.replace(",\t", " ").encode(),
+        "json_array.txt": ("[" + ", ".join(text.splitlines()[0].split(",\t")) + "]\n").encode(),
+        "all_zero.txt": (zeros * 4).encode(),
+        "leg_zero_length.txt": "".join(",\t".join(r) + "\n" for r in flat_leg).encode(),
+        "utf16.txt": text.encode("utf-16"),
+        "utf16le_no_bom.txt": text.encode("utf-16-le"),
+        "latin1.txt": cell("0.5\u00e9").decode().encode("latin-1"),
+        "nul_bytes.txt": text.encode()[:60] + b"\0" + text.encode()[60:],
+        "binary_junk.txt": bytes(range(256)) * 4,
+        "bom_then_junk.txt": b"\xef\xbb\xbf" + cell("x"),
+    }
+
+
+def _dog_bvh_cases() -> dict[str, bytes]:
+    text = VALID_DOG_BVH
+    body = text[text.index("MOTION"):]
+    rows = body.splitlines(keepends=True)[3:]
+    head = text[: text.index("MOTION")] + "MOTION\nFrames: 8\nFrame Time: 0.0166667\n"
+
+    def first_value(value: str) -> bytes:  # the root's x position in frame 0
+        return (head + value + rows[0][rows[0].index("\t"):] + "".join(rows[1:])).encode()
+
+    nested = "HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+    nested += "".join(f"JOINT j{i}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" for i in range(300))
+    nested += "}\n" * 301 + "MOTION\nFrames: 2\nFrame Time: 0.0166667\n" + ("0 " * (6 + 3 * 300) + "\n") * 2
+    tail0 = "JOINT Tail0\n{\nOFFSET -6 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n}\nJOINT Tail1"
+    extra_joint = (head.replace("JOINT Tail1", tail0, 1)  # 28 nodes; 3 more values a frame (at the end: any values do)
+                   + "".join(r.rstrip("\n") + "\t0\t0\t0\n" for r in rows))
+    return {
+        "empty.bvh": b"",
+        "whitespace.bvh": b"  \n\t\n",
+        "not_bvh.bvh": b"Hello, this is not motion capture\n",
+        "hierarchy_word_only.bvh": b"HIERARCHY\n",
+        "truncated_hierarchy.bvh": text[: text.index("LeftForeArm") + 30].encode(),
+        "truncated_motion.bvh": text[: len(text) - len(rows[-1]) // 2].encode(),
+        "frames_missing.bvh": (head + "".join(rows[:3])).encode(),
+        "frames_none.bvh": head.encode(),
+        "no_motion.bvh": _DOG_HIERARCHY.encode(),
+        "frames_header_missing.bvh": text.replace("Frames: 8\n", "").encode(),
+        "frame_time_missing.bvh": text.replace("Frame Time: 0.0166667\n", "").encode(),
+        "frames_text.bvh": text.replace("Frames: 8", "Frames: eight").encode(),
+        "frames_negative.bvh": text.replace("Frames: 8", "Frames: -8").encode(),
+        "frames_zero.bvh": text.replace("Frames: 8", "Frames: 0").encode(),
+        "frames_one.bvh": (head.replace("Frames: 8", "Frames: 1") + rows[0]).encode(),
+        "frames_huge.bvh": text.replace("Frames: 8", "Frames: 99999999999").encode(),
+        "frames_float.bvh": text.replace("Frames: 8", "Frames: 8.0").encode(),
+        "frame_time_zero.bvh": text.replace("Frame Time: 0.0166667", "Frame Time: 0").encode(),
+        "frame_time_negative.bvh": text.replace("Frame Time: 0.0166667", "Frame Time: -0.0166667").encode(),
+        "frame_time_nan.bvh": text.replace("Frame Time: 0.0166667", "Frame Time: nan").encode(),
+        "frame_time_tiny.bvh": text.replace("Frame Time: 0.0166667", "Frame Time: 5e-324").encode(),
+        "frame_time_huge.bvh": text.replace("Frame Time: 0.0166667", "Frame Time: 1e308").encode(),
+        "channels_count_text.bvh": text.replace("CHANNELS 6", "CHANNELS six").encode(),
+        "channels_count_huge.bvh": text.replace("CHANNELS 6", "CHANNELS 99999999999999999999").encode(),
+        "channels_count_negative.bvh": text.replace("CHANNELS 3", "CHANNELS -3", 1).encode(),
+        "channels_count_seven.bvh": text.replace("CHANNELS 6 Xposition", "CHANNELS 7 Xposition Xposition").encode(),
+        "channel_name_bad.bvh": text.replace("Zrotation", "Qrotation", 1).encode(),
+        "channel_name_short.bvh": text.replace("Zrotation", "Z", 1).encode(),
+        "channels_before_root.bvh": b"HIERARCHY\nCHANNELS 3 Xrotation Yrotation Zrotation\n" + text[10:].encode(),
+        "no_channels.bvh": re.sub(r"CHANNELS \d+[^\n]*", "CHANNELS 0", text).encode(),
+        "root_rotation_only.bvh": text.replace("CHANNELS 6 Xposition Yposition Zposition ", "CHANNELS 3 ").encode(),
+        "value_nan.bvh": first_value("nan"),
+        "value_inf.bvh": first_value("1e999"),
+        "value_huge.bvh": first_value("1e308"),
+        "value_beyond_1e9.bvh": first_value("1e10"),
+        "value_text.bvh": first_value("zero"),
+        "value_comma.bvh": first_value("0,5"),
+        "extra_values.bvh": (text + "1 2 3\n").encode(),
+        "row_short.bvh": (head + rows[0].rsplit("\t", 1)[0] + "\n" + "".join(rows[1:])).encode(),
+        "offset_missing.bvh": text.replace("OFFSET 0 0 0\n", "", 1).encode(),
+        "offset_nan.bvh": text.replace("OFFSET 0 0 0", "OFFSET nan 0 0", 1).encode(),
+        "offset_text.bvh": text.replace("OFFSET 0 0 0", "OFFSET a b c", 1).encode(),
+        "offset_huge.bvh": text.replace("OFFSET 19 0 0", "OFFSET 1e308 0 0", 1).encode(),
+        "offset_two_numbers.bvh": text.replace("OFFSET 19 0 0", "OFFSET 19 0", 1).encode(),
+        "brace_missing.bvh": text.replace("{", "", 1).encode(),
+        "brace_extra.bvh": text.replace("{", "{\n{", 1).encode(),
+        "brace_unbalanced.bvh": text.replace("}\nMOTION", "}\n}\nMOTION").encode(),
+        "end_not_site.bvh": text.replace("End Site", "End Zone", 1).encode(),
+        "two_roots.bvh": (_DOG_HIERARCHY + _DOG_HIERARCHY[len("HIERARCHY\n"):] + body).encode(),
+        "joint_missing.bvh": text.replace("JOINT LeftForeArm", "JOINT LeftForeArmX").encode(),
+        "joint_extra.bvh": extra_joint.encode(),
+        "human_skeleton.bvh": VALID_BVH.encode(),
+        "nested_300.bvh": nested.encode(),
+        "degenerate_skeleton.bvh": re.sub(r"OFFSET [^\n]*", "OFFSET 0 0 0", text).encode(),
+        "latin1_name.bvh": text.replace("RightUpLeg", "RightUpLeg\u00e9").encode("latin-1"),
+        "utf16.bvh": text.encode("utf-16"),
+        "nul_bytes.bvh": text.encode()[:100] + b"\0\0" + text.encode()[100:],
+        "binary_junk.bvh": bytes(range(256)) * 4,
+    }
+
+
 # ----------------------------------------------------------------------------- live datagrams
 
 def valid_datagram() -> dict:
@@ -593,7 +794,8 @@ def _frames_cases() -> dict[str, bytes]:
 
 READERS = {"style": _style_cases, "robot_toml": _toml_cases, "keyframes": _keyframe_cases,
            "keypoint_npz": _keypoint_npz_cases, "robot_npz": _robot_npz_cases, "bvh": _bvh_cases,
-           "datagram": _datagram_cases, "motion_frames": _frames_cases}
+           "datagram": _datagram_cases, "motion_frames": _frames_cases, "dog_keypoints": _dog_keypoint_cases,
+           "dog_bvh": _dog_bvh_cases}
 
 
 def zip_bomb_npz(data_bytes: int = 300 * 1024 ** 2) -> bytes:
@@ -627,6 +829,14 @@ def large_cases(reader: str) -> dict[str, bytes]:
         deep = ("HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 1 Xposition\n"
                 + "JOINT j\n{\nOFFSET 0 1 0\n" * 100_000 + "}\n" * 100_001 + "MOTION\nFrames: 1\nFrame Time: 0.1\n0\n")
         return {"deep_100000.bvh": deep.encode()}
+    if reader == "dog_keypoints":
+        return {"blank_lines_1M.txt": b"\n" * 1_000_000}
+    if reader == "dog_bvh":
+        head = _DOG_HIERARCHY + "MOTION\nFrames: 40000\nFrame Time: 0.0166667\n"
+        deep = ("HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 1 Xposition\n"
+                + "JOINT j\n{\nOFFSET 0 1 0\n" * 100_000 + "}\n" * 100_001 + "MOTION\nFrames: 2\nFrame Time: 0.1\n0\n0\n")
+        return {"deep_100000.bvh": deep.encode(),  # 40 000 frames: over the dog reader's 36 000 (10 min at 60 fps)
+                "frames_40000.bvh": head.encode() + (" ".join(["0"] * _DOG_CHANNELS) + "\n").encode() * 40_000}
     if reader == "datagram":
         return {"over_64KiB.bin": json.dumps({**valid_datagram(), "pad": "x" * 70_000}).encode()}
     if reader == "motion_frames":
@@ -646,6 +856,8 @@ def huge_files(reader: str) -> dict[str, tuple[bytes, int]]:
         "robot_npz": {"huge_file.npz": (b"PK\x03\x04", 257 * 1024 ** 2)},
         "bvh": {"huge_file.bvh": (VALID_BVH.encode(), 33 * 1024 ** 2)},
         "motion_frames": {"huge_file.txt": (VALID_FRAMES.encode(), 65 * 1024 ** 2)},
+        "dog_keypoints": {"huge_file.txt": (VALID_DOG_KEYPOINTS.encode(), 17 * 1024 ** 2)},
+        "dog_bvh": {"huge_file.bvh": (VALID_DOG_BVH.encode(), 33 * 1024 ** 2)},
     }.get(reader, {})
 
 

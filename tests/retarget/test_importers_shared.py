@@ -127,3 +127,24 @@ def test_laikago_clips(clip):
         a1 = import_source(stmr_clip("sidesteps"))
         corr = np.corrcoef(m.feet[:, :, 2].T, a1.feet[:, :, 2].T)[:4, 4:]
         assert (np.diag(corr) > 0.95).all()
+
+
+DOG_CLIPS = {  # frames per PROVENANCE.md (mann_dog_bvh, motion_imitation/retarget_keypoints)
+    ("mann_dog_bvh", "D1_001_KAN01_001.bvh"): 1531, ("mann_dog_bvh", "D1_007_KAN01_001.bvh"): 593,
+    ("mann_dog_bvh", "D1_009_KAN01_001.bvh"): 548, ("mann_dog_bvh", "D1_010_KAN01_001.bvh"): 567,
+    ("mann_dog_bvh", "D1_047_KAN01_001.bvh"): 1079, ("mann_dog_bvh", "D1_ex04_KAN02_002.bvh"): 505,
+    ("retarget_keypoints", "dog_pace_joint_pos.txt"): 39, ("retarget_keypoints", "dog_trot_joint_pos.txt"): 33,
+    ("retarget_keypoints", "dog_walk00_joint_pos.txt"): 593, ("retarget_keypoints", "dog_walk03_joint_pos.txt"): 548,
+    ("retarget_keypoints", "dog_run00_joint_pos.txt"): 567, ("retarget_keypoints", "dog_run04_joint_pos.txt"): 1263,
+}
+
+
+@pytest.mark.parametrize("folder, name", list(DOG_CLIPS), ids=[n for _, n in DOG_CLIPS])
+def test_every_shared_dog_clip_imports(folder, name):
+    """The strict dog readers (issue 14: bounded, one-line errors) still read every shared dog clip, legs where
+    they belong."""
+    path = shared_file(*(("motion_imitation", folder, name) if folder == "retarget_keypoints" else (folder, name)))
+    m = import_source(path)
+    assert m.frames == DOG_CLIPS[(folder, name)] and m.fps == pytest.approx(60.0, rel=1e-3)
+    assert m.source["format"] == ("dog-bvh" if name.endswith(".bvh") else "dog-keypoints")
+    assert np.allclose(left_of_body(m), [1, 0, 1, 0], atol=0.05)

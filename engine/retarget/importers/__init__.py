@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from engine.retarget.motion import KeypointMotion, MotionFormatError
-from engine.safe_io import ReadError, read_npz
+from engine.safe_io import ReadError, decode_text, read_npz
 from engine.safe_io import read_json as _safe_read_json
 
 MAX_SOURCE_BYTES = 64 * 1024 * 1024  # the largest shared source is < 1 MB
@@ -47,8 +47,18 @@ def detect_format(path: Path) -> str:
         if {"keypoints", "keypoint_names", "base_pos", "base_rotmat"} <= keys:
             return "stmr-keypoints"
         raise ImportFormatError(f"{name}: expected a keypoint-motion npz or an STMR *_keypoints.npz, found arrays {sorted(keys)}")
+    if not head.strip():
+        raise ImportFormatError(name, "", "expected a motion file, the file is empty" if not head
+                                else "expected a motion file, the file holds only whitespace")
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16/32: every text format here is UTF-8
+        try:
+            decode_text(head, name)
+        except ReadError as exc:
+            raise _import_error(exc) from None
+    if head.startswith(b"\xef\xbb\xbf"):  # a UTF-8 BOM (Windows editors): the readers drop it too
+        head = head[3:]
     text = head.decode("utf-8", errors="replace").lstrip()
-    if text.startswith("HIERARCHY"):
+    if text[:9].upper() == "HIERARCHY":  # the BVH reader takes its keywords in any case
         return "dog-bvh"
     if text.startswith("{"):
         if '"Frames"' in text or '"FrameDuration"' in text or '"LoopMode"' in text:

@@ -1,12 +1,16 @@
 """MANN dog BVH (Zhang et al. 2018) → keypoints.
 
-A small BVH reader specific to what the dog files need (engine/retarget/importers/bvh.py, the general human
-BVH reader another branch is writing, was not on main when this was written): HIERARCHY with ROOT / JOINT /
-End Site, OFFSET, CHANNELS (6 on the root: X/Y/Zposition + rotations, 3 elsewhere: rotations in the listed
-order, intrinsic), MOTION with Frames and Frame Time. Forward kinematics gives the 21 joints + 6 end sites in
-depth-first order — exactly the 27 points of motion_imitation's ``dog_*_joint_pos.txt`` (checked: same
-frames, centimetres → metres) — and the dog keypoint mapping of ``dog_keypoints`` applies. Required joints
-missing from a file are reported by name.
+Read by the general BVH reader (engine/retarget/importers/bvh.py: bounded size, depth, joints and joints ×
+frames, strict tokens, finite values; its errors are one line), then checked for what the dog mapping needs:
+the MANN skeleton — HIERARCHY with the 21 joints + 6 end sites in depth-first order, exactly the 27 points of
+motion_imitation's ``dog_*_joint_pos.txt`` (checked: same frames, centimetres → metres) — at least 2 and at
+most :data:`MAX_FRAMES` frames, offsets and channel values with |x| ≤ 1e9 (posing never overflows), legs with
+length. Required joints missing from a file are reported by name. The dog keypoint mapping of
+``dog_keypoints`` applies.
+
+Forward kinematics is the general reader's: rotation channels in the listed order as intrinsic rotations
+(degrees), position channels replacing the offset. End sites are named ``<parent>_end`` here (the points of
+``source["points"]``).
 """
 
 from __future__ import annotations
@@ -15,16 +19,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from engine.retarget.contacts import estimate_contacts
 from engine.retarget.importers import ImportFormatError
-from engine.retarget.importers.dog_keypoints import POINTS, Y_UP_TO_Z_UP, keypoints_from_points
-from engine.retarget.motion import KeypointMotion
+from engine.retarget.importers.bvh import BvhError, BvhMotion, load_bvh
+from engine.retarget.importers.dog_keypoints import POINTS, Y_UP_TO_Z_UP, check_legs, dog_motion, keypoints_from_points
+from engine.retarget.motion import MAX_ABS_VALUE, KeypointMotion
 
 CM_TO_M = 0.01
 REQUIRED = ("Hips", "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand",
             "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot")
+N_NODES = 27
+MAX_FRAMES = 36_000  # 10 minutes at 60 fps (the longest MANN clip is ~2 minutes); posing allocates (F, 27, 3, 3)
 
 
 @dataclass
@@ -41,123 +46,37 @@ class Bvh:
     nodes: list[BvhNode]
     frame_time_s: float
     motion: np.ndarray  # (T, channels)
+    clip: BvhMotion  # what the general reader read (its forward kinematics)
 
 
 def parse_bvh(path: Path) -> Bvh:
+    """The file through the general BVH reader; ImportFormatError (one line) on anything malformed."""
     name = path.name
     try:
-        tokens_by_line = [ln.split() for ln in path.read_text(encoding="utf-8", errors="strict").splitlines()]
-    except UnicodeDecodeError:
-        raise ImportFormatError(f"{name}: expected BVH text") from None
-    nodes: list[BvhNode] = []
-    stack: list[int] = []
-    i = 0
-    pending: BvhNode | None = None
-    while i < len(tokens_by_line):
-        tok = tokens_by_line[i]
-        i += 1
-        if not tok:
-            continue
-        key = tok[0]
-        if key == "HIERARCHY":
-            continue
-        if key in ("ROOT", "JOINT"):
-            if len(tok) < 2:
-                raise ImportFormatError(f"{name}: line {i}: {key} without a name")
-            pending = BvhNode(tok[1], stack[-1] if stack else -1, np.zeros(3))
-        elif key == "End":
-            pending = BvhNode(f"{nodes[stack[-1]].name}_end" if stack else "end", stack[-1] if stack else -1, np.zeros(3), end_site=True)
-        elif key == "{":
-            if pending is None:
-                raise ImportFormatError(f"{name}: line {i}: '{{' without a joint")
-            nodes.append(pending)
-            stack.append(len(nodes) - 1)
-            pending = None
-        elif key == "}":
-            if not stack:
-                raise ImportFormatError(f"{name}: line {i}: unbalanced '}}'")
-            stack.pop()
-        elif key == "OFFSET":
-            try:
-                nodes[stack[-1]].offset = np.array([float(v) for v in tok[1:4]])
-            except (ValueError, IndexError):
-                raise ImportFormatError(f"{name}: line {i}: OFFSET: expected three numbers") from None
-        elif key == "CHANNELS":
-            try:
-                n = int(tok[1])
-            except (ValueError, IndexError):
-                raise ImportFormatError(f"{name}: line {i}: CHANNELS: expected a count") from None
-            if len(tok) != n + 2:
-                raise ImportFormatError(f"{name}: line {i}: CHANNELS: expected {n} channel names")
-            nodes[stack[-1]].channels = tok[2:]
-        elif key == "MOTION":
-            break
-        else:
-            raise ImportFormatError(f"{name}: line {i}: unexpected {key!r} in HIERARCHY")
-    if not nodes or stack:
-        raise ImportFormatError(f"{name}: HIERARCHY: expected a complete joint tree")
-    header: dict[str, str] = {}
-    while i < len(tokens_by_line) and len(header) < 2:
-        tok = tokens_by_line[i]
-        i += 1
-        if tok and tok[0] == "Frames:":
-            header["frames"] = tok[1] if len(tok) > 1 else ""
-        elif tok and tok[0] == "Frame" and len(tok) > 2:
-            header["time"] = tok[2]
-    try:
-        n_frames, frame_time = int(header["frames"]), float(header["time"])
-    except (KeyError, ValueError):
-        raise ImportFormatError(f"{name}: MOTION: expected 'Frames: N' and 'Frame Time: dt'") from None
-    if not 0 < frame_time < 10:
-        raise ImportFormatError(f"{name}: MOTION: Frame Time: expected a positive number of seconds, got {frame_time}")
-    n_channels = sum(len(n.channels) for n in nodes)
-    rows = [t for t in tokens_by_line[i:] if t]
-    if len(rows) < n_frames:
-        raise ImportFormatError(f"{name}: MOTION: expected {n_frames} frames, found {len(rows)} (truncated?)")
-    if n_frames < 2:
-        raise ImportFormatError(f"{name}: MOTION: expected at least 2 frames, got {n_frames}")
-    motion = np.empty((n_frames, n_channels))
-    for f, row in enumerate(rows[:n_frames]):
-        if len(row) != n_channels:
-            raise ImportFormatError(f"{name}: MOTION frame {f}: expected {n_channels} numbers, got {len(row)}")
-        try:
-            motion[f] = [float(v) for v in row]
-        except ValueError:
-            raise ImportFormatError(f"{name}: MOTION frame {f}: expected numbers") from None
-    if not np.all(np.isfinite(motion)):
-        raise ImportFormatError(f"{name}: MOTION: expected finite numbers")
-    return Bvh(nodes, frame_time, motion)
+        clip = load_bvh(path)
+    except BvhError as exc:
+        raise ImportFormatError(name, exc.field_path, exc.detail) from None
+    nodes = [BvhNode(f"{j.name[:-4]}_end" if j.is_end_site else j.name, j.parent, j.offset, list(j.channels),
+                     j.is_end_site) for j in clip.joints]
+    if clip.n_frames < 2:
+        raise ImportFormatError(name, "MOTION: Frames", f"expected at least 2 frames, got {clip.n_frames}")
+    if clip.n_frames > MAX_FRAMES:
+        raise ImportFormatError(name, "MOTION: Frames", f"expected at most {MAX_FRAMES} frames (10 minutes at 60 "
+                                f"fps), got {clip.n_frames}")
+    for node in nodes:
+        if not np.all(np.abs(node.offset) <= MAX_ABS_VALUE):
+            raise ImportFormatError(name, f"joint {node.name}: OFFSET", f"expected |x| ≤ {MAX_ABS_VALUE:g}, got "
+                                    f"{' '.join(f'{v:g}' for v in node.offset)}")
+    if clip.values.size and np.abs(clip.values).max() > MAX_ABS_VALUE:
+        f, c = np.unravel_index(int(np.argmax(np.abs(clip.values))), clip.values.shape)
+        raise ImportFormatError(name, f"MOTION: frame {f}, channel {c}",
+                                f"expected |x| ≤ {MAX_ABS_VALUE:g}, got {clip.values[f, c]:g}")
+    return Bvh(nodes, clip.frame_time_s, clip.values, clip)
 
 
 def forward_kinematics(bvh: Bvh) -> np.ndarray:
     """World positions (T, nodes, 3) of every joint and end site, in the file's units and axes."""
-    t_n = len(bvh.motion)
-    pos = np.zeros((t_n, len(bvh.nodes), 3))
-    rot = np.zeros((t_n, len(bvh.nodes), 3, 3))
-    col = 0
-    for k, node in enumerate(bvh.nodes):
-        local_t = np.tile(node.offset, (t_n, 1))
-        local_r = np.tile(np.eye(3), (t_n, 1, 1))
-        rot_axes, rot_cols = "", []
-        for c in node.channels:
-            axis = c[0].upper()
-            if c.endswith("position"):
-                local_t[:, "XYZ".index(axis)] = bvh.motion[:, col] + (0.0 if node.parent >= 0 else 0.0)
-            else:
-                rot_axes += axis
-                rot_cols.append(col)
-            col += 1
-        if node.parent < 0 and any(c.endswith("position") for c in node.channels):
-            pass  # root: the position channels replace the offset
-        if rot_axes:
-            local_r = Rotation.from_euler(rot_axes, bvh.motion[:, rot_cols], degrees=True).as_matrix()
-        if node.parent < 0:
-            pos[:, k], rot[:, k] = local_t, local_r
-        else:
-            p = node.parent
-            pos[:, k] = pos[:, p] + np.einsum("tij,tj->ti", rot[:, p], local_t)
-            rot[:, k] = rot[:, p] @ local_r
-    return pos
+    return bvh.clip.global_positions()
 
 
 def import_dog_bvh(path: Path) -> KeypointMotion:
@@ -165,18 +84,14 @@ def import_dog_bvh(path: Path) -> KeypointMotion:
     names = [n.name for n in bvh.nodes]
     missing = [j for j in REQUIRED if j not in names]
     if missing:
-        raise ImportFormatError(f"{path.name}: HIERARCHY: expected the MANN dog skeleton, joint {missing[0]!r} is missing")
-    if len(bvh.nodes) != 27:
-        raise ImportFormatError(f"{path.name}: HIERARCHY: expected 21 joints + 6 end sites (MANN dog), got {len(bvh.nodes)} nodes")
+        raise ImportFormatError(path.name, "HIERARCHY", f"expected the MANN dog skeleton, joint {missing[0]!r} is "
+                                "missing")
+    if len(bvh.nodes) != N_NODES:
+        raise ImportFormatError(path.name, "HIERARCHY", f"expected 21 joints + 6 end sites (MANN dog), got "
+                                f"{len(bvh.nodes)} nodes")
     points = forward_kinematics(bvh) * CM_TO_M @ Y_UP_TO_Z_UP.T
     kp = keypoints_from_points(points)
-    fps = round(1.0 / bvh.frame_time_s, 3)
-    ground = float(np.percentile(kp[:, 3::4, 2], 2))
-    kp[:, :, 2] -= ground
-    contact = estimate_contacts(kp[:, 3::4], fps, 0.0)
-    return KeypointMotion(
-        fps=fps, keypoints=kp, contact=contact,
-        source={"file": path.name, "format": "dog-bvh", "contact_from": "estimated", "ground_shift_m": -ground,
-                "points": [bvh.nodes[i].name for leg in POINTS for i in leg],
-                "licence": "MANN dog mocap: research use only, not redistributable"},
-    )
+    check_legs(kp, path.name, "HIERARCHY")
+    return dog_motion(kp, round(1.0 / bvh.frame_time_s, 3), path.name, {
+        "format": "dog-bvh", "points": [bvh.nodes[i].name for leg in POINTS for i in leg],
+        "licence": "MANN dog mocap: research use only, not redistributable"})
