@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from engine.constants import GRAVITY_MPS2
 from engine.gait.curve_rates import curve_peaks, rate_bound
 from engine.gait.style import SIDES, Style, StyleContext, channel_side
 from engine.gait.velocity_sampler import SAMPLE_NAMES
@@ -58,7 +59,6 @@ TORQUE_SHARE = 0.9  # the controller's torque limit (share of the URDF effort)
 TORQUE_TOLERANCE = 1.25  # the estimate is rough (weight through the sole's middle): flag beyond this × the limit
 MIN_CLEARANCE_M = 0.01
 FLOOR_TOLERANCE_M = 0.005
-GRAVITY = 9.81
 
 JOINT_WORDS = {"hip_pitch": "hip", "hip_roll": "hip (sideways)", "hip_yaw": "hip (twist)", "knee": "knee",
                "ankle_pitch": "ankle", "ankle_roll": "ankle (sideways)", "leg_1": "hip (twist)", "leg_2": "hip (sideways)",
@@ -334,7 +334,7 @@ class FeasibilityChecker:
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         jac = pin.getFrameJacobian(model, data, self.foot_ids[i], pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        wrench = np.array([0.0, 0.0, self.robot.mass_kg * GRAVITY, 0.0, 0.0, 0.0])
+        wrench = np.array([0.0, 0.0, self.robot.mass_kg * GRAVITY_MPS2, 0.0, 0.0, 0.0])
         leg = np.abs((tau - jac.T @ wrench)[self.leg_v])
         over = leg > TORQUE_TOLERANCE * self.torque_limit
         for j in np.flatnonzero(over):

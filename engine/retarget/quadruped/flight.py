@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-GRAVITY_M_S2 = np.array([0.0, 0.0, -9.81])
+from engine.constants import GRAVITY_MPS2
+
+GRAVITY_VECTOR_MPS2 = np.array([0.0, 0.0, -GRAVITY_MPS2])
 
 
 def exit_velocity(base_history: np.ndarray, dt: float, horizon: int = 6) -> np.ndarray:
@@ -23,7 +25,7 @@ def exit_velocity(base_history: np.ndarray, dt: float, horizon: int = 6) -> np.n
     return coeffs[-2].copy()  # d/dt at t = 0 is the linear coefficient
 
 
-def landing_exit_velocity_z(ref_base_z: np.ndarray, dt: float, g: float = 9.81) -> float:
+def landing_exit_velocity_z(ref_base_z: np.ndarray, dt: float, g: float = GRAVITY_MPS2) -> float:
     """Vertical exit velocity of a ballistic arc that lands when the contact schedule says it does.
 
     ``ref_base_z`` is the reference base height from the last contact frame to the landing frame

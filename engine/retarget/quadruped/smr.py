@@ -33,7 +33,7 @@ import osqp
 import pinocchio as pin
 from scipy import sparse
 
-from engine.retarget.quadruped.flight import GRAVITY_M_S2, exit_velocity, landing_exit_velocity_z
+from engine.retarget.quadruped.flight import GRAVITY_VECTOR_MPS2, exit_velocity, landing_exit_velocity_z
 from engine.retarget.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import QuadrupedKinematics
 from engine.retarget.quadruped.uvm import RetargetCancelled
@@ -216,7 +216,7 @@ def smr(kin: QuadrupedKinematics, ref_q: np.ndarray, contact: np.ndarray, fps: f
                         if len(landing):
                             v_flight[2] = landing_exit_velocity_z(ref_q[i - 1:i + landing[0] + 1, 2], dt)
                 else:
-                    v_flight = v_flight + GRAVITY_M_S2 * dt
+                    v_flight = v_flight + GRAVITY_VECTOR_MPS2 * dt
                 rot = pin.Quaternion(q_prev[3:7]).toRotationMatrix()
                 v_ref[:3] = rot.T @ (v_flight * dt)
                 flight[i] = True

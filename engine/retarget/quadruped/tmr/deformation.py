@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from engine.constants import GRAVITY_MPS2
+
 DEFAULT_LOG2_BOUND = 1.0
 MAX_LOG2_BOUND = 2.0
 
@@ -145,7 +147,6 @@ def sample_contact(contact: np.ndarray, fps: float, t_source_s: np.ndarray) -> n
     return out
 
 
-GRAVITY_MPS2 = 9.81
 
 
 def flight_intervals(contact: np.ndarray) -> list[tuple[int, int]]:

@@ -13,13 +13,13 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from engine.constants import GRAVITY_MPS2
 from engine.retarget.quadruped.tmr.keypoints import KeypointSet, keypoint_trajectory
 from engine.retarget.motion import RobotMotion
 
 if TYPE_CHECKING:
     from engine.robot.model import RobotModel
 
-GRAVITY_MPS2 = 9.81
 
 
 def quat_from_pitch_yaw(pitch_rad: float, yaw_rad: float = 0.0) -> np.ndarray:
