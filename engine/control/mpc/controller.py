@@ -16,7 +16,8 @@ from numpy.typing import ArrayLike, NDArray
 from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
 from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
-from engine.control.mpc.kernels import match_rows, problem_rows
+from engine.control.mpc.active_set_kernel import free_slacks, waypoints_from_multipliers
+from engine.control.mpc.kernels import condense, match_rows, problem_rows
 from engine.control.mpc.lip import _Segments, propagate_lip
 from engine.control.mpc.problem import _Condensed, _Problem
 from engine.control.mpc.regions import _CONTAIN_TOL_M, _make_region, _Region, _support_geometry
@@ -220,6 +221,7 @@ class ComMpc:
         qp = self._condense(problem, seg, origin, com + vel / seg.omega - origin)
         t_qp = time.perf_counter()
         deadline = t_qp + self.time_limit_s
+        violation = math.nan  # not known yet
         if self.solver == "osqp":
             wps, iterations, outcome, message = self._solve_osqp(problem, qp, deadline)
         elif self.solver != "active_set":  # a maintained backend on the standard form
@@ -227,13 +229,14 @@ class ComMpc:
             wps = result.x.reshape(-1, 2) if result.ok and result.x is not None else qp.p_free
             iterations, outcome, message = 0, (_AS_OPTIMAL if result.ok else _AS_INFEASIBLE), result.status
         else:
-            wps, iterations, outcome, message = self._solve_active_set(problem, qp, deadline)
+            wps, iterations, outcome, message, violation = self._solve_active_set(problem, qp, deadline)
         qp_time = time.perf_counter() - t_qp
         if outcome == _AS_CAPPED:  # best iterate: pull each waypoint into its region
             wps = _pull_into_regions(wps, qp, problem.centroids[1:] - origin)
-        violation = 0.0
-        if len(qp.rhs):
-            violation = max(float((qp.row_values(wps) - qp.rhs).max()), 0.0) if np.isfinite(wps).all() else math.inf
+        if math.isnan(violation):
+            violation = 0.0
+            if len(qp.rhs):
+                violation = max(float((qp.row_values(wps) - qp.rhs).max()), 0.0) if np.isfinite(wps).all() else math.inf
         if outcome == _AS_INFEASIBLE or not violation <= CONSTRAINT_TOL_M:
             self._warm_history = []
             return self._fallback(
@@ -375,7 +378,19 @@ class ComMpc:
         return min(w.final_capture_point * math.exp(min(2.0 * omega * horizon_s, 700.0)), MAX_STABILITY_WEIGHT)
 
     def _condense(self, pb: _Problem, seg: _Segments, origin: FloatArray, zeta0: FloatArray) -> _Condensed:
-        """Eliminate the final state: cost and rows in the waypoints ``p_1..p_N`` (frame at ``origin``)."""
+        """Eliminate the final state: cost and rows in the waypoints ``p_1..p_N`` (frame at ``origin``); compiled
+        (:func:`engine.control.mpc.kernels.condense`), :meth:`_condense_numpy` is the reference."""
+        w = self.weights
+        ws = self._stability_weight(seg.omega, float(pb.times_s[-1] - pb.times_s[0]))
+        d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs = condense(
+            seg.a, seg.b, seg.grow, seg.h, float(w.cop_centroid), float(w.cop_velocity), self.min_velocity_dt_s, ws,
+            pb.centroids, pb.final_centroid, origin, zeta0, pb.normals, pb.offsets)
+        return _Condensed(
+            origin, d_mat, d_inv, g, ws, beta, u, kappa, r0, p_free, hess_inv, pb.normals, rhs, pb.row_wp - 1
+        )
+
+    def _condense_numpy(self, pb: _Problem, seg: _Segments, origin: FloatArray, zeta0: FloatArray) -> _Condensed:
+        """The reference of :meth:`_condense` (numpy, LAPACK's inverse of ``D``)."""
         w = self.weights
         n = len(pb.times_s) - 1
         decay = 1.0 / seg.grow  # exp(-omega tau_n)
@@ -404,32 +419,27 @@ class ComMpc:
 
     def _solve_active_set(
         self, pb: _Problem, qp: _Condensed, deadline: float
-    ) -> tuple[FloatArray, int, int, str]:
-        s = qp.rhs - qp.row_values(qp.p_free)
+    ) -> tuple[FloatArray, int, int, str, float]:
+        """Waypoints, iterations, outcome, message and the largest row violation of the waypoints."""
+        s = free_slacks(qp.p_free, qp.normals, qp.row_var, qp.rhs)
         if len(s) == 0 or s.min() >= -_AS_TOL_M:
-            self._store_warm(pb, [])
-            return qp.p_free, 0, _AS_OPTIMAL, "active set: unconstrained optimum"
-        warm = (self._match_warm(pb, entry) for entry in self._warm_history)  # matched lazily
+            self._store_warm(pb, np.zeros(0, dtype=np.intp))
+            return qp.p_free, 0, _AS_OPTIMAL, "active set: unconstrained optimum", max(-float(s.min(initial=0.0)), 0.0)
         active, lam, iterations, outcome = _dual_active_set(
-            qp.dual_columns(), s, warm, qp.row_var, _AS_TOL_M, self.max_iter, deadline
-        )
+            qp.hess_inv, qp.normals, qp.row_var, s, pb.row_key, self._warm_history,
+            (_WARM_TIME_TOL_S, _WARM_NORMAL_COS), _AS_TOL_M, self.max_iter, deadline)
         if outcome == _AS_INFEASIBLE:
-            return qp.p_free, iterations, outcome, "active set: infeasible"
-        g = np.zeros_like(qp.p_free)
-        if active:
-            rows = np.asarray(active)
-            rv, n = qp.row_var[rows], len(g)
-            g[:, 0] = np.bincount(rv, qp.normals[rows, 0] * lam, n)
-            g[:, 1] = np.bincount(rv, qp.normals[rows, 1] * lam, n)
-        wps = qp.p_free - qp.h_inv(g)
+            return qp.p_free, iterations, outcome, "active set: infeasible", math.nan
+        rows = np.asarray(active, dtype=np.int64)
+        wps, violation = waypoints_from_multipliers(qp.p_free, qp.hess_inv, qp.normals, qp.row_var, qp.rhs, rows,
+                                                    np.asarray(lam, dtype=np.float64))
         if outcome == _AS_OPTIMAL:
-            self._store_warm(pb, active)
-            return wps, iterations, outcome, f"active set: optimal, {len(active)} active rows"
-        return wps, iterations, outcome, "active set: iteration cap or time limit reached"
+            self._store_warm(pb, rows)
+            return wps, iterations, outcome, f"active set: optimal, {len(rows)} active rows", violation
+        return wps, iterations, outcome, "active set: iteration cap or time limit reached", math.nan
 
-    def _store_warm(self, pb: _Problem, active: list[int]) -> None:
+    def _store_warm(self, pb: _Problem, rows: NDArray[np.intp]) -> None:
         """Remember the active rows by waypoint time and kind (encoded together) and normal."""
-        rows = np.asarray(active, dtype=np.intp)
         entry = (pb.row_key[rows], pb.normals_c[rows])
         self._warm_history = [entry] + self._warm_history[: _WARM_HISTORY - 1]
 

@@ -294,3 +294,89 @@ def match_rows(row_key, normals, key_prev, normals_prev, time_tol, cos_min):  # 
                 count += 1
                 break
     return out[:count]
+
+
+@njit(cache=True, nogil=True)
+def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability_weight, centroids, final_centroid,
+             origin, zeta0, normals, offsets):  # noqa: ANN001, ANN201, PLR0913
+    """``ComMpc._condense``'s numbers (:meth:`ComMpc._condense_numpy` is the reference; equal to rounding: ``D``'s
+    inverse here by its tridiagonal LDLᵀ factors, there by LAPACK's LU). Segment coefficients ``a, b, grow, h``
+    of :class:`engine.control.mpc.lip._Segments`, centroid targets (N+1, 2), the frame ``origin`` and the DCM
+    ``zeta0`` in it, the polygon rows. Returns ``(d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs)``."""
+    n = h.shape[0]
+    beta = np.empty(n)
+    for j in range(n):  # exp(-omega tau_j) b_j (p_j+1 term) + exp(-omega tau_j+1) a_j+1 (p_j+1's next segment)
+        beta[j] = (1.0 / grow[j]) * b[j]
+        if j + 1 < n:
+            beta[j] += (1.0 / grow[j + 1]) * a[j + 1]
+    wv = np.empty(n)
+    for j in range(n):
+        dt = max(h[j], min_velocity_dt_s)
+        wv[j] = w_velocity / (dt * dt)
+    diag = np.empty(n)
+    off = np.zeros(n)  # off[j] = D[j, j+1] (last unused)
+    for j in range(n):
+        diag[j] = (w_centroid + 1e-9) + wv[j]
+        if j + 1 < n:
+            diag[j] += wv[j + 1]
+            off[j] = -wv[j + 1]
+    d_mat = np.zeros((n, n))
+    for j in range(n):
+        d_mat[j, j] = diag[j]
+        if j + 1 < n:
+            d_mat[j, j + 1] = d_mat[j + 1, j] = off[j]
+    # D = L diag(piv) Lᵀ (unit lower bidiagonal L); column k of D⁻¹ solves D x = e_k.
+    piv = np.empty(n)
+    low = np.zeros(n)  # low[j] = L[j+1, j]
+    piv[0] = diag[0]
+    for j in range(n - 1):
+        low[j] = off[j] / piv[j]
+        piv[j + 1] = diag[j + 1] - low[j] * off[j]
+    d_inv = np.empty((n, n))
+    x = np.empty(n)
+    for k in range(n):
+        for j in range(n):  # forward: L y = e_k (zero above k)
+            x[j] = 0.0 if j < k else (1.0 if j == k else -low[j - 1] * x[j - 1])
+        for j in range(n):
+            x[j] /= piv[j]
+        for j in range(n - 2, -1, -1):  # back: Lᵀ x = y / piv
+            x[j] -= low[j] * x[j + 1]
+        for j in range(n):
+            d_inv[j, k] = x[j]
+    u = np.zeros(n)
+    g = np.empty((n, 2))
+    y = np.zeros((n, 2))
+    for j in range(n):
+        g[j, 0] = w_centroid * (centroids[j + 1, 0] - origin[0])
+        g[j, 1] = w_centroid * (centroids[j + 1, 1] - origin[1])
+    for i in range(n):
+        for j in range(n):
+            u[i] += d_inv[i, j] * beta[j]
+            y[i, 0] += d_inv[i, j] * g[j, 0]
+            y[i, 1] += d_inv[i, j] * g[j, 1]
+    beta_u = 0.0
+    beta_y0 = 0.0
+    beta_y1 = 0.0
+    for j in range(n):
+        beta_u += beta[j] * u[j]
+        beta_y0 += beta[j] * y[j, 0]
+        beta_y1 += beta[j] * y[j, 1]
+    kappa = stability_weight / (1.0 + stability_weight * beta_u)
+    decay_t = 1.0 / grow[n]
+    r0 = np.empty(2)
+    r0[0] = zeta0[0] - decay_t * (final_centroid[0] - origin[0])
+    r0[1] = zeta0[1] - decay_t * (final_centroid[1] - origin[1])
+    c0, c1 = kappa * (r0[0] - beta_y0), kappa * (r0[1] - beta_y1)
+    p_free = np.empty((n, 2))
+    hess_inv = np.empty((n, n))
+    for i in range(n):
+        p_free[i, 0] = y[i, 0] + u[i] * c0
+        p_free[i, 1] = y[i, 1] + u[i] * c1
+        ku = kappa * u[i]
+        for j in range(n):
+            hess_inv[i, j] = d_inv[i, j] - ku * u[j]
+    m = offsets.shape[0]
+    rhs = np.empty(m)
+    for i in range(m):
+        rhs[i] = offsets[i] - (normals[i, 0] * origin[0] + normals[i, 1] * origin[1])
+    return d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs
