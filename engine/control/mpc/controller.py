@@ -17,10 +17,16 @@ from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
 from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
 from engine.control.mpc.active_set_kernel import free_slacks, waypoints_from_multipliers
-from engine.control.mpc.kernels import condense, match_rows, problem_rows
+from engine.control.mpc.kernels import condense, match_rows, problem_rows, window_intervals
 from engine.control.mpc.lip import _Segments, propagate_lip
 from engine.control.mpc.problem import _Condensed, _Problem
-from engine.control.mpc.regions import _CONTAIN_TOL_M, _make_region, _Region, _support_geometry
+from engine.control.mpc.regions import (
+    _CONTAIN_TOL_M,
+    _make_region,
+    _Region,
+    _support_geometry_complex,
+    _support_geometry_xy,
+)
 from engine.control.mpc.types import (
     CONSTRAINT_TOL_M,
     FALLBACK_COM_HEIGHT_M,
@@ -285,7 +291,6 @@ class ComMpc:
 
     def _build_problem(self, t_now: float, supports: Sequence[SupportInterval]) -> tuple[_Problem | None, str]:
         t_horizon = t_now + self.preview_s
-        min_int = self.min_interval_s
         try:
             t_start = np.array([s.t_start_s for s in supports], dtype=float)
             t_end = np.array([s.t_end_s for s in supports], dtype=float)
@@ -293,56 +298,24 @@ class ComMpc:
             return None, f"malformed supports: {exc!r}"
         if t_start.ndim != 1 or t_end.shape != t_start.shape:
             return None, "malformed supports: support times must be scalars"
-        invalid = ~(np.isfinite(t_start) & np.isfinite(t_end) & (t_end >= t_start))
-        # Supports in use: not elapsed, starting before the window ends (chronological order).
-        used: list[int] = []
-        prev_end = t_now
-        ends_list = t_end.tolist()
-        for k, t1 in enumerate(ends_list):
-            if invalid[k]:
-                return None, f"invalid support interval times ({t_start[k]}, {t1})"
-            if t1 <= prev_end + min_int:
-                continue  # elapsed (or nearly elapsed)
-            if prev_end >= t_horizon - min_int:
-                break
-            used.append(k)
-            prev_end = t1 if t1 < t_horizon else t_horizon
-        if not used:
+        # Supports in use (not elapsed, starting before the window ends; chronological order) and their
+        # intervals (long ones split into equal pieces anchored at their start), compiled.
+        status, bad_k, used, ends_arr, own = window_intervals(
+            t_start, t_end, t_now, t_horizon, self.min_interval_s, self.max_interval_s)
+        if status == 1:
+            return None, f"invalid support interval times ({t_start[bad_k]}, {float(t_end[bad_k])})"
+        if status == 2:
             return None, "no support interval covers the preview window"
         try:
-            polygons = [supports[k].polygon for k in used]
+            polygons = [supports[k].polygon for k in used.tolist()]
         except (TypeError, AttributeError, IndexError) as exc:
             return None, f"malformed supports: {exc!r}"
-        geom = _support_geometry(polygons)
-        if geom is None:
+        geom_xy = _support_geometry_xy(polygons)
+        if geom_xy is None:
             return None, "empty or degenerate support polygon"
-
-        # Intervals: the supports, long ones split into equal pieces anchored at their start.
-        t0_used, t1_used = t_start[used], t_end[used]
-        n_pieces = np.maximum(np.ceil((t1_used - t0_used) / self.max_interval_s - 1e-9), 1.0)
-        if (n_pieces == 1.0).all():
-            ends_arr = np.minimum(t1_used, t_horizon)
-            own = np.arange(len(used))
-        else:
-            ends: list[float] = []
-            owner: list[int] = []
-            prev_end = t_now
-            for k, (t0, t1, n_k) in enumerate(zip(t0_used.tolist(), t1_used.tolist(), n_pieces.astype(int).tolist())):
-                piece_s = (t1 - t0) / n_k
-                first = max(0, int((prev_end + min_int - t0) // piece_s)) if n_k > 1 else 0
-                for j in range(first, n_k):
-                    end = t1 if j == n_k - 1 else t0 + (j + 1) * piece_s
-                    if end <= prev_end + min_int:
-                        continue
-                    if prev_end >= t_horizon - min_int:
-                        break
-                    prev_end = min(end, t_horizon)
-                    ends.append(prev_end)
-                    owner.append(k)
-            ends_arr = np.array(ends)
-            own = np.array(owner)
+        hull_xy, normals_xy, offsets, centroids_xy = geom_xy
         n_int = len(own)
-        max_h = int((geom.offsets < np.inf).sum(axis=1).max())
+        max_h = int((offsets < np.inf).sum(axis=1).max())
         if n_int > self._max_intervals or max_h > self._max_halfplanes:
             # Grow with some headroom so that the window's usual fluctuation does not re-grow it.
             self._max_intervals = max(self._max_intervals, n_int + 2)
@@ -350,15 +323,13 @@ class ComMpc:
             self._setup()
 
         # End waypoints: C_k ∩ C_k+1 (consecutive supports nest in walking: the inner polygon), compiled.
-        centroids_xy = geom.centroids.view(np.float64).reshape(-1, 2)
-        n_sup, n_v = len(used), geom.offsets.shape[1]
-        overlap, normals, offsets, row_wp, row_key, times, centroids = problem_rows(
-            own.astype(np.int64, copy=False), n_sup, geom.hull.view(np.float64).reshape(n_sup, n_v, 2),
-            geom.normals.view(np.float64).reshape(n_sup, n_v, 2), geom.offsets, centroids_xy, ends_arr, t_now,
-            _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S)
+        n_sup = len(used)
+        overlap, normals, row_offsets, row_wp, row_key, times, centroids = problem_rows(
+            own, n_sup, hull_xy, normals_xy, offsets, centroids_xy, ends_arr, t_now, _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S)
         if overlap:  # an end waypoint needs the general intersection of two supports (rare): clip them
+            geom = _support_geometry_complex(hull_xy, normals_xy, offsets, centroids_xy)
             return _problem_numpy(geom, own, n_sup, ends_arr, t_now), ""
-        problem = _Problem(times, ends_arr, normals, normals.view(np.complex128)[:, 0], row_key, offsets, row_wp,
+        problem = _Problem(times, ends_arr, normals, normals.view(np.complex128)[:, 0], row_key, row_offsets, row_wp,
                            centroids, centroids_xy[own[-1]].copy(), False)
         return problem, ""
 

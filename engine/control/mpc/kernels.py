@@ -380,3 +380,62 @@ def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability
     for i in range(m):
         rhs[i] = offsets[i] - (normals[i, 0] * origin[0] + normals[i, 1] * origin[1])
     return d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs
+
+
+@njit(cache=True, nogil=True)
+def window_intervals(t_start, t_end, t_now, t_horizon, min_interval_s, max_interval_s):  # noqa: ANN001, ANN201
+    """``ComMpc._build_problem``'s intervals (the same numbers as its former numpy code, kept in
+    ``tests/control/test_stack_speed_references.py``): the supports in use (not elapsed, starting before the
+    window ends, chronological order) and their pieces (supports longer than ``max_interval_s`` split into
+    equal pieces anchored at their start), ends truncated to the window.
+
+    Returns ``(status, index, used (K,), ends (n,), owner (n,))``: status 0, or 1 when support ``index`` has
+    invalid times (non-finite or ending before it starts), 2 when no support covers the window."""
+    n = t_start.shape[0]
+    used = np.empty(n, dtype=np.int64)
+    n_used = 0
+    prev_end = t_now
+    for k in range(n):
+        t0, t1 = t_start[k], t_end[k]
+        if not (np.isfinite(t0) and np.isfinite(t1) and t1 >= t0):
+            return 1, k, used[:0], np.empty(0), used[:0]
+        if t1 <= prev_end + min_interval_s:
+            continue  # elapsed (or nearly elapsed)
+        if prev_end >= t_horizon - min_interval_s:
+            break
+        used[n_used] = k
+        n_used += 1
+        prev_end = t1 if t1 < t_horizon else t_horizon
+    used = used[:n_used]
+    if n_used == 0:
+        return 2, -1, used, np.empty(0), used
+    n_pieces = np.empty(n_used, dtype=np.int64)
+    total = 0
+    for i in range(n_used):
+        k = used[i]
+        n_pieces[i] = int(max(np.ceil((t_end[k] - t_start[k]) / max_interval_s - 1e-9), 1.0))
+        total += n_pieces[i]
+    if total == n_used:
+        ends = np.empty(n_used)
+        for i in range(n_used):
+            ends[i] = min(t_end[used[i]], t_horizon)
+        return 0, -1, used, ends, np.arange(n_used)
+    ends = np.empty(total)
+    owner = np.empty(total, dtype=np.int64)
+    n_int = 0
+    prev_end = t_now
+    for i in range(n_used):
+        t0, t1, n_k = t_start[used[i]], t_end[used[i]], n_pieces[i]
+        piece_s = (t1 - t0) / n_k
+        first = max(0, int((prev_end + min_interval_s - t0) // piece_s)) if n_k > 1 else 0
+        for j in range(first, n_k):
+            end = t1 if j == n_k - 1 else t0 + (j + 1) * piece_s
+            if end <= prev_end + min_interval_s:
+                continue
+            if prev_end >= t_horizon - min_interval_s:
+                break
+            prev_end = min(end, t_horizon)
+            ends[n_int] = prev_end
+            owner[n_int] = i
+            n_int += 1
+    return 0, -1, used, ends[:n_int], owner[:n_int]

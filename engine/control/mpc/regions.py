@@ -170,3 +170,40 @@ def _geometry_padded_numpy(arrays: list[FloatArray]) -> tuple:
     offsets = np.where(use, (normals.conj() * z).real, np.inf)
     centroids = z0[:, 0] + ((w + wn) * cross).sum(axis=1) / (3.0 * np.where(area2 == 0.0, 1.0, area2))
     return z, normals, offsets, centroids, 0.5 * np.abs(area2), bad
+
+
+def _support_geometry_xy(polygons: Sequence[object]) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+    """:func:`_support_geometry` as float arrays ``(hull (S, V, 2), normals (S, V, 2), offsets (S, V),
+    centroids (S, 2))`` (the same numbers); convex float64 polygons of at most 16 finite vertices go straight
+    to the compiled kernel (what the controller passes), others through :func:`_support_geometry`."""
+    lens: list[int] = []
+    for poly in polygons:
+        if not (type(poly) is np.ndarray and poly.dtype == np.float64 and poly.ndim == 2 and poly.shape[1] == 2
+                and 3 <= len(poly) <= 16):
+            break
+        lens.append(len(poly))
+    else:
+        points = np.concatenate(polygons)  # type: ignore[call-overload]
+        if np.isfinite(points).all():
+            key = tuple(lens)
+            idx, idx_next, _, _ = _pad_layout(key)
+            zf = points.view(np.complex128)[:, 0]
+            hull, normals, offsets, centroids, area, bad = geometry_padded(
+                points, np.array(lens, dtype=np.int64), max(key), np.abs(zf[idx_next] - zf[idx]))
+            if not bad.any():
+                if not (area >= MIN_POLYGON_AREA_M2).all():
+                    return None
+                return hull, normals, offsets, centroids
+    geom = _support_geometry(polygons)
+    if geom is None:
+        return None
+    n_s, n_v = geom.offsets.shape
+    return (geom.hull.view(np.float64).reshape(n_s, n_v, 2), geom.normals.view(np.float64).reshape(n_s, n_v, 2),
+            geom.offsets, geom.centroids.view(np.float64).reshape(n_s, 2))
+
+
+def _support_geometry_complex(hull: FloatArray, normals: FloatArray, offsets: FloatArray,
+                              centroids: FloatArray) -> _SupportGeometry:
+    """:class:`_SupportGeometry` (complex points) of :func:`_support_geometry_xy`'s float arrays."""
+    return _SupportGeometry(hull.view(np.complex128)[..., 0], normals.view(np.complex128)[..., 0], offsets,
+                            centroids.view(np.complex128)[:, 0])
