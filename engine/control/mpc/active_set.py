@@ -205,13 +205,17 @@ def _dual_active_set_numpy(
                 return W, lam, it, _AS_CAPPED
 
 
+_NO_KEYS = np.zeros(0)
+_NO_NORMALS = np.zeros((0, 2))
+
+
 def _dual_active_set(
     hess_inv: FloatArray,
     normals: FloatArray,
     row_var: NDArray[np.intp],
     s: FloatArray,
     row_key: FloatArray,
-    warm_history: Sequence[tuple[FloatArray, NDArray[np.complex128]]],
+    warm_history: Sequence[tuple[FloatArray, FloatArray]],
     warm_match: tuple[float, float],
     tol: float,
     max_iter: int,
@@ -219,30 +223,25 @@ def _dual_active_set(
 ) -> tuple[NDArray[np.int64], FloatArray, int, int]:
     """The dual active set on the condensed QP (rows ``normals[i] . p[row_var[i]] <= b_i``, ``H^-1`` the same
     for both axes, ``s = b - A p_free``), warm-started from the rows of this problem matching each remembered
-    solution's active rows (``warm_history``: (row keys, complex normals); ``warm_match``: key tolerance,
-    normal cosine). Compiled without a wall-time limit (``deadline`` inf), else :func:`_dual_active_set_numpy`.
-    Returns ``(W, lam, iterations, outcome)``."""
+    solution's active rows (``warm_history``, newest first, at most two: (row keys, normals (k, 2));
+    ``warm_match``: key tolerance, normal cosine). Compiled without a wall-time limit (``deadline`` inf), else
+    :func:`_dual_active_set_numpy`. Returns ``(W, lam, iterations, outcome)``."""
     time_tol, cos_min = warm_match
-    if math.isinf(deadline):
-        if warm_history:
-            keys = np.concatenate([k for k, _ in warm_history])
-            nrm = np.concatenate([n for _, n in warm_history]).view(np.float64).reshape(-1, 2)
-            starts = np.cumsum([0] + [len(k) for k, _ in warm_history]).astype(np.int64)
-        else:
-            keys, nrm, starts = np.zeros(0), np.zeros((0, 2)), np.zeros(1, dtype=np.int64)
+    if math.isinf(deadline) and len(warm_history) <= 2:
+        (keys_a, nrm_a), (keys_b, nrm_b) = (list(warm_history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
         return active_set_kernel.dual_active_set(  # type: ignore[no-any-return]
-            hess_inv, normals, row_var, s, row_key, keys, nrm, starts, time_tol, cos_min, tol, max_iter, 4)
+            hess_inv, normals, row_var, s, row_key, keys_a, nrm_a, keys_b, nrm_b, len(warm_history), time_tol,
+            cos_min, tol, max_iter, 4)
     h_rows = hess_inv[row_var]
 
     def cols(j: Sequence[int]) -> FloatArray:
         return h_rows[:, row_var[j]] * (normals @ normals[j].T)
 
-    def matched(entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
+    def matched(entry: tuple[FloatArray, FloatArray]) -> list[int]:
         key_prev, n_prev = entry
         if len(key_prev) == 0:
             return []
-        return match_rows(row_key, normals, key_prev, n_prev.view(np.float64).reshape(-1, 2), time_tol,
-                          cos_min).tolist()  # type: ignore[no-any-return]
+        return match_rows(row_key, normals, key_prev, n_prev, time_tol, cos_min).tolist()  # type: ignore[no-any-return]
 
     warm = (matched(entry) for entry in warm_history)  # matched lazily
     active, lam, iterations, outcome = _dual_active_set_numpy(cols, s, warm, row_var, tol, max_iter, deadline)

@@ -101,11 +101,11 @@ def _evaluate(hess_inv, normals, row_var, s, rows, tol, gw, chol, lam, slack):  
 
 
 @njit(cache=True, nogil=True)
-def dual_active_set(hess_inv, normals, row_var, s, row_key, warm_keys, warm_normals, warm_starts, warm_time_tol,
-                    warm_cos_min, tol, max_iter, block_rounds):  # noqa: ANN001, ANN201, PLR0913, PLR0912, PLR0915
+def dual_active_set(hess_inv, normals, row_var, s, row_key, keys_a, normals_a, keys_b, normals_b, n_warm,
+                    warm_time_tol, warm_cos_min, tol, max_iter, block_rounds):  # noqa: ANN001, ANN201, PLR0913, PLR0912, PLR0915
     """Dual active set on ``min 1/2 x'Hx + q'x s.t. A x <= b`` (see ``active_set._dual_active_set_numpy``):
     ``s = b - A x_free`` (m,), rows ``normals[i] . p[row_var[i]] <= ...``; warm candidates: the rows matching
-    each remembered solution ``warm_keys/normals[warm_starts[c]:warm_starts[c+1]]`` in turn.
+    the first ``n_warm`` (0-2) remembered solutions' active rows (row keys, normals (k, 2)) ``a`` then ``b``.
     Returns ``(W (k,), lam (k,), iterations, outcome)``."""
     m = s.shape[0]
     n_var = 0
@@ -120,11 +120,10 @@ def dual_active_set(hess_inv, normals, row_var, s, row_key, warm_keys, warm_norm
     best_rows = np.empty(0, dtype=np.int64)
     have_best = False
     best_score = 0
-    n_cand = warm_starts.shape[0] - 1
-    for c in range(n_cand + 1):
-        if c < n_cand:
-            a, b = warm_starts[c], warm_starts[c + 1]
-            matched = match_rows(row_key, normals, warm_keys[a:b], warm_normals[a:b], warm_time_tol, warm_cos_min)
+    for c in range(n_warm + 1):
+        if c < n_warm:
+            keys, nrm = (keys_a, normals_a) if c == 0 else (keys_b, normals_b)
+            matched = match_rows(row_key, normals, keys, nrm, warm_time_tol, warm_cos_min)
         else:
             matched = np.empty(0, dtype=np.int64)
         rows = np.empty(matched.shape[0], dtype=np.int64)  # first occurrences, in order

@@ -17,7 +17,14 @@ from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
 from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
 from engine.control.mpc.active_set_kernel import free_slacks, waypoints_from_multipliers
-from engine.control.mpc.kernels import condense, match_rows, problem_rows, window_intervals
+from engine.control.mpc.kernels import (
+    condense,
+    match_rows,
+    plan_from_waypoints,
+    plan_is_finite,
+    problem_rows,
+    window_intervals,
+)
 from engine.control.mpc.lip import _Segments, propagate_lip
 from engine.control.mpc.problem import _Condensed, _Problem
 from engine.control.mpc.regions import (
@@ -149,7 +156,7 @@ class ComMpc:
         self._max_halfplanes = max(int(max_halfplanes), 3)
         self.setup_count = 0
         self._last_good: ComMpcSolution | None = None
-        self._warm_history: list[tuple[FloatArray, NDArray[np.complex128]]] = []
+        self._warm_history: list[tuple[FloatArray, FloatArray]] = []  # (row keys, normals (k, 2))
         self._setup()
 
     # ------------------------------------------------------------ public API
@@ -252,10 +259,9 @@ class ComMpc:
                 t_start=t_start,
             )
 
-        n_wp = len(problem.times_s)
-        wps_local = np.zeros((n_wp, 2))
-        wps_local[1:] = wps  # wps_local[0] = 0: exactly the current CoP
-        pos, vel_wp = seg.propagate(wps_local, com - origin, vel)
+        # CoP waypoints (the first one exactly the current CoP) and the CoM propagated, in the world frame
+        wps_world, pos_world, vel_wp, final_state, total = plan_from_waypoints(
+            seg.omega, seg.a, seg.b, seg.grow, np.ascontiguousarray(wps, dtype=np.float64), com, vel, origin)
         if outcome == _AS_CAPPED:
             status = "solved_inaccurate"
         elif problem.empty_intersection:
@@ -266,8 +272,8 @@ class ComMpc:
             message += "; empty support intersection: end waypoint constrained to the closing interval's polygon"
         solution = ComMpcSolution(
             waypoint_times_s=problem.times_s,
-            waypoints_xy_m=wps_local + origin,
-            waypoint_com_xy_m=pos + origin,
+            waypoints_xy_m=wps_world,
+            waypoint_com_xy_m=pos_world,
             waypoint_com_vel_xy_mps=vel_wp,
             com_height_m=height,
             status=status,
@@ -276,9 +282,9 @@ class ComMpc:
             osqp_iterations=int(iterations),
             osqp_time_s=qp_time,
             region_centroids_xy_m=problem.centroids,
-            qp_final_state=np.concatenate([pos[-1] + origin, vel_wp[-1]]),
+            qp_final_state=final_state,
         )
-        if not math.isfinite(float(pos.sum() + vel_wp.sum())):
+        if not math.isfinite(total):
             return self._fallback(*args, reason="solver_failed", message="non-finite CoM", t_start=t_start)
         self._last_good = solution
         return solution
@@ -313,9 +319,8 @@ class ComMpc:
         geom_xy = _support_geometry_xy(polygons)
         if geom_xy is None:
             return None, "empty or degenerate support polygon"
-        hull_xy, normals_xy, offsets, centroids_xy = geom_xy
+        hull_xy, normals_xy, offsets, centroids_xy, max_h = geom_xy
         n_int = len(own)
-        max_h = int((offsets < np.inf).sum(axis=1).max())
         if n_int > self._max_intervals or max_h > self._max_halfplanes:
             # Grow with some headroom so that the window's usual fluctuation does not re-grow it.
             self._max_intervals = max(self._max_intervals, n_int + 2)
@@ -411,7 +416,7 @@ class ComMpc:
 
     def _store_warm(self, pb: _Problem, rows: NDArray[np.intp]) -> None:
         """Remember the active rows by waypoint time and kind (encoded together) and normal."""
-        entry = (pb.row_key[rows], pb.normals_c[rows])
+        entry = (pb.row_key[rows], pb.normals[rows])
         self._warm_history = [entry] + self._warm_history[: _WARM_HISTORY - 1]
 
     def _match_warm(self, pb: _Problem, entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
@@ -731,6 +736,10 @@ def _sanitize_state(
     """Finite versions of the inputs and whether the originals were all valid."""
 
     def vec2(v: ArrayLike) -> tuple[FloatArray, bool]:
+        if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (2,):  # the usual case, fast
+            x, y = v.tolist()
+            if math.isfinite(x) and math.isfinite(y):
+                return v.copy(), True
         try:
             arr = np.asarray(v, dtype=float).reshape(2)
         except (TypeError, ValueError):
@@ -782,17 +791,11 @@ def _hold_solution(
 
 
 def _is_finite(sol: ComMpcSolution) -> bool:
-    # A sum is finite iff all its terms are (barring overflow, which also means "not usable").
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = (
-            sol.waypoint_times_s.sum()
-            + sol.waypoints_xy_m.sum()
-            + sol.waypoint_com_xy_m.sum()
-            + sol.waypoint_com_vel_xy_mps.sum()
-            + sol.qp_final_state.sum()
-            + sol.com_height_m
-        )
-    return math.isfinite(float(total))
+    """Whether all the plan's numbers are finite (compiled: :func:`engine.control.mpc.kernels.plan_is_finite`)."""
+    c = np.ascontiguousarray
+    return bool(plan_is_finite(c(sol.waypoint_times_s, np.float64), c(sol.waypoints_xy_m, np.float64),
+                               c(sol.waypoint_com_xy_m, np.float64), c(sol.waypoint_com_vel_xy_mps, np.float64),
+                               c(sol.qp_final_state, np.float64), float(sol.com_height_m)))
 
 
 def _replace_status(sol: ComMpcSolution, status: str, message: str, solve_time_s: float) -> ComMpcSolution:

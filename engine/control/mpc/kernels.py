@@ -300,7 +300,7 @@ def match_rows(row_key, normals, key_prev, normals_prev, time_tol, cos_min):  # 
 def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability_weight, centroids, final_centroid,
              origin, zeta0, normals, offsets):  # noqa: ANN001, ANN201, PLR0913
     """``ComMpc._condense``'s numbers (:meth:`ComMpc._condense_numpy` is the reference; equal to rounding: ``D``'s
-    inverse here by its tridiagonal LDLᵀ factors, there by LAPACK's LU). Segment coefficients ``a, b, grow, h``
+    inverse and the solves with ``D`` here by its tridiagonal LDLᵀ factors, there by LAPACK's LU and products). Segment coefficients ``a, b, grow, h``
     of :class:`engine.control.mpc.lip._Segments`, centroid targets (N+1, 2), the frame ``origin`` and the DCM
     ``zeta0`` in it, the polygon rows. Returns ``(d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs)``."""
     n = h.shape[0]
@@ -325,35 +325,39 @@ def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability
         d_mat[j, j] = diag[j]
         if j + 1 < n:
             d_mat[j, j + 1] = d_mat[j + 1, j] = off[j]
-    # D = L diag(piv) Lᵀ (unit lower bidiagonal L); column k of D⁻¹ solves D x = e_k.
+    # D = L diag(piv) Lᵀ (unit lower bidiagonal L): D⁻¹ by columns (D x = e_k), u = D⁻¹ β and y = D⁻¹ g
+    # by the same two sweeps.
     piv = np.empty(n)
     low = np.zeros(n)  # low[j] = L[j+1, j]
     piv[0] = diag[0]
     for j in range(n - 1):
         low[j] = off[j] / piv[j]
         piv[j + 1] = diag[j + 1] - low[j] * off[j]
-    d_inv = np.empty((n, n))
-    x = np.empty(n)
+    d_inv = np.zeros((n, n))
     for k in range(n):
-        for j in range(n):  # forward: L y = e_k (zero above k)
-            x[j] = 0.0 if j < k else (1.0 if j == k else -low[j - 1] * x[j - 1])
-        for j in range(n):
+        x = d_inv[:, k]  # (a strided view: column k)
+        x[k] = 1.0
+        for j in range(k + 1, n):  # forward: L y = e_k (zero above k)
+            x[j] = -low[j - 1] * x[j - 1]
+        for j in range(k, n):
             x[j] /= piv[j]
         for j in range(n - 2, -1, -1):  # back: Lᵀ x = y / piv
             x[j] -= low[j] * x[j + 1]
-        for j in range(n):
-            d_inv[j, k] = x[j]
-    u = np.zeros(n)
     g = np.empty((n, 2))
-    y = np.zeros((n, 2))
+    rhs3 = np.empty((n, 3))  # columns: beta, g_x, g_y
     for j in range(n):
         g[j, 0] = w_centroid * (centroids[j + 1, 0] - origin[0])
         g[j, 1] = w_centroid * (centroids[j + 1, 1] - origin[1])
-    for i in range(n):
+        rhs3[j, 0], rhs3[j, 1], rhs3[j, 2] = beta[j], g[j, 0], g[j, 1]
+    for c in range(3):
+        for j in range(1, n):
+            rhs3[j, c] -= low[j - 1] * rhs3[j - 1, c]
         for j in range(n):
-            u[i] += d_inv[i, j] * beta[j]
-            y[i, 0] += d_inv[i, j] * g[j, 0]
-            y[i, 1] += d_inv[i, j] * g[j, 1]
+            rhs3[j, c] /= piv[j]
+        for j in range(n - 2, -1, -1):
+            rhs3[j, c] -= low[j] * rhs3[j + 1, c]
+    u = rhs3[:, 0].copy()
+    y = rhs3[:, 1:]
     beta_u = 0.0
     beta_y0 = 0.0
     beta_y1 = 0.0
@@ -439,3 +443,73 @@ def window_intervals(t_start, t_end, t_now, t_horizon, min_interval_s, max_inter
             owner[n_int] = i
             n_int += 1
     return 0, -1, used, ends[:n_int], owner[:n_int]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def plan_from_waypoints(omega, a, b, grow, wps, com, vel, origin):  # noqa: ANN001, ANN201
+    """The plan of the QP's waypoints ``p_1..p_N`` (N, 2) in the frame at ``origin`` (where ``p_0 = 0``): CoP
+    waypoints (N+1, 2) and the CoM (position, velocity) at their times (:func:`lip_propagate`) in the world
+    frame, the final state ``[x_T, v_T]`` and the sum of the propagated CoM's numbers (finite iff they all are).
+    """
+    n1 = wps.shape[0] + 1
+    local = np.zeros((n1, 2))
+    local[1:] = wps
+    com_local = np.empty(2)
+    com_local[0], com_local[1] = com[0] - origin[0], com[1] - origin[1]
+    pos, out_vel = lip_propagate(omega, a, b, grow, local, com_local, vel)
+    total = 0.0
+    for j in range(n1):
+        total += pos[j, 0] + pos[j, 1]
+    for j in range(n1):
+        total += out_vel[j, 0] + out_vel[j, 1]
+    wps_world = np.empty((n1, 2))
+    pos_world = np.empty((n1, 2))
+    for j in range(n1):
+        for ax in range(2):
+            wps_world[j, ax] = local[j, ax] + origin[ax]
+            pos_world[j, ax] = pos[j, ax] + origin[ax]
+    final = np.empty(4)
+    final[0], final[1] = pos_world[n1 - 1, 0], pos_world[n1 - 1, 1]
+    final[2], final[3] = out_vel[n1 - 1, 0], out_vel[n1 - 1, 1]
+    return wps_world, pos_world, out_vel, final, total
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def plan_is_finite(times, wps, com, vel, final, height):  # noqa: ANN001, ANN201
+    """Whether every number of a plan is finite."""
+    ok = math.isfinite(height)
+    for v in times.ravel():
+        ok = ok and math.isfinite(v)
+    for arr in (wps, com, vel):
+        for v in arr.ravel():
+            ok = ok and math.isfinite(v)
+    for v in final.ravel():
+        ok = ok and math.isfinite(v)
+    return ok
+
+
+@njit(cache=True, nogil=True)
+def support_geometry(points, lens, n_v, edge_length, min_area):  # noqa: ANN001, ANN201
+    """:func:`geometry_padded` of finite points with its checks: ``status`` 0 (usable), 1 (a non-finite
+    vertex, or a polygon not convex: the caller takes the numpy path, which replaces it by its hull), 2 (a
+    polygon of area below ``min_area``). Returns ``(status, hull, normals, offsets, centroids, max_h)``,
+    ``max_h`` the most half-planes of one polygon."""
+    n_s = lens.shape[0]
+    for v in points.ravel():
+        if not np.isfinite(v):
+            return 1, np.empty((0, n_v, 2)), np.empty((0, n_v, 2)), np.empty((0, n_v)), np.empty((0, 2)), 0
+    hull, normals, offsets, centroids, area, bad = geometry_padded(points, lens, n_v, edge_length)
+    status = 0
+    for k in range(n_s):
+        if bad[k]:
+            return 1, hull, normals, offsets, centroids, 0
+        if not area[k] >= min_area:
+            status = 2
+    max_h = 0
+    for k in range(n_s):
+        count = 0
+        for j in range(n_v):
+            if offsets[k, j] < np.inf:
+                count += 1
+        max_h = max(max_h, count)
+    return status, hull, normals, offsets, centroids, max_h
