@@ -325,52 +325,21 @@ def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability
         d_mat[j, j] = diag[j]
         if j + 1 < n:
             d_mat[j, j + 1] = d_mat[j + 1, j] = off[j]
-    # D = L diag(piv) Lᵀ (unit lower bidiagonal L): D⁻¹ by columns (D x = e_k), u = D⁻¹ β and y = D⁻¹ g
-    # by the same two sweeps.
-    piv = np.empty(n)
-    low = np.zeros(n)  # low[j] = L[j+1, j]
-    piv[0] = diag[0]
-    for j in range(n - 1):
-        low[j] = off[j] / piv[j]
-        piv[j + 1] = diag[j + 1] - low[j] * off[j]
-    d_inv = np.zeros((n, n))
-    for k in range(n):
-        x = d_inv[:, k]  # (a strided view: column k)
-        x[k] = 1.0
-        for j in range(k + 1, n):  # forward: L y = e_k (zero above k)
-            x[j] = -low[j - 1] * x[j - 1]
-        for j in range(k, n):
-            x[j] /= piv[j]
-        for j in range(n - 2, -1, -1):  # back: Lᵀ x = y / piv
-            x[j] -= low[j] * x[j + 1]
+    # The same LAPACK (getrf/getri: numba's inverse) and BLAS (gemv/gemm/dot) calls as the numpy code.
+    d_inv = np.linalg.inv(d_mat)
+    u = np.dot(d_inv, beta)
+    kappa = stability_weight / (1.0 + stability_weight * np.dot(beta, u))
     g = np.empty((n, 2))
-    rhs3 = np.empty((n, 3))  # columns: beta, g_x, g_y
     for j in range(n):
         g[j, 0] = w_centroid * (centroids[j + 1, 0] - origin[0])
         g[j, 1] = w_centroid * (centroids[j + 1, 1] - origin[1])
-        rhs3[j, 0], rhs3[j, 1], rhs3[j, 2] = beta[j], g[j, 0], g[j, 1]
-    for c in range(3):
-        for j in range(1, n):
-            rhs3[j, c] -= low[j - 1] * rhs3[j - 1, c]
-        for j in range(n):
-            rhs3[j, c] /= piv[j]
-        for j in range(n - 2, -1, -1):
-            rhs3[j, c] -= low[j] * rhs3[j + 1, c]
-    u = rhs3[:, 0].copy()
-    y = rhs3[:, 1:]
-    beta_u = 0.0
-    beta_y0 = 0.0
-    beta_y1 = 0.0
-    for j in range(n):
-        beta_u += beta[j] * u[j]
-        beta_y0 += beta[j] * y[j, 0]
-        beta_y1 += beta[j] * y[j, 1]
-    kappa = stability_weight / (1.0 + stability_weight * beta_u)
     decay_t = 1.0 / grow[n]
     r0 = np.empty(2)
     r0[0] = zeta0[0] - decay_t * (final_centroid[0] - origin[0])
     r0[1] = zeta0[1] - decay_t * (final_centroid[1] - origin[1])
-    c0, c1 = kappa * (r0[0] - beta_y0), kappa * (r0[1] - beta_y1)
+    y = np.dot(d_inv, g)
+    beta_y = np.dot(beta, y)
+    c0, c1 = kappa * (r0[0] - beta_y[0]), kappa * (r0[1] - beta_y[1])
     p_free = np.empty((n, 2))
     hess_inv = np.empty((n, n))
     for i in range(n):
@@ -379,10 +348,7 @@ def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability
         ku = kappa * u[i]
         for j in range(n):
             hess_inv[i, j] = d_inv[i, j] - ku * u[j]
-    m = offsets.shape[0]
-    rhs = np.empty(m)
-    for i in range(m):
-        rhs[i] = offsets[i] - (normals[i, 0] * origin[0] + normals[i, 1] * origin[1])
+    rhs = offsets - np.dot(normals, origin) if offsets.shape[0] else offsets.copy()
     return d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs
 
 
