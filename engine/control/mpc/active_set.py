@@ -229,7 +229,7 @@ def _dual_active_set(
     time_tol, cos_min = warm_match
     if math.isinf(deadline) and len(warm_history) <= 2:
         (keys_a, nrm_a), (keys_b, nrm_b) = (list(warm_history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
-        return active_set_kernel.dual_active_set(  # type: ignore[no-any-return]
+        return active_set_kernel.dual_active_set(
             hess_inv, normals, row_var, s, row_key, keys_a, nrm_a, keys_b, nrm_b, len(warm_history), time_tol,
             cos_min, tol, max_iter, 4)
     h_rows = hess_inv[row_var]
@@ -241,7 +241,7 @@ def _dual_active_set(
         key_prev, n_prev = entry
         if len(key_prev) == 0:
             return []
-        return match_rows(row_key, normals, key_prev, n_prev, time_tol, cos_min).tolist()  # type: ignore[no-any-return]
+        return match_rows(row_key, normals, key_prev, n_prev, time_tol, cos_min).tolist()
 
     warm = (matched(entry) for entry in warm_history)  # matched lazily
     active, lam, iterations, outcome = _dual_active_set_numpy(cols, s, warm, row_var, tol, max_iter, deadline)

@@ -179,10 +179,12 @@ def _support_geometry_xy(
     centroids (S, 2))`` (the same numbers) and the most half-planes of one polygon; convex polygons of 3 to
     16 finite vertices go straight to the compiled kernel (what the controller passes), others through
     :func:`_support_geometry`."""
+    points: FloatArray | None = None
     try:
         lens = [len(p) for p in polygons]  # type: ignore[arg-type]
         n_v = max(lens, default=0)
-        points = np.concatenate(polygons) if 3 <= min(lens, default=0) and n_v <= 16 else None  # type: ignore[call-overload]
+        if 3 <= min(lens, default=0) and n_v <= 16:
+            points = np.concatenate(polygons)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         lens, n_v, points = [], 0, None
     if points is not None and points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
