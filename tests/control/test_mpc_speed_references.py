@@ -231,3 +231,25 @@ def test_walking_supports_solve_the_same_with_either_active_set() -> None:
         np.testing.assert_allclose(a.waypoints_xy_m, b.waypoints_xy_m, atol=1e-9)
         np.testing.assert_allclose(a.waypoint_com_xy_m, b.waypoint_com_xy_m, atol=1e-9)
     assert isinstance(supports[0], SupportInterval)
+
+
+def test_scalar_cop_at_equals_numpy_interp() -> None:
+    """ComMpcSolution.cop_at for one time (floats) against the array version (np.interp): at, between, before
+    and after the waypoints, with repeated values, huge values and infinities."""
+    from engine.control.mpc.types import ComMpcSolution
+
+    rng = np.random.default_rng(47)
+    for case in range(300):
+        n = int(rng.integers(2, 30))
+        times = float(rng.uniform(-3, 3)) + np.r_[0.0, np.cumsum(rng.uniform(1e-3, 0.3, n - 1))]
+        wps = rng.normal(0, 0.3, (n, 2))
+        if case % 5 == 0:
+            wps[rng.integers(n)] = wps[0]
+        if case % 7 == 0:
+            wps[rng.integers(n), rng.integers(2)] = [np.inf, -np.inf, 1e308][case % 3]
+        sol = ComMpcSolution(times, wps, wps.copy(), wps.copy(), 0.7, "solved", 0.0)
+        queries = np.r_[times, rng.uniform(times[0] - 0.5, times[-1] + 0.5, 30), np.nextafter(times, np.inf)]
+        for t in queries.tolist():
+            got, want = sol.cop_at(t), sol._cop_at_array(t)
+            assert got.shape == want.shape == (2,)
+            np.testing.assert_array_equal(got, want)
