@@ -177,7 +177,7 @@ class ComMpcSolution:
             lists = (self.waypoint_times_s.tolist(), self.waypoints_xy_m.tolist(),
                      self.waypoint_com_xy_m.tolist(), self.waypoint_com_vel_xy_mps.tolist())
             object.__setattr__(self, "_float_lists", lists)
-        return lists  # type: ignore[no-any-return]
+        return lists
 
     def _cop_at_scalar(self, t: float) -> FloatArray:
         """:meth:`cop_at` for one (non-NaN) time, on floats: numpy's ``interp`` arithmetic (its clamping outside
