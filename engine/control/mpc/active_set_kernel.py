@@ -112,7 +112,7 @@ def dual_active_set(hess_inv, normals, row_var, s, row_key, keys_a, normals_a, k
     for i in range(m):
         n_var = max(n_var, row_var[i] + 1)
     gw = np.empty((m, m + 1))
-    chol = np.zeros((m + 1, m + 1))
+    chol = np.empty((m + 1, m + 1))  # only lower triangles written before being read
     lam = np.empty(m + 1)
     slack = np.empty(m)
     it = 0
