@@ -54,6 +54,36 @@ def load_problems(path: str | Path) -> list[tuple[tuple, dict]]:
     return problems
 
 
+def record_calls(robot_name: str = "g1", seconds: float = 4.0) -> list[tuple[tuple, dict]]:
+    """Every ``ComMpc.solve`` call of a closed-loop walk (the robot's neutral style, the sweep command; restarts
+    included), as :meth:`ComMpc.solve` received them (copies)."""
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.command_schedule import preset
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.sim import Simulation
+
+    robot = load_robot(robot_name)
+    style = load_style(styles_dir(robot_name) / "neutral.json")
+    schedule = preset("sweep", style.velocities)
+    ctrl = WalkingController(robot, style)
+    sim = Simulation(robot, ctrl)
+    calls: list[tuple[tuple, dict]] = []
+    solve = ctrl.mpc.solve
+
+    def spy(t_s, com, vel, cop, z, supports):  # noqa: ANN001, ANN202
+        calls.append(((float(t_s), np.array(com, float), np.array(vel, float), np.array(cop, float), float(z),
+                       [SupportInterval(s.t_start_s, s.t_end_s, np.array(s.polygon, float)) for s in supports]), {}))
+        return solve(t_s, com, vel, cop, z, supports)
+
+    ctrl.mpc.solve = spy  # type: ignore[method-assign]
+    dt = float(robot.mj_model.opt.timestep)
+    for k in range(int(round(seconds / dt))):
+        ctrl.set_command(schedule(k * dt))
+        sim.step()
+    return calls
+
+
 def _replay(mpc: ComMpc, problems: Sequence[tuple[tuple, dict]], skip: int = 0) -> dict[str, float]:
     """Solve ``problems`` in order with ``mpc``; statistics of the calls after the first ``skip``."""
     wall_us: list[float] = []

@@ -5,8 +5,9 @@ proxsuite, quadprog and OSQP (:mod:`engine.control.qp_backends`).
   G1 walk, recorded tick by tick; the hand-written solver runs in sequence, warm-started from
   the previous tick as in the controller.
 * ``mpc``: the condensed CoM MPC QPs (Eq. 14 after elimination) of a closed-loop-like walk
-  (:func:`engine.bench.mpc_problems.closed_loop_like_problems`), the hand-written dual active
-  set warm-started as in the controller.
+  (:func:`engine.bench.mpc_problems.closed_loop_like_problems`) and of a recorded closed-loop G1 walk
+  (:func:`engine.bench.mpc.record_calls`), the hand-written dual active set (compiled) warm-started as in
+  the controller.
 
 Times are thread CPU time per solve, each backend's own input conversion included; the
 standard form itself is built once per problem outside that time (``with_form_median_us`` adds it);
@@ -106,13 +107,22 @@ def bench_wbc_qps() -> list[dict]:
     return _table("wbc (G1 walk)", problems, ours, form_s)
 
 
-def bench_mpc_qps(n: int = 150) -> list[dict]:
+def bench_mpc_qps(n: int = 150, recorded_s: float = 4.0) -> list[dict]:
+    """Both MPC problem sets: the closed-loop-like walk (``n`` calls) and the calls of a recorded closed-loop
+    G1 walk (``recorded_s`` of the neutral sweep)."""
+    from engine.bench.mpc import record_calls
     from engine.bench.mpc_problems import closed_loop_like_problems
+
+    like = closed_loop_like_problems(n, seed=2, pull=0.0, state_noise=(0.0, 0.0))
+    return (_mpc_table("mpc (condensed, walk)", like)
+            + _mpc_table("mpc (condensed, recorded G1 walk)", record_calls("g1", recorded_s)))
+
+
+def _mpc_table(name: str, calls: list[tuple[tuple, dict]]) -> list[dict]:
     from engine.constants import GRAVITY_MPS2
     from engine.control.mpc import ComMpc
     from engine.control.mpc.lip import _Segments
 
-    calls = closed_loop_like_problems(n, seed=2, pull=0.0, state_noise=(0.0, 0.0))
     mpc = ComMpc(max_intervals=16)
     built, problems, form_s = [], [], []
     for args, _ in calls:
@@ -129,10 +139,10 @@ def bench_mpc_qps(n: int = 150) -> list[dict]:
 
     def ours(i: int) -> np.ndarray:  # in sequence, warm-started as in the controller
         pb, qp = built[i]
-        wps, _, _, _ = mpc._solve_active_set(pb, qp, time.perf_counter() + 1.0)
+        wps = mpc._solve_active_set(pb, qp, math.inf)[0]
         return np.asarray(wps).ravel()
 
-    return _table("mpc (condensed, walk)", problems, ours, form_s)
+    return _table(name, problems, ours, form_s)
 
 
 def bench_qp() -> list[dict]:

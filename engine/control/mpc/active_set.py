@@ -1,4 +1,7 @@
-"""Dense dual active-set QP solver (Goldfarb–Idnani) on the condensed MPC QP, warm-started."""
+"""Dense dual active-set QP solver (Goldfarb–Idnani) on the condensed MPC QP, warm-started.
+
+:func:`_dual_active_set` runs the compiled solver (:mod:`engine.control.mpc.active_set_kernel`), or the
+numpy one (:func:`_dual_active_set_numpy`, the reference) when the solve has a wall-time limit."""
 
 from __future__ import annotations
 
@@ -14,6 +17,9 @@ from scipy.linalg.lapack import dgetri as _dgetri
 from scipy.linalg.lapack import dpotrf as _dpotrf
 from scipy.linalg.lapack import dpotrs as _dpotrs
 from scipy.linalg.lapack import dtrtrs as _dtrtrs
+
+from engine.control.mpc import active_set_kernel
+from engine.control.mpc.kernels import match_rows
 
 
 FloatArray = NDArray[np.float64]
@@ -42,7 +48,7 @@ def _chol(mat: FloatArray) -> FloatArray | None:
     return c
 
 
-def _dual_active_set(
+def _dual_active_set_numpy(
     cols: Callable[[Sequence[int]], FloatArray],
     s: FloatArray,
     warm_sets: Iterable[Sequence[int]],
@@ -197,3 +203,46 @@ def _dual_active_set(
                 W.append(p)
                 lam = np.append(lam, lam_p)
                 return W, lam, it, _AS_CAPPED
+
+
+_NO_KEYS = np.zeros(0)
+_NO_NORMALS = np.zeros((0, 2))
+
+
+def _dual_active_set(
+    hess_inv: FloatArray,
+    normals: FloatArray,
+    row_var: NDArray[np.intp],
+    s: FloatArray,
+    row_key: FloatArray,
+    warm_history: Sequence[tuple[FloatArray, FloatArray]],
+    warm_match: tuple[float, float],
+    tol: float,
+    max_iter: int,
+    deadline: float,
+) -> tuple[NDArray[np.int64], FloatArray, int, int]:
+    """The dual active set on the condensed QP (rows ``normals[i] . p[row_var[i]] <= b_i``, ``H^-1`` the same
+    for both axes, ``s = b - A p_free``), warm-started from the rows of this problem matching each remembered
+    solution's active rows (``warm_history``, newest first, at most two: (row keys, normals (k, 2));
+    ``warm_match``: key tolerance, normal cosine). Compiled without a wall-time limit (``deadline`` inf), else
+    :func:`_dual_active_set_numpy`. Returns ``(W, lam, iterations, outcome)``."""
+    time_tol, cos_min = warm_match
+    if math.isinf(deadline) and len(warm_history) <= 2:
+        (keys_a, nrm_a), (keys_b, nrm_b) = (list(warm_history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
+        return active_set_kernel.dual_active_set(
+            hess_inv, normals, row_var, s, row_key, keys_a, nrm_a, keys_b, nrm_b, len(warm_history), time_tol,
+            cos_min, tol, max_iter, 4)
+    h_rows = hess_inv[row_var]
+
+    def cols(j: Sequence[int]) -> FloatArray:
+        return h_rows[:, row_var[j]] * (normals @ normals[j].T)
+
+    def matched(entry: tuple[FloatArray, FloatArray]) -> list[int]:
+        key_prev, n_prev = entry
+        if len(key_prev) == 0:
+            return []
+        return match_rows(row_key, normals, key_prev, n_prev, time_tol, cos_min).tolist()
+
+    warm = (matched(entry) for entry in warm_history)  # matched lazily
+    active, lam, iterations, outcome = _dual_active_set_numpy(cols, s, warm, row_var, tol, max_iter, deadline)
+    return np.asarray(active, dtype=np.int64), lam, iterations, outcome

@@ -16,10 +16,24 @@ from numpy.typing import ArrayLike, NDArray
 from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
 from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
-from engine.control.mpc.kernels import match_rows, problem_rows
+from engine.control.mpc.active_set_kernel import free_slacks, waypoints_from_multipliers
+from engine.control.mpc.kernels import (
+    condense,
+    match_rows,
+    plan_from_waypoints,
+    plan_is_finite,
+    problem_rows,
+    window_intervals,
+)
 from engine.control.mpc.lip import _Segments, propagate_lip
 from engine.control.mpc.problem import _Condensed, _Problem
-from engine.control.mpc.regions import _CONTAIN_TOL_M, _make_region, _Region, _support_geometry
+from engine.control.mpc.regions import (
+    _CONTAIN_TOL_M,
+    _make_region,
+    _Region,
+    _support_geometry_complex,
+    _support_geometry_xy,
+)
 from engine.control.mpc.types import (
     CONSTRAINT_TOL_M,
     FALLBACK_COM_HEIGHT_M,
@@ -142,7 +156,7 @@ class ComMpc:
         self._max_halfplanes = max(int(max_halfplanes), 3)
         self.setup_count = 0
         self._last_good: ComMpcSolution | None = None
-        self._warm_history: list[tuple[FloatArray, NDArray[np.complex128]]] = []
+        self._warm_history: list[tuple[FloatArray, FloatArray]] = []  # (row keys, normals (k, 2))
         self._setup()
 
     # ------------------------------------------------------------ public API
@@ -220,6 +234,7 @@ class ComMpc:
         qp = self._condense(problem, seg, origin, com + vel / seg.omega - origin)
         t_qp = time.perf_counter()
         deadline = t_qp + self.time_limit_s
+        violation = math.nan  # not known yet
         if self.solver == "osqp":
             wps, iterations, outcome, message = self._solve_osqp(problem, qp, deadline)
         elif self.solver != "active_set":  # a maintained backend on the standard form
@@ -227,13 +242,14 @@ class ComMpc:
             wps = result.x.reshape(-1, 2) if result.ok and result.x is not None else qp.p_free
             iterations, outcome, message = 0, (_AS_OPTIMAL if result.ok else _AS_INFEASIBLE), result.status
         else:
-            wps, iterations, outcome, message = self._solve_active_set(problem, qp, deadline)
+            wps, iterations, outcome, message, violation = self._solve_active_set(problem, qp, deadline)
         qp_time = time.perf_counter() - t_qp
         if outcome == _AS_CAPPED:  # best iterate: pull each waypoint into its region
             wps = _pull_into_regions(wps, qp, problem.centroids[1:] - origin)
-        violation = 0.0
-        if len(qp.rhs):
-            violation = max(float((qp.row_values(wps) - qp.rhs).max()), 0.0) if np.isfinite(wps).all() else math.inf
+        if math.isnan(violation):
+            violation = 0.0
+            if len(qp.rhs):
+                violation = max(float((qp.row_values(wps) - qp.rhs).max()), 0.0) if np.isfinite(wps).all() else math.inf
         if outcome == _AS_INFEASIBLE or not violation <= CONSTRAINT_TOL_M:
             self._warm_history = []
             return self._fallback(
@@ -243,10 +259,9 @@ class ComMpc:
                 t_start=t_start,
             )
 
-        n_wp = len(problem.times_s)
-        wps_local = np.zeros((n_wp, 2))
-        wps_local[1:] = wps  # wps_local[0] = 0: exactly the current CoP
-        pos, vel_wp = seg.propagate(wps_local, com - origin, vel)
+        # CoP waypoints (the first one exactly the current CoP) and the CoM propagated, in the world frame
+        wps_world, pos_world, vel_wp, final_state, total = plan_from_waypoints(
+            seg.omega, seg.a, seg.b, seg.grow, np.ascontiguousarray(wps, dtype=np.float64), com, vel, origin)
         if outcome == _AS_CAPPED:
             status = "solved_inaccurate"
         elif problem.empty_intersection:
@@ -257,8 +272,8 @@ class ComMpc:
             message += "; empty support intersection: end waypoint constrained to the closing interval's polygon"
         solution = ComMpcSolution(
             waypoint_times_s=problem.times_s,
-            waypoints_xy_m=wps_local + origin,
-            waypoint_com_xy_m=pos + origin,
+            waypoints_xy_m=wps_world,
+            waypoint_com_xy_m=pos_world,
             waypoint_com_vel_xy_mps=vel_wp,
             com_height_m=height,
             status=status,
@@ -267,9 +282,9 @@ class ComMpc:
             osqp_iterations=int(iterations),
             osqp_time_s=qp_time,
             region_centroids_xy_m=problem.centroids,
-            qp_final_state=np.concatenate([pos[-1] + origin, vel_wp[-1]]),
+            qp_final_state=final_state,
         )
-        if not math.isfinite(float(pos.sum() + vel_wp.sum())):
+        if not math.isfinite(total):
             return self._fallback(*args, reason="solver_failed", message="non-finite CoM", t_start=t_start)
         self._last_good = solution
         return solution
@@ -282,7 +297,6 @@ class ComMpc:
 
     def _build_problem(self, t_now: float, supports: Sequence[SupportInterval]) -> tuple[_Problem | None, str]:
         t_horizon = t_now + self.preview_s
-        min_int = self.min_interval_s
         try:
             t_start = np.array([s.t_start_s for s in supports], dtype=float)
             t_end = np.array([s.t_end_s for s in supports], dtype=float)
@@ -290,56 +304,23 @@ class ComMpc:
             return None, f"malformed supports: {exc!r}"
         if t_start.ndim != 1 or t_end.shape != t_start.shape:
             return None, "malformed supports: support times must be scalars"
-        invalid = ~(np.isfinite(t_start) & np.isfinite(t_end) & (t_end >= t_start))
-        # Supports in use: not elapsed, starting before the window ends (chronological order).
-        used: list[int] = []
-        prev_end = t_now
-        ends_list = t_end.tolist()
-        for k, t1 in enumerate(ends_list):
-            if invalid[k]:
-                return None, f"invalid support interval times ({t_start[k]}, {t1})"
-            if t1 <= prev_end + min_int:
-                continue  # elapsed (or nearly elapsed)
-            if prev_end >= t_horizon - min_int:
-                break
-            used.append(k)
-            prev_end = t1 if t1 < t_horizon else t_horizon
-        if not used:
+        # Supports in use (not elapsed, starting before the window ends; chronological order) and their
+        # intervals (long ones split into equal pieces anchored at their start), compiled.
+        status, bad_k, used, ends_arr, own = window_intervals(
+            t_start, t_end, t_now, t_horizon, self.min_interval_s, self.max_interval_s)
+        if status == 1:
+            return None, f"invalid support interval times ({t_start[bad_k]}, {float(t_end[bad_k])})"
+        if status == 2:
             return None, "no support interval covers the preview window"
         try:
-            polygons = [supports[k].polygon for k in used]
+            polygons = [supports[k].polygon for k in used.tolist()]
         except (TypeError, AttributeError, IndexError) as exc:
             return None, f"malformed supports: {exc!r}"
-        geom = _support_geometry(polygons)
-        if geom is None:
+        geom_xy = _support_geometry_xy(polygons)
+        if geom_xy is None:
             return None, "empty or degenerate support polygon"
-
-        # Intervals: the supports, long ones split into equal pieces anchored at their start.
-        t0_used, t1_used = t_start[used], t_end[used]
-        n_pieces = np.maximum(np.ceil((t1_used - t0_used) / self.max_interval_s - 1e-9), 1.0)
-        if (n_pieces == 1.0).all():
-            ends_arr = np.minimum(t1_used, t_horizon)
-            own = np.arange(len(used))
-        else:
-            ends: list[float] = []
-            owner: list[int] = []
-            prev_end = t_now
-            for k, (t0, t1, n_k) in enumerate(zip(t0_used.tolist(), t1_used.tolist(), n_pieces.astype(int).tolist())):
-                piece_s = (t1 - t0) / n_k
-                first = max(0, int((prev_end + min_int - t0) // piece_s)) if n_k > 1 else 0
-                for j in range(first, n_k):
-                    end = t1 if j == n_k - 1 else t0 + (j + 1) * piece_s
-                    if end <= prev_end + min_int:
-                        continue
-                    if prev_end >= t_horizon - min_int:
-                        break
-                    prev_end = min(end, t_horizon)
-                    ends.append(prev_end)
-                    owner.append(k)
-            ends_arr = np.array(ends)
-            own = np.array(owner)
+        hull_xy, normals_xy, offsets, centroids_xy, max_h = geom_xy
         n_int = len(own)
-        max_h = int((geom.offsets < np.inf).sum(axis=1).max())
         if n_int > self._max_intervals or max_h > self._max_halfplanes:
             # Grow with some headroom so that the window's usual fluctuation does not re-grow it.
             self._max_intervals = max(self._max_intervals, n_int + 2)
@@ -347,15 +328,13 @@ class ComMpc:
             self._setup()
 
         # End waypoints: C_k ∩ C_k+1 (consecutive supports nest in walking: the inner polygon), compiled.
-        centroids_xy = geom.centroids.view(np.float64).reshape(-1, 2)
-        n_sup, n_v = len(used), geom.offsets.shape[1]
-        overlap, normals, offsets, row_wp, row_key, times, centroids = problem_rows(
-            own.astype(np.int64, copy=False), n_sup, geom.hull.view(np.float64).reshape(n_sup, n_v, 2),
-            geom.normals.view(np.float64).reshape(n_sup, n_v, 2), geom.offsets, centroids_xy, ends_arr, t_now,
-            _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S)
+        n_sup = len(used)
+        overlap, normals, row_offsets, row_wp, row_key, times, centroids = problem_rows(
+            own, n_sup, hull_xy, normals_xy, offsets, centroids_xy, ends_arr, t_now, _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S)
         if overlap:  # an end waypoint needs the general intersection of two supports (rare): clip them
+            geom = _support_geometry_complex(hull_xy, normals_xy, offsets, centroids_xy)
             return _problem_numpy(geom, own, n_sup, ends_arr, t_now), ""
-        problem = _Problem(times, ends_arr, normals, normals.view(np.complex128)[:, 0], row_key, offsets, row_wp,
+        problem = _Problem(times, ends_arr, normals, normals.view(np.complex128)[:, 0], row_key, row_offsets, row_wp,
                            centroids, centroids_xy[own[-1]].copy(), False)
         return problem, ""
 
@@ -375,7 +354,19 @@ class ComMpc:
         return min(w.final_capture_point * math.exp(min(2.0 * omega * horizon_s, 700.0)), MAX_STABILITY_WEIGHT)
 
     def _condense(self, pb: _Problem, seg: _Segments, origin: FloatArray, zeta0: FloatArray) -> _Condensed:
-        """Eliminate the final state: cost and rows in the waypoints ``p_1..p_N`` (frame at ``origin``)."""
+        """Eliminate the final state: cost and rows in the waypoints ``p_1..p_N`` (frame at ``origin``); compiled
+        (:func:`engine.control.mpc.kernels.condense`), :meth:`_condense_numpy` is the reference."""
+        w = self.weights
+        ws = self._stability_weight(seg.omega, float(pb.times_s[-1] - pb.times_s[0]))
+        d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs = condense(
+            seg.a, seg.b, seg.grow, seg.h, float(w.cop_centroid), float(w.cop_velocity), self.min_velocity_dt_s, ws,
+            pb.centroids, pb.final_centroid, origin, zeta0, pb.normals, pb.offsets)
+        return _Condensed(
+            origin, d_mat, d_inv, g, ws, beta, u, kappa, r0, p_free, hess_inv, pb.normals, rhs, pb.row_wp - 1
+        )
+
+    def _condense_numpy(self, pb: _Problem, seg: _Segments, origin: FloatArray, zeta0: FloatArray) -> _Condensed:
+        """The reference of :meth:`_condense` (numpy, LAPACK's inverse of ``D``)."""
         w = self.weights
         n = len(pb.times_s) - 1
         decay = 1.0 / seg.grow  # exp(-omega tau_n)
@@ -404,33 +395,28 @@ class ComMpc:
 
     def _solve_active_set(
         self, pb: _Problem, qp: _Condensed, deadline: float
-    ) -> tuple[FloatArray, int, int, str]:
-        s = qp.rhs - qp.row_values(qp.p_free)
+    ) -> tuple[FloatArray, int, int, str, float]:
+        """Waypoints, iterations, outcome, message and the largest row violation of the waypoints."""
+        s = free_slacks(qp.p_free, qp.normals, qp.row_var, qp.rhs)
         if len(s) == 0 or s.min() >= -_AS_TOL_M:
-            self._store_warm(pb, [])
-            return qp.p_free, 0, _AS_OPTIMAL, "active set: unconstrained optimum"
-        warm = (self._match_warm(pb, entry) for entry in self._warm_history)  # matched lazily
+            self._store_warm(pb, np.zeros(0, dtype=np.intp))
+            return qp.p_free, 0, _AS_OPTIMAL, "active set: unconstrained optimum", max(-float(s.min(initial=0.0)), 0.0)
         active, lam, iterations, outcome = _dual_active_set(
-            qp.dual_columns(), s, warm, qp.row_var, _AS_TOL_M, self.max_iter, deadline
-        )
+            qp.hess_inv, qp.normals, qp.row_var, s, pb.row_key, self._warm_history,
+            (_WARM_TIME_TOL_S, _WARM_NORMAL_COS), _AS_TOL_M, self.max_iter, deadline)
         if outcome == _AS_INFEASIBLE:
-            return qp.p_free, iterations, outcome, "active set: infeasible"
-        g = np.zeros_like(qp.p_free)
-        if active:
-            rows = np.asarray(active)
-            rv, n = qp.row_var[rows], len(g)
-            g[:, 0] = np.bincount(rv, qp.normals[rows, 0] * lam, n)
-            g[:, 1] = np.bincount(rv, qp.normals[rows, 1] * lam, n)
-        wps = qp.p_free - qp.h_inv(g)
+            return qp.p_free, iterations, outcome, "active set: infeasible", math.nan
+        rows = np.asarray(active, dtype=np.int64)
+        wps, violation = waypoints_from_multipliers(qp.p_free, qp.hess_inv, qp.normals, qp.row_var, qp.rhs, rows,
+                                                    np.asarray(lam, dtype=np.float64))
         if outcome == _AS_OPTIMAL:
-            self._store_warm(pb, active)
-            return wps, iterations, outcome, f"active set: optimal, {len(active)} active rows"
-        return wps, iterations, outcome, "active set: iteration cap or time limit reached"
+            self._store_warm(pb, rows)
+            return wps, iterations, outcome, f"active set: optimal, {len(rows)} active rows", violation
+        return wps, iterations, outcome, "active set: iteration cap or time limit reached", math.nan
 
-    def _store_warm(self, pb: _Problem, active: list[int]) -> None:
+    def _store_warm(self, pb: _Problem, rows: NDArray[np.intp]) -> None:
         """Remember the active rows by waypoint time and kind (encoded together) and normal."""
-        rows = np.asarray(active, dtype=np.intp)
-        entry = (pb.row_key[rows], pb.normals_c[rows])
+        entry = (pb.row_key[rows], pb.normals[rows])
         self._warm_history = [entry] + self._warm_history[: _WARM_HISTORY - 1]
 
     def _match_warm(self, pb: _Problem, entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
@@ -750,6 +736,10 @@ def _sanitize_state(
     """Finite versions of the inputs and whether the originals were all valid."""
 
     def vec2(v: ArrayLike) -> tuple[FloatArray, bool]:
+        if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (2,):  # the usual case, fast
+            x, y = v.tolist()
+            if math.isfinite(x) and math.isfinite(y):
+                return v.copy(), True
         try:
             arr = np.asarray(v, dtype=float).reshape(2)
         except (TypeError, ValueError):
@@ -801,17 +791,11 @@ def _hold_solution(
 
 
 def _is_finite(sol: ComMpcSolution) -> bool:
-    # A sum is finite iff all its terms are (barring overflow, which also means "not usable").
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = (
-            sol.waypoint_times_s.sum()
-            + sol.waypoints_xy_m.sum()
-            + sol.waypoint_com_xy_m.sum()
-            + sol.waypoint_com_vel_xy_mps.sum()
-            + sol.qp_final_state.sum()
-            + sol.com_height_m
-        )
-    return math.isfinite(float(total))
+    """Whether all the plan's numbers are finite (compiled: :func:`engine.control.mpc.kernels.plan_is_finite`)."""
+    c = np.ascontiguousarray
+    return bool(plan_is_finite(c(sol.waypoint_times_s, np.float64), c(sol.waypoints_xy_m, np.float64),
+                               c(sol.waypoint_com_xy_m, np.float64), c(sol.waypoint_com_vel_xy_mps, np.float64),
+                               c(sol.qp_final_state, np.float64), float(sol.com_height_m)))
 
 
 def _replace_status(sol: ComMpcSolution, status: str, message: str, solve_time_s: float) -> ComMpcSolution:

@@ -294,3 +294,188 @@ def match_rows(row_key, normals, key_prev, normals_prev, time_tol, cos_min):  # 
                 count += 1
                 break
     return out[:count]
+
+
+@njit(cache=True, nogil=True)
+def condense(a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability_weight, centroids, final_centroid,
+             origin, zeta0, normals, offsets):  # noqa: ANN001, ANN201, PLR0913
+    """``ComMpc._condense``'s numbers (:meth:`ComMpc._condense_numpy` is the reference; equal to rounding: ``D``'s
+    inverse and the solves with ``D`` here by its tridiagonal LDLᵀ factors, there by LAPACK's LU and products). Segment coefficients ``a, b, grow, h``
+    of :class:`engine.control.mpc.lip._Segments`, centroid targets (N+1, 2), the frame ``origin`` and the DCM
+    ``zeta0`` in it, the polygon rows. Returns ``(d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs)``."""
+    n = h.shape[0]
+    beta = np.empty(n)
+    for j in range(n):  # exp(-omega tau_j) b_j (p_j+1 term) + exp(-omega tau_j+1) a_j+1 (p_j+1's next segment)
+        beta[j] = (1.0 / grow[j]) * b[j]
+        if j + 1 < n:
+            beta[j] += (1.0 / grow[j + 1]) * a[j + 1]
+    wv = np.empty(n)
+    for j in range(n):
+        dt = max(h[j], min_velocity_dt_s)
+        wv[j] = w_velocity / (dt * dt)
+    diag = np.empty(n)
+    off = np.zeros(n)  # off[j] = D[j, j+1] (last unused)
+    for j in range(n):
+        diag[j] = (w_centroid + 1e-9) + wv[j]
+        if j + 1 < n:
+            diag[j] += wv[j + 1]
+            off[j] = -wv[j + 1]
+    d_mat = np.zeros((n, n))
+    for j in range(n):
+        d_mat[j, j] = diag[j]
+        if j + 1 < n:
+            d_mat[j, j + 1] = d_mat[j + 1, j] = off[j]
+    # The same LAPACK (getrf/getri: numba's inverse) and BLAS (gemv/gemm/dot) calls as the numpy code.
+    d_inv = np.linalg.inv(d_mat)
+    u = np.dot(d_inv, beta)
+    kappa = stability_weight / (1.0 + stability_weight * np.dot(beta, u))
+    g = np.empty((n, 2))
+    for j in range(n):
+        g[j, 0] = w_centroid * (centroids[j + 1, 0] - origin[0])
+        g[j, 1] = w_centroid * (centroids[j + 1, 1] - origin[1])
+    decay_t = 1.0 / grow[n]
+    r0 = np.empty(2)
+    r0[0] = zeta0[0] - decay_t * (final_centroid[0] - origin[0])
+    r0[1] = zeta0[1] - decay_t * (final_centroid[1] - origin[1])
+    y = np.dot(d_inv, g)
+    beta_y = np.dot(beta, y)
+    c0, c1 = kappa * (r0[0] - beta_y[0]), kappa * (r0[1] - beta_y[1])
+    p_free = np.empty((n, 2))
+    hess_inv = np.empty((n, n))
+    for i in range(n):
+        p_free[i, 0] = y[i, 0] + u[i] * c0
+        p_free[i, 1] = y[i, 1] + u[i] * c1
+        ku = kappa * u[i]
+        for j in range(n):
+            hess_inv[i, j] = d_inv[i, j] - ku * u[j]
+    rhs = offsets - np.dot(normals, origin) if offsets.shape[0] else offsets.copy()
+    return d_mat, d_inv, g, beta, u, kappa, r0, p_free, hess_inv, rhs
+
+
+@njit(cache=True, nogil=True)
+def window_intervals(t_start, t_end, t_now, t_horizon, min_interval_s, max_interval_s):  # noqa: ANN001, ANN201
+    """``ComMpc._build_problem``'s intervals (the same numbers as its former numpy code, kept in
+    ``tests/control/test_stack_speed_references.py``): the supports in use (not elapsed, starting before the
+    window ends, chronological order) and their pieces (supports longer than ``max_interval_s`` split into
+    equal pieces anchored at their start), ends truncated to the window.
+
+    Returns ``(status, index, used (K,), ends (n,), owner (n,))``: status 0, or 1 when support ``index`` has
+    invalid times (non-finite or ending before it starts), 2 when no support covers the window."""
+    n = t_start.shape[0]
+    used = np.empty(n, dtype=np.int64)
+    n_used = 0
+    prev_end = t_now
+    for k in range(n):
+        t0, t1 = t_start[k], t_end[k]
+        if not (np.isfinite(t0) and np.isfinite(t1) and t1 >= t0):
+            return 1, k, used[:0], np.empty(0), used[:0]
+        if t1 <= prev_end + min_interval_s:
+            continue  # elapsed (or nearly elapsed)
+        if prev_end >= t_horizon - min_interval_s:
+            break
+        used[n_used] = k
+        n_used += 1
+        prev_end = t1 if t1 < t_horizon else t_horizon
+    used = used[:n_used]
+    if n_used == 0:
+        return 2, -1, used, np.empty(0), used
+    n_pieces = np.empty(n_used, dtype=np.int64)
+    total = 0
+    for i in range(n_used):
+        k = used[i]
+        n_pieces[i] = int(max(np.ceil((t_end[k] - t_start[k]) / max_interval_s - 1e-9), 1.0))
+        total += n_pieces[i]
+    if total == n_used:
+        ends = np.empty(n_used)
+        for i in range(n_used):
+            ends[i] = min(t_end[used[i]], t_horizon)
+        return 0, -1, used, ends, np.arange(n_used)
+    ends = np.empty(total)
+    owner = np.empty(total, dtype=np.int64)
+    n_int = 0
+    prev_end = t_now
+    for i in range(n_used):
+        t0, t1, n_k = t_start[used[i]], t_end[used[i]], n_pieces[i]
+        piece_s = (t1 - t0) / n_k
+        first = max(0, int((prev_end + min_interval_s - t0) // piece_s)) if n_k > 1 else 0
+        for j in range(first, n_k):
+            end = t1 if j == n_k - 1 else t0 + (j + 1) * piece_s
+            if end <= prev_end + min_interval_s:
+                continue
+            if prev_end >= t_horizon - min_interval_s:
+                break
+            prev_end = min(end, t_horizon)
+            ends[n_int] = prev_end
+            owner[n_int] = i
+            n_int += 1
+    return 0, -1, used, ends[:n_int], owner[:n_int]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def plan_from_waypoints(omega, a, b, grow, wps, com, vel, origin):  # noqa: ANN001, ANN201
+    """The plan of the QP's waypoints ``p_1..p_N`` (N, 2) in the frame at ``origin`` (where ``p_0 = 0``): CoP
+    waypoints (N+1, 2) and the CoM (position, velocity) at their times (:func:`lip_propagate`) in the world
+    frame, the final state ``[x_T, v_T]`` and the sum of the propagated CoM's numbers (finite iff they all are).
+    """
+    n1 = wps.shape[0] + 1
+    local = np.zeros((n1, 2))
+    local[1:] = wps
+    com_local = np.empty(2)
+    com_local[0], com_local[1] = com[0] - origin[0], com[1] - origin[1]
+    pos, out_vel = lip_propagate(omega, a, b, grow, local, com_local, vel)
+    total = 0.0
+    for j in range(n1):
+        total += pos[j, 0] + pos[j, 1]
+    for j in range(n1):
+        total += out_vel[j, 0] + out_vel[j, 1]
+    wps_world = np.empty((n1, 2))
+    pos_world = np.empty((n1, 2))
+    for j in range(n1):
+        for ax in range(2):
+            wps_world[j, ax] = local[j, ax] + origin[ax]
+            pos_world[j, ax] = pos[j, ax] + origin[ax]
+    final = np.empty(4)
+    final[0], final[1] = pos_world[n1 - 1, 0], pos_world[n1 - 1, 1]
+    final[2], final[3] = out_vel[n1 - 1, 0], out_vel[n1 - 1, 1]
+    return wps_world, pos_world, out_vel, final, total
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def plan_is_finite(times, wps, com, vel, final, height):  # noqa: ANN001, ANN201
+    """Whether every number of a plan is finite."""
+    ok = math.isfinite(height)
+    for v in times.ravel():
+        ok = ok and math.isfinite(v)
+    for arr in (wps, com, vel):
+        for v in arr.ravel():
+            ok = ok and math.isfinite(v)
+    for v in final.ravel():
+        ok = ok and math.isfinite(v)
+    return ok
+
+
+@njit(cache=True, nogil=True)
+def support_geometry(points, lens, n_v, edge_length, min_area):  # noqa: ANN001, ANN201
+    """:func:`geometry_padded` of finite points with its checks: ``status`` 0 (usable), 1 (a non-finite
+    vertex, or a polygon not convex: the caller takes the numpy path, which replaces it by its hull), 2 (a
+    polygon of area below ``min_area``). Returns ``(status, hull, normals, offsets, centroids, max_h)``,
+    ``max_h`` the most half-planes of one polygon."""
+    n_s = lens.shape[0]
+    for v in points.ravel():
+        if not np.isfinite(v):
+            return 1, np.empty((0, n_v, 2)), np.empty((0, n_v, 2)), np.empty((0, n_v)), np.empty((0, 2)), 0
+    hull, normals, offsets, centroids, area, bad = geometry_padded(points, lens, n_v, edge_length)
+    status = 0
+    for k in range(n_s):
+        if bad[k]:
+            return 1, hull, normals, offsets, centroids, 0
+        if not area[k] >= min_area:
+            status = 2
+    max_h = 0
+    for k in range(n_s):
+        count = 0
+        for j in range(n_v):
+            if offsets[k, j] < np.inf:
+                count += 1
+        max_h = max(max_h, count)
+    return status, hull, normals, offsets, centroids, max_h

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.control.mpc.kernels import geometry_padded
+from engine.control.mpc.kernels import geometry_padded, support_geometry
 from engine.control.mpc.types import MIN_POLYGON_AREA_M2
 from engine.geometry.polygon import convex_hull, polygon_area, polygon_centroid, polygon_halfplanes
 
@@ -170,3 +170,45 @@ def _geometry_padded_numpy(arrays: list[FloatArray]) -> tuple:
     offsets = np.where(use, (normals.conj() * z).real, np.inf)
     centroids = z0[:, 0] + ((w + wn) * cross).sum(axis=1) / (3.0 * np.where(area2 == 0.0, 1.0, area2))
     return z, normals, offsets, centroids, 0.5 * np.abs(area2), bad
+
+
+def _support_geometry_xy(
+    polygons: Sequence[object],
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, int] | None:
+    """:func:`_support_geometry` as float arrays ``(hull (S, V, 2), normals (S, V, 2), offsets (S, V),
+    centroids (S, 2))`` (the same numbers) and the most half-planes of one polygon; convex polygons of 3 to
+    16 finite vertices go straight to the compiled kernel (what the controller passes), others through
+    :func:`_support_geometry`."""
+    points: FloatArray | None = None
+    try:
+        lens = [len(p) for p in polygons]  # type: ignore[arg-type]
+        n_v = max(lens, default=0)
+        if 3 <= min(lens, default=0) and n_v <= 16:
+            points = np.concatenate(polygons)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        lens, n_v, points = [], 0, None
+    if points is not None and points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
+        idx, idx_next, _, _ = _pad_layout(tuple(lens))
+        zf = points.view(np.complex128)[:, 0]
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite vertices: the kernel says so
+            edge_length = np.abs(zf[idx_next] - zf[idx])
+        status, hull, normals, offsets, centroids, max_h = support_geometry(
+            points, np.array(lens, dtype=np.int64), n_v, edge_length, MIN_POLYGON_AREA_M2)
+        if status == 0:
+            return hull, normals, offsets, centroids, int(max_h)
+        if status == 2:
+            return None
+    geom = _support_geometry(polygons)
+    if geom is None:
+        return None
+    n_s, n_v = geom.offsets.shape
+    max_h = int((geom.offsets < np.inf).sum(axis=1).max())
+    return (geom.hull.view(np.float64).reshape(n_s, n_v, 2), geom.normals.view(np.float64).reshape(n_s, n_v, 2),
+            geom.offsets, geom.centroids.view(np.float64).reshape(n_s, 2), max_h)
+
+
+def _support_geometry_complex(hull: FloatArray, normals: FloatArray, offsets: FloatArray,
+                              centroids: FloatArray) -> _SupportGeometry:
+    """:class:`_SupportGeometry` (complex points) of :func:`_support_geometry_xy`'s float arrays."""
+    return _SupportGeometry(hull.view(np.complex128)[..., 0], normals.view(np.complex128)[..., 0], offsets,
+                            centroids.view(np.complex128)[:, 0])

@@ -127,6 +127,12 @@ class ComMpcSolution:
 
     def cop_at(self, t_s: ArrayLike) -> FloatArray:
         """CoP [m] at time(s) ``t_s``: shape (2,) for a scalar, (T, 2) for an array."""
+        if isinstance(t_s, float) and t_s == t_s and len(self.waypoint_times_s) > 1:
+            return self._cop_at_scalar(t_s)
+        return self._cop_at_array(t_s)
+
+    def _cop_at_array(self, t_s: ArrayLike) -> FloatArray:
+        """:meth:`cop_at` with numpy's ``interp``."""
         t = np.asarray(t_s, dtype=float)
         tt = np.atleast_1d(t)
         times, wps = self.waypoint_times_s, self.waypoints_xy_m
@@ -164,14 +170,42 @@ class ComMpcSolution:
             return pos[0], vel[0], acc[0]
         return pos, vel, acc
 
-    def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""
+    def _lists(self) -> tuple[list, list, list, list]:
+        """The arrays as Python floats, once per solution (the same numbers)."""
         lists = self.__dict__.get("_float_lists")
-        if lists is None:  # the arrays as Python floats, once per solution (the same numbers)
+        if lists is None:
             lists = (self.waypoint_times_s.tolist(), self.waypoints_xy_m.tolist(),
                      self.waypoint_com_xy_m.tolist(), self.waypoint_com_vel_xy_mps.tolist())
             object.__setattr__(self, "_float_lists", lists)
-        times, wps, coms, vels = lists
+        return lists
+
+    def _cop_at_scalar(self, t: float) -> FloatArray:
+        """:meth:`cop_at` for one (non-NaN) time, on floats: numpy's ``interp`` arithmetic (its clamping outside
+        the waypoints, exact waypoint values at their times, its NaN fallbacks), the same numbers."""
+        times, wps, _, _ = self._lists()
+        n = len(times)
+        if t > times[-1]:
+            return np.array(wps[-1])
+        if t < times[0]:
+            return np.array(wps[0])
+        j = bisect.bisect_right(times, t) - 1
+        if j >= n - 1 or times[j] == t:
+            return np.array(wps[j])
+        h = times[j + 1] - times[j]
+        out = []
+        for a, b in zip(wps[j], wps[j + 1]):
+            slope = (b - a) / h
+            value = slope * (t - times[j]) + a
+            if value != value:  # NaN: try from the other end
+                value = slope * (t - times[j + 1]) + b
+                if value != value and a == b:
+                    value = a
+            out.append(value)
+        return np.array(out)
+
+    def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""
+        times, wps, coms, vels = self._lists()
         n_seg = len(times) - 1
         t_first, t_last = times[0], times[-1]
         j = min(max(bisect.bisect_right(times, t) - 1, 0), n_seg - 1)

@@ -1,0 +1,337 @@
+"""The dual active-set QP solver of :mod:`engine.control.mpc.active_set`, compiled (numba).
+
+:func:`dual_active_set` takes the same steps as :func:`engine.control.mpc.active_set._dual_active_set_numpy`
+(warm candidates, block steps, dual-feasible start, Goldfarb–Idnani), on the condensed MPC QP's data
+(``H^-1``, the polygon rows) instead of a column callback, and matches the warm-start rows itself
+(:func:`engine.control.mpc.kernels.match_rows`). Its Cholesky factors and triangular solves are loops
+here and LAPACK's there: the multipliers are equal to rounding, the active sets the same
+(``tests/control/test_stack_speed_references.py``). It has no wall-time limit (a solve with one runs the
+numpy code).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from engine.control.mpc.kernels import match_rows
+
+#: Active-set outcomes (as in :mod:`engine.control.mpc.active_set`).
+AS_OPTIMAL, AS_CAPPED, AS_INFEASIBLE = 0, 1, 2
+
+
+@njit(cache=True, nogil=True)
+def _g_column(hess_inv, normals, row_var, j, out):  # noqa: ANN001, ANN202
+    """Column ``j`` of the dual Hessian ``G_ij = (n_i . n_j) H^-1[v_i, v_j]`` into ``out`` (m,)."""
+    vj = row_var[j]
+    nx, ny = normals[j, 0], normals[j, 1]
+    for i in range(row_var.shape[0]):
+        out[i] = hess_inv[row_var[i], vj] * (normals[i, 0] * nx + normals[i, 1] * ny)
+
+
+@njit(cache=True, nogil=True)
+def _cholesky(gw, rows, k, out):  # noqa: ANN001, ANN202
+    """Lower Cholesky factor of ``gw[rows[:k], :k]`` (its lower triangle) into ``out[:k, :k]``; False
+    unless it is safely positive definite (``active_set._chol``'s test)."""
+    d_max = -np.inf
+    for i in range(k):
+        d_max = max(d_max, gw[rows[i], i])
+    d_min = np.inf
+    for j in range(k):
+        d = gw[rows[j], j]
+        for p in range(j):
+            d -= out[j, p] * out[j, p]
+        if not d > 0.0:
+            return False
+        ljj = math.sqrt(d)
+        out[j, j] = ljj
+        d_min = min(d_min, ljj)
+        for i in range(j + 1, k):
+            v = gw[rows[i], j]
+            for p in range(j):
+                v -= out[i, p] * out[j, p]
+            out[i, j] = v / ljj
+    return not (k > 0 and d_min * d_min <= 1e-13 * d_max)
+
+
+@njit(cache=True, nogil=True)
+def _chol_solve(chol, k, rhs, out):  # noqa: ANN001, ANN202
+    """``out[:k] = (L Lᵀ)^-1 rhs[:k]``."""
+    for i in range(k):
+        v = rhs[i]
+        for p in range(i):
+            v -= chol[i, p] * out[p]
+        out[i] = v / chol[i, i]
+    for i in range(k - 1, -1, -1):
+        v = out[i]
+        for p in range(i + 1, k):
+            v -= chol[p, i] * out[p]
+        out[i] = v / chol[i, i]
+
+
+@njit(cache=True, nogil=True)
+def _evaluate(hess_inv, normals, row_var, s, rows, tol, gw, chol, lam, slack):  # noqa: ANN001, ANN202, PLR0913
+    """Solve the rows ``rows`` as equalities: their columns into ``gw``, the factor into ``chol``, multipliers
+    into ``lam``, the slacks into ``slack``. Returns ``(ok, score)``: score = violated rows + non-positive
+    multipliers (0: optimal)."""
+    k = rows.shape[0]
+    m = s.shape[0]
+    for c in range(k):
+        _g_column(hess_inv, normals, row_var, rows[c], gw[:, c])
+    if not _cholesky(gw, rows, k, chol):
+        return False, 0
+    rhs = np.empty(k)
+    for c in range(k):
+        rhs[c] = -s[rows[c]]
+    _chol_solve(chol, k, rhs, lam)
+    score = 0
+    for c in range(k):
+        if not lam[c] > 0.0:
+            score += 1
+    for i in range(m):
+        v = s[i]
+        for c in range(k):
+            v += gw[i, c] * lam[c]
+        slack[i] = v
+        if v < -tol:
+            score += 1
+    return True, score
+
+
+@njit(cache=True, nogil=True)
+def dual_active_set(hess_inv, normals, row_var, s, row_key, keys_a, normals_a, keys_b, normals_b, n_warm,
+                    warm_time_tol, warm_cos_min, tol, max_iter, block_rounds):  # noqa: ANN001, ANN201, PLR0913, PLR0912, PLR0915
+    """Dual active set on ``min 1/2 x'Hx + q'x s.t. A x <= b`` (see ``active_set._dual_active_set_numpy``):
+    ``s = b - A x_free`` (m,), rows ``normals[i] . p[row_var[i]] <= ...``; warm candidates: the rows matching
+    the first ``n_warm`` (0-2) remembered solutions' active rows (row keys, normals (k, 2)) ``a`` then ``b``.
+    Returns ``(W (k,), lam (k,), iterations, outcome)``."""
+    m = s.shape[0]
+    n_var = 0
+    for i in range(m):
+        n_var = max(n_var, row_var[i] + 1)
+    gw = np.empty((m, m + 1))
+    chol = np.empty((m + 1, m + 1))  # only lower triangles written before being read
+    lam = np.empty(m + 1)
+    slack = np.empty(m)
+    it = 0
+    # 1. warm candidates, then the empty set
+    best_rows = np.empty(0, dtype=np.int64)
+    have_best = False
+    best_score = 0
+    for c in range(n_warm + 1):
+        if c < n_warm:
+            keys, nrm = (keys_a, normals_a) if c == 0 else (keys_b, normals_b)
+            matched = match_rows(row_key, normals, keys, nrm, warm_time_tol, warm_cos_min)
+        else:
+            matched = np.empty(0, dtype=np.int64)
+        rows = np.empty(matched.shape[0], dtype=np.int64)  # first occurrences, in order
+        k = 0
+        for r in matched:
+            seen = False
+            for q in range(k):
+                if rows[q] == r:
+                    seen = True
+                    break
+            if not seen:
+                rows[k] = r
+                k += 1
+        rows = rows[:k]
+        if have_best and k == 0:
+            break
+        it += 1
+        ok, score = _evaluate(hess_inv, normals, row_var, s, rows, tol, gw, chol, lam, slack)
+        if not ok:
+            continue
+        if score == 0:
+            return rows, lam[:k].copy(), it, AS_OPTIMAL
+        if not have_best or score < best_score:
+            have_best, best_score, best_rows = True, score, rows
+    # re-evaluate the best candidate (the buffers hold the last one evaluated)
+    W = best_rows
+    _evaluate(hess_inv, normals, row_var, s, W, tol, gw, chol, lam, slack)
+    # 2. block steps
+    for _ in range(block_rounds):
+        if it >= max_iter:
+            break
+        k = W.shape[0]
+        count = np.zeros(n_var, dtype=np.int64)
+        trial = np.empty(m + k, dtype=np.int64)
+        n_kept = 0
+        for c in range(k):
+            if lam[c] > 0.0:
+                trial[n_kept] = W[c]
+                count[row_var[W[c]]] += 1
+                n_kept += 1
+        n_viol = 0
+        viol = np.empty(m, dtype=np.int64)
+        for i in range(m):
+            if slack[i] < -tol:
+                viol[n_viol] = i
+                n_viol += 1
+        viol = viol[:n_viol]
+        order = np.argsort(slack[viol], kind="mergesort")
+        n_trial = n_kept
+        for o in order:
+            i = viol[o]
+            v = row_var[i]
+            if count[v] < 2:
+                count[v] += 1
+                trial[n_trial] = i
+                n_trial += 1
+        if n_trial == n_kept and n_kept == k:
+            break
+        it += 1
+        trial = trial[:n_trial]
+        ok, score = _evaluate(hess_inv, normals, row_var, s, trial, tol, gw, chol, lam, slack)
+        if not ok:
+            _evaluate(hess_inv, normals, row_var, s, W, tol, gw, chol, lam, slack)  # back to the last good set
+            break
+        W = trial
+        if score == 0:
+            return W, lam[:n_trial].copy(), it, AS_OPTIMAL
+    # 3. dual-feasible start: positive multipliers on W, slack 0 on W
+    k = W.shape[0]
+    w_list = np.empty(m + 1, dtype=np.int64)
+    w_list[:k] = W
+    good = _cholesky(gw, w_list, k, chol)
+    while k > 0:
+        if not good:
+            k = 0
+            break
+        rhs = np.empty(k)
+        for c in range(k):
+            rhs[c] = -s[w_list[c]]
+        _chol_solve(chol, k, rhs, lam)
+        n_keep = 0
+        for c in range(k):
+            if lam[c] > 0.0:
+                w_list[n_keep] = w_list[c]
+                gw[:, n_keep] = gw[:, c]
+                n_keep += 1
+        if n_keep == k:
+            break
+        it += 1
+        k = n_keep
+        good = _cholesky(gw, w_list, k, chol)
+    # 4. Goldfarb-Idnani
+    gp = np.empty(m)
+    ell = np.empty(m + 1)
+    d = np.empty(m + 1)
+    while True:
+        for i in range(m):
+            v = s[i]
+            for c in range(k):
+                v += gw[i, c] * lam[c]
+            slack[i] = v
+        for c in range(k):
+            slack[w_list[c]] = np.inf  # active rows hold with equality (up to rounding)
+        p = 0
+        for i in range(1, m):
+            if slack[i] < slack[p]:
+                p = i
+        wp = slack[p]
+        if wp >= -tol:
+            return w_list[:k].copy(), lam[:k].copy(), it, AS_OPTIMAL
+        if it >= max_iter:
+            return w_list[:k].copy(), lam[:k].copy(), it, AS_CAPPED
+        lam_p = 0.0
+        _g_column(hess_inv, normals, row_var, p, gp)
+        gpp = gp[p]
+        while True:  # add row p, dropping rows whose multiplier reaches zero on the way
+            it += 1
+            z = gpp
+            if k:
+                for i in range(k):  # L ell = G_Wp
+                    v = gp[w_list[i]]
+                    for q in range(i):
+                        v -= chol[i, q] * ell[q]
+                    ell[i] = v / chol[i, i]
+                for i in range(k - 1, -1, -1):  # Lᵀ d = -ell
+                    v = ell[i]
+                    for q in range(i + 1, k):
+                        v -= chol[q, i] * d[q]
+                    d[i] = v / chol[i, i]
+                ee = 0.0
+                for i in range(k):
+                    d[i] = -d[i]
+                    ee += ell[i] * ell[i]
+                z = gpp - ee
+            t_full = -wp / z if z > 1e-12 * gpp else np.inf
+            t_part, j_block = np.inf, -1
+            for i in range(k):
+                if d[i] < 0.0:
+                    ratio = lam[i] / -d[i]
+                    if ratio < t_part:
+                        t_part, j_block = ratio, i
+            if t_full == np.inf and t_part == np.inf:
+                return w_list[:k].copy(), lam[:k].copy(), it, AS_INFEASIBLE
+            if t_full <= t_part:
+                for i in range(k):
+                    lam[i] += t_full * d[i]
+                    chol[k, i] = ell[i]
+                lam[k] = lam_p + t_full
+                for i in range(k):
+                    chol[i, k] = 0.0
+                chol[k, k] = math.sqrt(z)
+                w_list[k] = p
+                gw[:, k] = gp
+                k += 1
+                break
+            for i in range(k):
+                lam[i] += t_part * d[i]
+            lam_p += t_part
+            wp += t_part * z
+            for i in range(j_block, k - 1):
+                w_list[i] = w_list[i + 1]
+                lam[i] = lam[i + 1]
+                gw[:, i] = gw[:, i + 1]
+            k -= 1
+            if not _cholesky(gw, w_list, k, chol):  # numerically dependent after all: restart from this row set
+                return w_list[:k].copy(), lam[:k].copy(), it, AS_CAPPED
+            if it >= max_iter:
+                w_list[k] = p
+                lam[k] = lam_p
+                return w_list[:k + 1].copy(), lam[:k + 1].copy(), it, AS_CAPPED
+
+
+@njit(cache=True, nogil=True)
+def waypoints_from_multipliers(p_free, hess_inv, normals, row_var, rhs, rows, lam):  # noqa: ANN001, ANN201
+    """``p = p_free - H^-1 A_Wᵀ lam`` (N, 2) and the largest row violation ``max(A p - b)`` (0 without rows,
+    inf if ``p`` is not finite)."""
+    n = p_free.shape[0]
+    g = np.zeros((n, 2))
+    for c in range(rows.shape[0]):
+        r = rows[c]
+        g[row_var[r], 0] += normals[r, 0] * lam[c]
+        g[row_var[r], 1] += normals[r, 1] * lam[c]
+    p = p_free.copy()
+    if rows.shape[0]:
+        for i in range(n):
+            a0, a1 = 0.0, 0.0
+            for j in range(n):
+                a0 += hess_inv[i, j] * g[j, 0]
+                a1 += hess_inv[i, j] * g[j, 1]
+            p[i, 0] -= a0
+            p[i, 1] -= a1
+    worst = 0.0
+    finite = True
+    for i in range(n):
+        finite = finite and math.isfinite(p[i, 0]) and math.isfinite(p[i, 1])
+    if not finite:
+        return p, np.inf
+    for i in range(rhs.shape[0]):
+        v = normals[i, 0] * p[row_var[i], 0] + normals[i, 1] * p[row_var[i], 1] - rhs[i]
+        worst = max(worst, v)
+    return p, worst
+
+
+@njit(cache=True, nogil=True)
+def free_slacks(p_free, normals, row_var, rhs):  # noqa: ANN001, ANN201
+    """``s = b - A p_free`` (m,) of the unconstrained optimum."""
+    m = rhs.shape[0]
+    s = np.empty(m)
+    for i in range(m):
+        s[i] = rhs[i] - (normals[i, 0] * p_free[row_var[i], 0] + normals[i, 1] * p_free[row_var[i], 1])
+    return s

@@ -1,0 +1,255 @@
+"""The CoM MPC's compiled code computes what the numpy code it replaced computed (issue 12).
+
+The numpy implementations are kept (in the engine where they still serve a path, here otherwise) as the
+references: the intervals of a window, the support geometry, the condensation, the dual active set, the plan's
+propagation and its finiteness check.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from engine.bench.mpc_problems import closed_loop_like_problems, example_walking_supports
+from engine.constants import GRAVITY_MPS2
+from engine.control.mpc import ComMpc, SupportInterval
+from engine.control.mpc.controller import _sanitize_state
+from engine.control.mpc.lip import _Segments
+
+
+def _assert_equal_to_rounding(got, want, rtol: float = 1e-12) -> None:  # noqa: ANN001
+    """Equal to rounding relative to the array's scale (BLAS/LAPACK builds may differ between numpy and scipy)."""
+    got, want = np.asarray(got), np.asarray(want)
+    assert got.shape == want.shape
+    scale = float(np.max(np.abs(want))) if want.size else 0.0
+    np.testing.assert_allclose(got, want, rtol=rtol, atol=rtol * scale)
+
+
+def window_intervals_reference(t_start, t_end, t_now, t_horizon, min_int, max_interval_s):  # noqa: ANN001, ANN201
+    """ComMpc._build_problem's intervals before the speed-up (numpy and Python loops)."""
+    invalid = ~(np.isfinite(t_start) & np.isfinite(t_end) & (t_end >= t_start))
+    used: list[int] = []
+    prev_end = t_now
+    for k, t1 in enumerate(t_end.tolist()):
+        if invalid[k]:
+            return 1, k, None, None, None
+        if t1 <= prev_end + min_int:
+            continue
+        if prev_end >= t_horizon - min_int:
+            break
+        used.append(k)
+        prev_end = t1 if t1 < t_horizon else t_horizon
+    if not used:
+        return 2, -1, None, None, None
+    t0_used, t1_used = t_start[used], t_end[used]
+    n_pieces = np.maximum(np.ceil((t1_used - t0_used) / max_interval_s - 1e-9), 1.0)
+    if (n_pieces == 1.0).all():
+        return 0, -1, np.array(used), np.minimum(t1_used, t_horizon), np.arange(len(used))
+    ends: list[float] = []
+    owner: list[int] = []
+    prev_end = t_now
+    for k, (t0, t1, n_k) in enumerate(zip(t0_used.tolist(), t1_used.tolist(), n_pieces.astype(int).tolist())):
+        piece_s = (t1 - t0) / n_k
+        first = max(0, int((prev_end + min_int - t0) // piece_s)) if n_k > 1 else 0
+        for j in range(first, n_k):
+            end = t1 if j == n_k - 1 else t0 + (j + 1) * piece_s
+            if end <= prev_end + min_int:
+                continue
+            if prev_end >= t_horizon - min_int:
+                break
+            prev_end = min(end, t_horizon)
+            ends.append(prev_end)
+            owner.append(k)
+    return 0, -1, np.array(used), np.array(ends), np.array(owner)
+
+
+def test_compiled_window_intervals_equal_the_numpy_code() -> None:
+    """Elapsed, current, split (long) and truncated supports, invalid times, windows past the schedule."""
+    from engine.control.mpc.kernels import window_intervals
+
+    rng = np.random.default_rng(31)
+    for case in range(3000):
+        n = int(rng.integers(1, 12))
+        durations = rng.choice([0.0, 1e-4, 0.09, 0.36, 0.7, 1.3, 3.0], size=n) * rng.uniform(0.5, 1.5, n)
+        t_end = float(rng.uniform(-1.0, 0.5)) + np.cumsum(durations)
+        t_start = t_end - durations
+        if case % 10 == 0:  # an invalid interval
+            k = int(rng.integers(n))
+            t_start[k], t_end[k] = [(np.nan, t_end[k]), (t_end[k], t_end[k] - 0.1), (t_start[k], np.inf)][case % 3]
+        t_now = float(rng.uniform(-0.5, 1.0))
+        preview, min_int = float(rng.choice([0.5, 2.0])), float(rng.choice([1e-3, 1e-6]))
+        max_piece = float(rng.choice([0.5, 0.3, np.inf]))
+        got = window_intervals(t_start, t_end, t_now, t_now + preview, min_int, max_piece)
+        want = window_intervals_reference(t_start, t_end, t_now, t_now + preview, min_int, max_piece)
+        assert got[:2] == want[:2]
+        if want[0] == 0:
+            for g, w in zip(got[2:], want[2:]):
+                np.testing.assert_array_equal(g, w)
+
+
+def test_float_support_geometry_equals_the_complex_one() -> None:
+    """regions._support_geometry_xy (straight to the compiled kernel) against _support_geometry: convex either
+    way round, collinear vertices, non-convex, repeated, non-finite, degenerate and > 16-vertex polygons."""
+    from engine.control.mpc.regions import _support_geometry, _support_geometry_xy
+
+    rng = np.random.default_rng(37)
+    for case in range(600):
+        polygons: list[object] = []
+        for _ in range(int(rng.integers(1, 10))):
+            n = int(rng.choice([3, 4, 5, 8, 20]))
+            ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+            poly = np.stack([np.cos(ang), np.sin(ang)], axis=1) * rng.uniform(0.02, 0.3) + rng.normal(0, 0.2, 2)
+            kind = rng.integers(8)
+            if kind == 0:
+                poly = poly[::-1].copy()  # clockwise
+            elif kind == 1:
+                poly = np.insert(poly, 1, 0.5 * (poly[0] + poly[1]), axis=0)  # collinear vertex
+            elif kind == 2 and n > 3:
+                poly[[0, 2]] = poly[[2, 0]]  # not convex
+            elif kind == 3:
+                poly = poly * 1e-4  # degenerate (tiny area)
+            elif kind == 4 and case % 7 == 0:
+                poly[0, 0] = np.nan
+            elif kind == 5:
+                poly = poly.tolist()  # not an array
+            polygons.append(poly)
+        got = _support_geometry_xy(polygons)
+        want = _support_geometry(polygons)
+        assert (got is None) == (want is None)
+        if want is None or got is None:
+            continue
+        n_s, n_v = want.offsets.shape
+        np.testing.assert_array_equal(got[0], want.hull.view(np.float64).reshape(n_s, n_v, 2))
+        np.testing.assert_array_equal(got[1], want.normals.view(np.float64).reshape(n_s, n_v, 2))
+        np.testing.assert_array_equal(got[2], want.offsets)
+        np.testing.assert_array_equal(got[3], want.centroids.view(np.float64).reshape(n_s, 2))
+        assert got[4] == int((want.offsets < np.inf).sum(axis=1).max())
+
+
+def _calls() -> list[tuple]:
+    """Walking problems as the controller poses them, perturbed ones, and pushed restarts."""
+    calls = [args for args, _ in closed_loop_like_problems(120, seed=5, pull=0.0, state_noise=(0.0, 0.0))]
+    for args, _ in closed_loop_like_problems(60, seed=6, state_noise=(0.02, 0.05)):
+        pushed = list(args)
+        pushed[2] = np.asarray(args[2]) + [0.3, -0.25]
+        calls += [args, tuple(pushed)]
+    return calls
+
+
+def test_compiled_condensation_equals_numpy() -> None:
+    """ComMpc._condense (compiled, the same LAPACK/BLAS calls) against _condense_numpy."""
+    mpc = ComMpc()
+    for args in _calls():
+        t_now, com, vel, cop, height, _ = _sanitize_state(*args[:5])
+        pb, _ = mpc._build_problem(t_now, args[5])
+        assert pb is not None
+        seg = _Segments.build(pb.times_s, math.sqrt(GRAVITY_MPS2 / height))
+        zeta0 = com + vel / seg.omega - cop
+        got, want = mpc._condense(pb, seg, cop, zeta0), mpc._condense_numpy(pb, seg, cop, zeta0)
+        for name in ("d_mat", "d_inv", "g", "stability_weight", "beta", "u", "kappa", "r0", "p_free", "hess_inv",
+                     "normals", "rhs", "row_var"):
+            _assert_equal_to_rounding(getattr(got, name), getattr(want, name))
+
+
+def test_compiled_active_set_equals_numpy() -> None:
+    """The compiled dual active set against the numpy one on the same condensed QPs and warm starts: the same
+    outcome, active rows and waypoints (equal to rounding: its Cholesky factors are loops, LAPACK's there).
+    On the controller's problems (plan continuations) the iteration counts are the same too; on pushed
+    restarts ties between rows broken by rounding may change a count."""
+    from engine.control.mpc.active_set import _dual_active_set
+    from engine.control.mpc.active_set_kernel import waypoints_from_multipliers
+
+    mpc = ComMpc()
+    controller_like = 120
+    same_count = 0
+    for i, args in enumerate(_calls()):
+        t_now, com, vel, cop, height, _ = _sanitize_state(*args[:5])
+        pb, _ = mpc._build_problem(t_now, args[5])
+        assert pb is not None
+        seg = _Segments.build(pb.times_s, math.sqrt(GRAVITY_MPS2 / height))
+        qp = mpc._condense(pb, seg, cop, com + vel / seg.omega - cop)
+        s = qp.rhs - qp.row_values(qp.p_free)
+        if s.min() >= -1e-9:
+            continue
+        common = (qp.hess_inv, qp.normals, qp.row_var, s, pb.row_key, mpc._warm_history, (0.03, 0.999), 1e-9, 100)
+        w_got, lam_got, it_got, out_got = _dual_active_set(*common, math.inf)
+        w_want, lam_want, it_want, out_want = _dual_active_set(*common, time.perf_counter() + 60.0)  # numpy
+        assert out_got == out_want == 0
+        assert sorted(w_got.tolist()) == sorted(w_want.tolist()), i
+        order = {r: k for k, r in enumerate(w_want.tolist())}
+        _assert_equal_to_rounding(lam_got[np.argsort([order[r] for r in w_got.tolist()])], lam_want, 1e-7)
+        p_got = waypoints_from_multipliers(qp.p_free, qp.hess_inv, qp.normals, qp.row_var, qp.rhs, w_got, lam_got)[0]
+        p_want = waypoints_from_multipliers(qp.p_free, qp.hess_inv, qp.normals, qp.row_var, qp.rhs, w_want, lam_want)[0]
+        np.testing.assert_allclose(p_got, p_want, atol=1e-9)
+        if i < controller_like:
+            assert it_got == it_want, i
+        same_count += it_got == it_want
+        mpc._store_warm(pb, w_want)
+    assert same_count > 0.8 * len(_calls())
+
+
+def test_compiled_plan_and_finiteness_equal_numpy() -> None:
+    """plan_from_waypoints (propagation, world frame, final state) and _is_finite against their numpy code."""
+    from engine.control.mpc.controller import _is_finite
+    from engine.control.mpc.kernels import plan_from_waypoints
+    from engine.control.mpc.types import ComMpcSolution
+
+    rng = np.random.default_rng(41)
+    for case in range(500):
+        n = int(rng.integers(1, 30))
+        times = float(rng.uniform(-2, 2)) + np.r_[0.0, np.cumsum(rng.uniform(0.0, 0.3, n))]
+        seg = _Segments.build(times, float(rng.uniform(2.0, 6.0)))
+        wps, com, vel, origin = rng.normal(0, 0.2, (n, 2)), rng.normal(0, 0.2, 2), rng.normal(0, 0.5, 2), rng.normal(0, 1, 2)
+        got = plan_from_waypoints(seg.omega, seg.a, seg.b, seg.grow, wps, com, vel, origin)
+        local = np.zeros((n + 1, 2))
+        local[1:] = wps
+        pos, vel_wp = seg.propagate(local, com - origin, vel)
+        for g, w in zip(got, (local + origin, pos + origin, vel_wp, np.concatenate([pos[-1] + origin, vel_wp[-1]]))):
+            np.testing.assert_array_equal(g, w)
+        assert math.isfinite(got[4]) == math.isfinite(float(pos.sum() + vel_wp.sum()))
+        sol = ComMpcSolution(times, got[0], got[1], got[2], 0.7, "solved", 0.0, qp_final_state=got[3])
+        if case % 3 == 0:
+            arr = [sol.waypoints_xy_m, sol.waypoint_com_xy_m, sol.waypoint_com_vel_xy_mps, sol.qp_final_state][case % 4]
+            arr.flat[int(rng.integers(arr.size))] = [np.nan, np.inf, -np.inf][case % 5 % 3]
+        want = math.isfinite(float(sol.waypoint_times_s.sum() + sol.waypoints_xy_m.sum() + sol.waypoint_com_xy_m.sum()
+                                    + sol.waypoint_com_vel_xy_mps.sum() + sol.qp_final_state.sum() + sol.com_height_m))
+        assert _is_finite(sol) == want
+
+
+def test_walking_supports_solve_the_same_with_either_active_set() -> None:
+    """Whole solves: a time-limited ComMpc (numpy active set) and the default one (compiled) give the same plans."""
+    rng = np.random.default_rng(43)
+    fast, reference = ComMpc(), ComMpc(time_limit_s=60.0)
+    for _ in range(40):
+        supports = example_walking_supports(n_steps=int(rng.integers(2, 8)), step_length_m=float(rng.uniform(-0.2, 0.35)),
+                                            yaw_rad=float(rng.uniform(-3, 3)))
+        args = (float(rng.uniform(0, 1)), rng.normal(0, 0.03, 2), rng.normal(0, 0.2, 2), np.zeros(2), 0.7, supports)
+        a, b = fast.solve(*args), reference.solve(*args)
+        assert a.status == b.status
+        np.testing.assert_allclose(a.waypoints_xy_m, b.waypoints_xy_m, atol=1e-9)
+        np.testing.assert_allclose(a.waypoint_com_xy_m, b.waypoint_com_xy_m, atol=1e-9)
+    assert isinstance(supports[0], SupportInterval)
+
+
+def test_scalar_cop_at_equals_numpy_interp() -> None:
+    """ComMpcSolution.cop_at for one time (floats) against the array version (np.interp): at, between, before
+    and after the waypoints, with repeated values, huge values and infinities."""
+    from engine.control.mpc.types import ComMpcSolution
+
+    rng = np.random.default_rng(47)
+    for case in range(300):
+        n = int(rng.integers(2, 30))
+        times = float(rng.uniform(-3, 3)) + np.r_[0.0, np.cumsum(rng.uniform(1e-3, 0.3, n - 1))]
+        wps = rng.normal(0, 0.3, (n, 2))
+        if case % 5 == 0:
+            wps[rng.integers(n)] = wps[0]
+        if case % 7 == 0:
+            wps[rng.integers(n), rng.integers(2)] = [np.inf, -np.inf, 1e308][case % 3]
+        sol = ComMpcSolution(times, wps, wps.copy(), wps.copy(), 0.7, "solved", 0.0)
+        queries = np.r_[times, rng.uniform(times[0] - 0.5, times[-1] + 0.5, 30), np.nextafter(times, np.inf)]
+        for t in queries.tolist():
+            got, want = sol.cop_at(t), sol._cop_at_array(t)
+            assert got.shape == want.shape == (2,)
+            np.testing.assert_array_equal(got, want)
