@@ -117,3 +117,22 @@ def test_gait_feedback_gains_come_from_the_config(tmp_path, monkeypatch):
     _write(tmp_path, "dino", text.replace("velocity_kd = 0.8", "velocity_kd = -1"))
     with pytest.raises(RobotConfigError, match=r"control.gait_feedback.velocity_kd: expected a non-negative"):
         load_config(tmp_path / "dino.toml")
+
+
+def test_curve_rate_bounds_come_from_the_config(tmp_path):
+    """[gait.curve_rates]: typed, positive; a field left out (or the whole table, TALOS) keeps its default."""
+    from engine.robot.config import CurveRateLimits
+
+    assert load_robot_config("talos").gait.curve_rates == CurveRateLimits()
+    g1 = load_robot_config("g1").gait.curve_rates
+    assert g1.foot_angle_radps == 3.8 and g1.joint_max_radps == 2.2
+    text = (robots_dir() / "g1.toml").read_text()
+    assert "foot_angle_radps = 3.8\n" in text
+    cfg = load_config(_write(tmp_path, "g1", text.replace("foot_angle_radps = 3.8\n", "")))
+    assert cfg.gait.curve_rates.foot_angle_radps == CurveRateLimits().foot_angle_radps
+    with pytest.raises(RobotConfigError, match=r"^g1.toml: gait.curve_rates.foot_angle_radps: expected a positive number"):
+        load_config(_write(tmp_path, "g1", text.replace("foot_angle_radps = 3.8", "foot_angle_radps = 0")))
+    with pytest.raises(RobotConfigError, match=r"^g1.toml: gait.curve_rates.foot_angle_radps: expected a number"):
+        load_config(_write(tmp_path, "g1", text.replace("foot_angle_radps = 3.8", 'foot_angle_radps = "fast"')))
+    with pytest.raises(RobotConfigError, match=r"gait.curve_rates.foot_angle_rps: unknown field \(did you mean 'foot_angle_radps'\?\)"):
+        load_config(_write(tmp_path, "g1", text.replace("foot_angle_radps = 3.8", "foot_angle_rps = 3.8")))

@@ -8,19 +8,22 @@ knot pair a few milliseconds apart asks for hundreds of rad/s² at the swing foo
 256 rad/s² of pelvis rotation — neutral: 12 and 6 — and the CoP leaves the plan for the heel
 edge). Bounds per channel kind, in curve time (what the animator authors):
 
-* ``joints.<joint>`` — rate: the joint's velocity limit in the robot model; acceleration:
-  ``JOINT_ACCEL_RADPS2``;
+* ``joints.<joint>`` — rate: the joint's velocity limit in the robot model (at most the robot's
+  ``joint_max_radps``); acceleration: ``joint_radps2``;
 * foot positions (``x``, ``y``, ``z``) and angles (``yaw``, ``roll``, ``heel_pitch``,
-  ``toe_pitch``), pelvis height and angles — ``CHANNEL_BOUNDS``.
+  ``toe_pitch``), pelvis height and angles — one rate and acceleration per kind.
 
-Every bound is twice the peak of the shipped styles (G1 neutral, casual, sneak, injured; TALOS
-neutral; measured by :func:`curve_peaks`, held by ``tests/gait/test_curve_rates.py``), rounded
-up: the shipped styles walk (60 s sweeps, slip < 2 mm), twice their peak leaves room to author
-livelier motion, while the falling random styles of ``studio bench styles`` before the generator
-was bounded were 10²–10⁴ times over them (README, *Curve rates*). The shipped peaks: foot
-positions 0.98 m/s, 21.4 m/s² (``z``); foot angles 3.75 rad/s, 107 rad/s² (injured's toe-off);
-pelvis angles 0.64 rad/s, 7.9 rad/s²; pelvis height 0.095 m/s, 2.5 m/s²; upper-body joints
-2.1 rad/s, 28.7 rad/s².
+The bounds are the robot's (robots/<name>.toml ``[gait.curve_rates]``,
+:class:`engine.robot.config.CurveRateLimits`). The defaults are twice the peak of the shipped
+styles (G1 neutral, casual, sneak, injured; TALOS neutral; measured by :func:`curve_peaks`, held
+by ``tests/gait/test_curve_rates.py``), rounded up: the shipped styles walk (60 s sweeps, slip
+< 2 mm), twice their peak leaves room to author livelier motion, while the falling random styles
+of ``studio bench styles`` before the generator was bounded were 10²–10⁴ times over them (README,
+*Curve rates*). The shipped peaks: foot positions 0.98 m/s, 21.4 m/s² (``z``); foot angles
+3.75 rad/s, 107 rad/s² (injured's toe-off); pelvis angles 0.64 rad/s, 7.9 rad/s²; pelvis height
+0.095 m/s, 2.5 m/s²; upper-body joints 2.1 rad/s, 28.7 rad/s². G1 sets its bounds at about
+once these peaks: at twice, random styles with curves near their bounds fell where the shipped
+styles walk (README).
 
 The peaks are exact: a cubic Hermite segment's acceleration is linear in time (largest at a
 segment end) and its rate quadratic (largest at an end or its vertex).
@@ -29,9 +32,13 @@ segment end) and its rate quadratic (largest at an end or its vertex).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import TYPE_CHECKING
 
 from engine.gait.curves import HermiteCurve
+from engine.robot.config import CurveRateLimits
+
+if TYPE_CHECKING:
+    from engine.gait.style import StyleContext
 
 
 @dataclass(frozen=True)
@@ -41,30 +48,26 @@ class RateBound:
     unit: str  # "m" or "rad"
 
 
-FOOT_POSITION = RateBound(2.0, 50.0, "m")
-FOOT_ANGLE = RateBound(8.0, 220.0, "rad")
-PELVIS_HEIGHT = RateBound(0.2, 6.0, "m")
-PELVIS_ANGLE = RateBound(1.5, 20.0, "rad")
-JOINT_ACCEL_RADPS2 = 60.0
 JOINT_RATE_FALLBACK_RADPS = 6.0  # a joint whose model gives no velocity limit
-
-CHANNEL_BOUNDS: dict[str, RateBound] = {
-    **{f"foot.{c}": FOOT_POSITION for c in ("x", "y", "z")},
-    **{f"foot.{c}": FOOT_ANGLE for c in ("yaw", "roll", "heel_pitch", "toe_pitch")},
-    "pelvis.z": PELVIS_HEIGHT,
-    **{f"pelvis.{c}": PELVIS_ANGLE for c in ("yaw", "pitch", "roll")},
-}
+FOOT_POSITIONS = ("x", "y", "z")
 
 
-def rate_bound(channel: str, joint_velocity_limits: Mapping[str, float] | None = None) -> RateBound:
-    """The rate and acceleration ``channel``'s curve may reach (curve time)."""
+def rate_bound(channel: str, ctx: StyleContext | None = None) -> RateBound:
+    """The rate and acceleration ``channel``'s curve may reach on ``ctx``'s robot (curve time;
+    without a context: the default bounds, and ``JOINT_RATE_FALLBACK_RADPS`` for joints)."""
+    limits = ctx.curve_rates if ctx is not None else CurveRateLimits()
     head, _, tail = channel.partition(".")
     if head in ("left_foot", "right_foot"):
-        return CHANNEL_BOUNDS[f"foot.{tail}"]
+        if tail in FOOT_POSITIONS:
+            return RateBound(limits.foot_position_mps, limits.foot_position_mps2, "m")
+        return RateBound(limits.foot_angle_radps, limits.foot_angle_radps2, "rad")
+    if channel == "pelvis.z":
+        return RateBound(limits.pelvis_height_mps, limits.pelvis_height_mps2, "m")
     if head == "pelvis":
-        return CHANNEL_BOUNDS[f"pelvis.{tail}"]
-    limit = (joint_velocity_limits or {}).get(tail, 0.0)
-    return RateBound(float(limit) if limit > 0.0 else JOINT_RATE_FALLBACK_RADPS, JOINT_ACCEL_RADPS2, "rad")
+        return RateBound(limits.pelvis_angle_radps, limits.pelvis_angle_radps2, "rad")
+    limit = (ctx.joint_velocity_limits if ctx is not None else {}).get(tail, 0.0)
+    rate = float(limit) if limit > 0.0 else JOINT_RATE_FALLBACK_RADPS
+    return RateBound(min(rate, limits.joint_max_radps), limits.joint_radps2, "rad")
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,10 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
 * swing clearance — a swing foot's sole corners below the floor, or an apex below
   ``MIN_CLEARANCE_M``;
 * curve rates — each curve of the sample against the rate and acceleration its channel can
-  follow (engine/gait/curve_rates.py: a joint's velocity limit, and bounds twice the shipped
-  styles' peaks): two knots too close for the change between them are flagged with the curve
-  and the phase where its rate or acceleration peaks.
+  follow (engine/gait/curve_rates.py: a joint's velocity limit, and the robot's
+  ``[gait.curve_rates]`` bounds — by default twice the shipped styles' peaks, G1 about once):
+  two knots too close for the change between them are flagged with the curve and the phase where
+  its rate or acceleration peaks.
 
 Each finding names the sample, the phase (% of its cycle, from left liftoff) and what to do in
 an animator's words; findings are deduplicated per (sample, kind, joint or side): the first
@@ -228,7 +229,7 @@ class FeasibilityChecker:
         sample = style.samples[name]
         cycle = sample.intervals.cycle_s
         for channel, curve in sample.curves.items():
-            bound = rate_bound(channel, self.ctx.joint_velocity_limits)
+            bound = rate_bound(channel, self.ctx)
             peaks = curve_peaks(curve)
             side = channel_side(channel)
             start = sample.intervals.swing_s(side)[0] if side else 0.0

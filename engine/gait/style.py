@@ -44,6 +44,7 @@ import numpy as np
 from engine.atomic_io import atomic_write_text
 from engine.safe_io import ReadError, one_line, read_json
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
+from engine.robot.config import CurveRateLimits
 from engine.gait.phase_map import PhaseMap
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
 
@@ -236,6 +237,8 @@ class StyleContext:
     # The upper-body joints' velocity limits in the robot model (rad/s): the rate a ``joints.*``
     # curve may reach (engine/gait/curve_rates.py).
     joint_velocity_limits: Mapping[str, float] = field(default_factory=dict)
+    # How fast every other curve may change on this robot (robots/<name>.toml [gait.curve_rates]).
+    curve_rates: CurveRateLimits = field(default_factory=CurveRateLimits)
 
     @classmethod
     def for_robot(cls, robot_name: str) -> "StyleContext":
@@ -256,7 +259,7 @@ class StyleContext:
             pelvis_height_range_m=gait.pelvis_height_range_m, stance_width_m=gait.stance_width_m,
             stance_width_range_m=gait.stance_width_range_m, min_single_support_s=gait.min_single_support_s,
             min_double_support_s=gait.min_double_support_s, max_cycle_s=gait.max_cycle_s,
-            max_swing_height_m=gait.max_swing_height_m, joint_velocity_limits=speeds,
+            max_swing_height_m=gait.max_swing_height_m, joint_velocity_limits=speeds, curve_rates=gait.curve_rates,
         )
 
 

@@ -50,6 +50,12 @@ EDGE = 1e-6  # stay this far inside closed bounds (rounding in the JSON round tr
 # to this share of the bound so a JSON round trip stays within it).
 MIN_KNOT_PHASE = 0.1
 RATE_SHARE = 0.98
+# A swing height pulled within its rate bound still lifts the foot this high where it can: below it the
+# feasibility check flags "barely lifts" (engine/gait/feasibility.py MIN_CLEARANCE_M), which an animator
+# would not author; its interior knots are then spread evenly over the swing first (the check's advice:
+# "move its knots further apart"). G1's bounds (≈ its shipped peaks) pulled swings of 20–40 mm rising at
+# 15 % of the swing down to 8–9 mm (README, *Curve rates*).
+MIN_SWING_APEX_M = 0.01
 
 
 def _around(rng: np.random.Generator, centre: float, lo: float, hi: float, extent: float) -> float:
@@ -109,15 +115,21 @@ def _within_rates(curve: HermiteCurve, centre: float, bound: RateBound) -> Hermi
 
 
 def _swing_curve(rng: np.random.Generator, duration_s: float, lo: float, hi: float, extent: float, bound: RateBound,
-                 start: float = 0.0, end: float = 0.0, centre: float = 0.0) -> HermiteCurve:
+                 start: float = 0.0, end: float = 0.0, centre: float = 0.0, min_peak: float = 0.0) -> HermiteCurve:
     """Flat at both ends (values ``start``/``end``), 1–2 interior knots within [lo, hi], at least
-    ``MIN_KNOT_PHASE`` of the swing apart; rates within ``bound`` (values pulled toward 0)."""
+    ``MIN_KNOT_PHASE`` of the swing apart; rates within ``bound`` (values pulled toward 0). When that
+    pull leaves the curve's peak below ``min_peak``, the interior knots are first spread evenly."""
     n = int(rng.integers(1, 3))
     times = _spaced_times(rng, n, 0.15, 0.85, MIN_KNOT_PHASE) * duration_s
     knots = [Knot(0.0, start, mode=TangentMode.FLAT)]
     knots += [Knot(float(t), _around(rng, centre, lo, hi, extent)) for t in times]
     knots.append(Knot(duration_s, end, mode=TangentMode.FLAT))
-    return _within_rates(HermiteCurve(knots, duration_s), 0.0, bound)
+    curve = _within_rates(HermiteCurve(knots, duration_s), 0.0, bound)
+    if curve.value_range()[1] < min_peak <= HermiteCurve(knots, duration_s).value_range()[1]:
+        even = np.linspace(0.0, duration_s, n + 2)[1:-1]
+        knots = [knots[0], *(replace(k, t_s=float(t)) for k, t in zip(knots[1:-1], even)), knots[-1]]
+        curve = _within_rates(HermiteCurve(knots, duration_s), 0.0, bound)
+    return curve
 
 
 def _cycle_curve(rng: np.random.Generator, cycle_s: float, lo: float, hi: float, centre: float, extent: float,
@@ -139,12 +151,12 @@ def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Interv
         # Height: the neutral apex as the centre of the range [0, max_swing_height_m].
         apex = neutral.curves.get(f"{side}_foot.z")
         centre = apex.value_range()[1] if apex is not None else 0.5 * ctx.max_swing_height_m
-        curves[f"{side}_foot.z"] = _swing_curve(rng, d, 0.0, ctx.max_swing_height_m, extent, rate_bound(f"{side}_foot.z"),
-                                                centre=centre)
+        curves[f"{side}_foot.z"] = _swing_curve(rng, d, 0.0, ctx.max_swing_height_m, extent, rate_bound(f"{side}_foot.z", ctx),
+                                                centre=centre, min_peak=MIN_SWING_APEX_M)
         for tail, bound in (("x", MAX_FOOT_OFFSET_M), ("y", MAX_FOOT_OFFSET_M), ("yaw", MAX_FOOT_ANGLE_RAD),
                             ("roll", MAX_FOOT_ANGLE_RAD)):
             if rng.random() < 0.5:
-                curves[f"{side}_foot.{tail}"] = _swing_curve(rng, d, -bound, bound, extent, rate_bound(f"{side}_foot.{tail}"))
+                curves[f"{side}_foot.{tail}"] = _swing_curve(rng, d, -bound, bound, extent, rate_bound(f"{side}_foot.{tail}", ctx))
         # Heel/toe pitch: at each contact switch the foot is on its heel or on its toe (or flat).
         lo_kind, td_kind = rng.choice(["flat", "heel", "toe"]), rng.choice(["flat", "heel", "toe"])
         half_pi = 0.5 * math.pi
@@ -153,25 +165,25 @@ def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Interv
         heel_td = _around(rng, 0.0, -half_pi, 0.0, extent) if td_kind == "heel" else 0.0
         toe_td = _around(rng, 0.0, 0.0, half_pi, extent) if td_kind == "toe" else 0.0
         if heel_lo or heel_td or rng.random() < 0.3:
-            curves[f"{side}_foot.heel_pitch"] = _swing_curve(rng, d, -half_pi, 0.0, extent, rate_bound("left_foot.heel_pitch"),
+            curves[f"{side}_foot.heel_pitch"] = _swing_curve(rng, d, -half_pi, 0.0, extent, rate_bound("left_foot.heel_pitch", ctx),
                                                              heel_lo, heel_td)
         if toe_lo or toe_td or rng.random() < 0.3:
-            curves[f"{side}_foot.toe_pitch"] = _swing_curve(rng, d, 0.0, half_pi, extent, rate_bound("left_foot.toe_pitch"),
+            curves[f"{side}_foot.toe_pitch"] = _swing_curve(rng, d, 0.0, half_pi, extent, rate_bound("left_foot.toe_pitch", ctx),
                                                             toe_lo, toe_td)
     cycle = intervals.cycle_s
     z_lo = max(-MAX_PELVIS_Z_OFFSET_M, ctx.pelvis_height_range_m[0] - attributes.pelvis_height_m)
     z_hi = min(MAX_PELVIS_Z_OFFSET_M, ctx.pelvis_height_range_m[1] - attributes.pelvis_height_m)
     if rng.random() < 0.5 and z_hi - z_lo > 4 * EDGE:
-        curves["pelvis.z"] = _cycle_curve(rng, cycle, z_lo, z_hi, 0.0, extent, rate_bound("pelvis.z"))
+        curves["pelvis.z"] = _cycle_curve(rng, cycle, z_lo, z_hi, 0.0, extent, rate_bound("pelvis.z", ctx))
     for tail in ("yaw", "pitch", "roll"):
         if rng.random() < 0.5:
             curves[f"pelvis.{tail}"] = _cycle_curve(rng, cycle, -MAX_PELVIS_ANGLE_RAD, MAX_PELVIS_ANGLE_RAD, 0.0, extent,
-                                                    rate_bound(f"pelvis.{tail}"))
+                                                    rate_bound(f"pelvis.{tail}", ctx))
     for joint in ctx.upper_joints:
         if rng.random() < 0.4:
             lo, hi = ctx.joint_limits[joint]
             curves[f"joints.{joint}"] = _cycle_curve(rng, cycle, lo, hi, ctx.standing_angles[joint], extent,
-                                                     rate_bound(f"joints.{joint}", ctx.joint_velocity_limits))
+                                                     rate_bound(f"joints.{joint}", ctx))
     return curves
 
 

@@ -78,6 +78,27 @@ class FootPoint:
 
 
 @dataclass(frozen=True)
+class CurveRateLimits:
+    """How fast a style's curves may change on this robot, in curve time (``[gait.curve_rates]``;
+    engine/gait/curve_rates.py): the rate and acceleration per channel kind. The defaults are about
+    twice the peaks of the shipped styles (G1 and TALOS); a robot whose random styles show that
+    they are too loose sets its own (README, *Curve rates are part of what is feasible*)."""
+
+    foot_position_mps: float = 2.0  # left_foot/right_foot x, y, z
+    foot_position_mps2: float = 50.0
+    foot_angle_radps: float = 8.0  # yaw, roll, heel_pitch, toe_pitch
+    foot_angle_radps2: float = 220.0
+    pelvis_height_mps: float = 0.2  # pelvis.z
+    pelvis_height_mps2: float = 6.0
+    pelvis_angle_radps: float = 1.5  # pelvis yaw, pitch, roll
+    pelvis_angle_radps2: float = 20.0
+    # joints.*: the joint's velocity limit in the robot model, at most ``joint_max_radps``
+    # (inf: the model's limit alone)
+    joint_max_radps: float = math.inf
+    joint_radps2: float = 60.0
+
+
+@dataclass(frozen=True)
 class GaitLimits:
     """What the controller can track on this robot: bounds for style validation and defaults."""
 
@@ -89,6 +110,7 @@ class GaitLimits:
     min_double_support_s: float = 0.05
     max_cycle_s: float = 3.0
     max_swing_height_m: float = 0.3
+    curve_rates: CurveRateLimits = field(default_factory=CurveRateLimits)
 
 
 @dataclass(frozen=True)
@@ -195,6 +217,22 @@ _TOP_FIELDS = {
     "name", "display_name", "kind", "source", "model", "standing", "gains", "upper_body",
     "feet", "fixes", "mesh", "default_style", "gait", "control",
 }
+
+
+def _curve_rate_limits(r: _Reader, table: dict[str, Any]) -> CurveRateLimits:
+    """``[gait.curve_rates]``: positive numbers; a field left out keeps its default."""
+    prefix = "gait.curve_rates."
+    r.unknown(table, set(CurveRateLimits.__dataclass_fields__), prefix)
+    values: dict[str, float] = {}
+    for key in table:
+        value = table[key]
+        if key == "joint_max_radps" and isinstance(value, float) and value == math.inf:
+            values[key] = value  # (toml ``inf``: no cap beyond the model's velocity limit)
+            continue
+        values[key] = r.get(table, key, prefix, float)
+        if values[key] <= 0:
+            raise r.fail(f"{prefix}{key}", f"expected a positive number, got {value!r}")
+    return CurveRateLimits(**values)
 
 
 def load_config(path: Path) -> RobotConfig:
@@ -327,7 +365,11 @@ def load_config(path: Path) -> RobotConfig:
         r.unknown(gait_table, fields, "gait.")
         values: dict[str, Any] = {}
         for key in fields:
-            if key.endswith("_range_m"):
+            if key == "curve_rates":
+                rates_table = r.get(gait_table, key, "gait.", dict, None)
+                if rates_table is not None:
+                    values[key] = _curve_rate_limits(r, rates_table)
+            elif key.endswith("_range_m"):
                 rng = r.get(gait_table, key, "gait.", list, ...) if key == "pelvis_height_range_m" else \
                     r.get(gait_table, key, "gait.", list, None)
                 if rng is None:

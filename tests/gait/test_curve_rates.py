@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from engine.gait.curve_rates import curve_peaks, over_bound, rate_bound
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.style import StyleContext, load_style, styles_dir, validate_style
+from engine.robot.config import CurveRateLimits
 from tests.conftest import REPO
 
 SHIPPED = [("g1", "neutral"), ("g1", "casual"), ("g1", "sneak"), ("g1", "injured"), ("talos", "neutral")]
@@ -42,13 +43,34 @@ def test_the_peaks_are_the_densely_sampled_maxima(times, values, periodic):
 
 @pytest.mark.parametrize(("robot", "name"), SHIPPED, ids=lambda x: x)
 def test_shipped_styles_are_within_their_channels_bounds(robot, name):
+    """Within the robot's own bounds (robots/<name>.toml [gait.curve_rates]: no false alarm), and
+    within half the default bounds (twice the shipped peaks)."""
     ctx = StyleContext.for_robot(robot)
+    defaults = dataclasses.replace(ctx, curve_rates=CurveRateLimits())
     style = load_style(REPO / "styles" / robot / f"{name}.json", ctx)
     for sample_name, sample in style.samples.items():
         for channel, curve in sample.curves.items():
-            over = over_bound(curve, rate_bound(channel, ctx.joint_velocity_limits))
+            assert over_bound(curve, rate_bound(channel, ctx)) <= 1.0, (sample_name, channel)
+            over = over_bound(curve, rate_bound(channel, defaults))
             # twice the shipped peaks: the steepest shipped curve uses about half its bound
             assert over <= 0.55, (sample_name, channel, over)
+
+
+def test_g1_bounds_are_about_its_shipped_peaks():
+    """G1's bounds are its shipped styles' peaks rounded up: for each kind of channel, the steepest
+    shipped curve uses at least 90 % of its bound (at twice the peaks, random styles fell)."""
+    ctx = StyleContext.for_robot("g1")
+    steepest: dict[str, float] = {}
+    for name in ("neutral", "casual", "sneak", "injured"):
+        style = load_style(REPO / "styles" / "g1" / f"{name}.json", ctx)
+        for sample in style.samples.values():
+            for channel, curve in sample.curves.items():
+                head, _, tail = channel.partition(".")
+                kind = head if head in ("pelvis", "joints") else f"foot {'position' if tail in 'xyz' else 'angle'}"
+                kind = "pelvis.z" if channel == "pelvis.z" else kind
+                steepest[kind] = max(steepest.get(kind, 0.0), over_bound(curve, rate_bound(channel, ctx)))
+    assert set(steepest) == {"foot position", "foot angle", "pelvis", "pelvis.z", "joints"}
+    assert all(0.9 <= v <= 1.0 for v in steepest.values()), steepest
 
 
 def test_a_knot_pair_too_close_is_flagged_with_the_curve_and_the_phase():
@@ -92,7 +114,7 @@ def test_an_arm_faster_than_its_joint_is_flagged():
     centre = ctx.standing_angles[joint]
     step = 0.5 if hi - centre > centre - lo else -0.5  # toward the farther limit
     swing = HermiteCurve([Knot(0.0, centre), Knot(0.1 * cycle, centre + step), Knot(0.2 * cycle, centre)], cycle, periodic=True)
-    assert rate_bound(f"joints.{joint}", ctx.joint_velocity_limits).rate == pytest.approx(2.7)
+    assert rate_bound(f"joints.{joint}", ctx).rate == pytest.approx(2.7)
     style = neutral.with_sample("forward_slow", sample.with_curve(f"joints.{joint}", swing))
     validate_style(style, ctx)
     findings = [f for f in check_style(load_robot("talos"), style, samples=("forward_slow",)) if f.kind == "curve_rate"]
