@@ -34,34 +34,58 @@ class ExternalForceObserver:
         self.reset()
 
     def reset(self, com_vel_xy: FloatArray | None = None) -> None:
-        self._p0 = None if com_vel_xy is None else self.mass_kg * np.asarray(com_vel_xy, dtype=float)
-        self._integral = np.zeros(2)
-        self._residual = np.zeros(2)
+        if com_vel_xy is None:
+            self._p0: tuple[float, float] | None = None
+        else:
+            p0 = self.mass_kg * np.asarray(com_vel_xy, dtype=float)
+            self._p0 = (float(p0[0]), float(p0[1]))
+        # The momentum integral and the residual on floats (x, y): the same operations, in the same
+        # order, as on 2-vectors, at a fraction of numpy's per-call cost (500 Hz).
+        self._integral = (0.0, 0.0)
+        self._residual = (0.0, 0.0)
         self.force_n = np.zeros(2)
 
     def update(self, dt_s: float, com_vel_xy: FloatArray, ground_force_xy_n: FloatArray | None) -> FloatArray:
         """Advance by ``dt_s`` with the measured CoM velocity and the ground force applied over
         the last step (None: unknown, the estimate holds and the observer re-bases on it).
         Returns the deadbanded estimate."""
-        p = self.mass_kg * np.asarray(com_vel_xy, dtype=float)
-        if not np.all(np.isfinite(p)):
+        m = self.mass_kg
+        px, py = m * float(com_vel_xy[0]), m * float(com_vel_xy[1])
+        if not (math.isfinite(px) and math.isfinite(py)):
             return self.force_n
         if self._p0 is None:
-            self._p0 = p.copy()
+            self._p0 = (px, py)
             return self.force_n
-        if ground_force_xy_n is None or not np.all(np.isfinite(ground_force_xy_n)):
+        p0x, p0y = self._p0
+        rx, ry = self._residual
+        gain = self.gain
+        if ground_force_xy_n is None:
+            finite = False
+        else:
+            gx, gy = float(ground_force_xy_n[0]), float(ground_force_xy_n[1])
+            finite = math.isfinite(gx) and math.isfinite(gy)
+        if not finite:
             # Unknown ground force (a landing impact the QP did not plan): hold the estimate and
             # re-base the momentum integral on it, so the momentum change while holding does not
             # show up as a push when the updates resume.
-            self._integral = p - self._p0 - self._residual / self.gain
+            self._integral = (px - p0x - rx / gain, py - p0y - ry / gain)
             return self.force_n
-        self._integral += (np.asarray(ground_force_xy_n, dtype=float) + self._residual) * dt_s
-        self._residual = self.gain * (p - self._p0 - self._integral)
-        norm = float(np.linalg.norm(self._residual))
+        ix, iy = self._integral
+        ix += (gx + rx) * dt_s
+        iy += (gy + ry) * dt_s
+        self._integral = (ix, iy)
+        rx, ry = gain * (px - p0x - ix), gain * (py - p0y - iy)
+        norm = math.sqrt(rx * rx + ry * ry)  # = np.linalg.norm of the 2-vector, bit for bit
         if norm > self.max_n:  # a fall or a collision, not a push to plan around
-            self._residual *= self.max_n / norm
+            scale = self.max_n / norm
+            rx, ry = rx * scale, ry * scale
             norm = self.max_n
-        self.force_n = self._residual * (1.0 - self.deadband_n / norm) if norm > self.deadband_n else np.zeros(2)
+        self._residual = (rx, ry)
+        if norm > self.deadband_n:
+            shrink = 1.0 - self.deadband_n / norm
+            self.force_n = np.array([rx * shrink, ry * shrink])
+        else:
+            self.force_n = np.zeros(2)
         return self.force_n
 
     @property

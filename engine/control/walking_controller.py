@@ -22,6 +22,7 @@ from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
+from engine.control.wbc.reference import N_BASIS, N_CORNERS
 from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
@@ -191,7 +192,7 @@ class WalkingController:
         self._com_now = (self.data.com[0].copy(), self.data.vcom[0].copy())
         # Around a landing the ground force is an impact the QP did not plan: the observer holds
         # (planned landings, and a swing foot already on the ground early).
-        early = self.ref is not None and bool(np.any(self.wbc_contact.any(axis=1) & ~self.ref.contact))
+        early = self.ref is not None and _early_touchdown(self.wbc_contact, self.ref.contact)
         self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2],
                              None if (self._landing or early) else self._ground_force)
         t_est = time.perf_counter()
@@ -480,7 +481,8 @@ class WalkingController:
         foot that are already on the ground (a swing foot reaches the floor a few ms before its
         planned touchdown; pretending it is still in the air makes the QP fight the floor)."""
         contact = reference.contact
-        landing = [i for i in range(2) if not contact[i].any()
+        flags = contact.tolist()
+        landing = [i for i in range(2) if not any(flags[i])
                    and reference.foot_pos_m[i, 2] < self.params.landing_height_m and reference.foot_lin_vel_mps[i, 2] <= 0.0]
         if not landing:
             return contact
@@ -595,8 +597,29 @@ def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
     if diag.basis is None or diag.rho is None:  # a peer without the paper's basis (placo)
         forces = diag.contact_forces_n
         return None if forces is None else forces[..., :2].sum(axis=(0, 1))
-    per_foot = diag.rho.reshape(len(SIDES), -1, diag.basis.shape[-1]).sum(axis=1)  # (2, 4): Σ over corners
-    return np.einsum("fkb,fb->k", diag.basis[:, :2, :], per_foot)
+    if diag.horizontal_force_n is not None:  # the compiled whole-body tick's (kernels.horizontal_force)
+        return diag.horizontal_force_n
+    basis, rho = diag.basis, diag.rho
+    if N_BASIS != 4 or N_CORNERS != 4 or basis.shape != (len(SIDES), 3, N_BASIS) or rho.shape != (len(SIDES) * N_CORNERS * N_BASIS,):
+        per_foot = rho.reshape(len(SIDES), -1, basis.shape[-1]).sum(axis=1)  # (2, 4): Σ over corners
+        return np.einsum("fkb,fb->k", basis[:, :2, :], per_foot)
+    # The same sums on floats (a fraction of the numpy calls' cost) in numpy's order: corner after
+    # corner, each foot's four edges as einsum adds them ((e0 + e2) + (e1 + e3)), then foot + foot.
+    r, b = rho.tolist(), basis.tolist()
+    n = N_CORNERS * N_BASIS
+    terms = [[0.0, 0.0] for _ in SIDES]
+    for f in range(len(SIDES)):
+        w = [((r[f * n + j] + r[f * n + 4 + j]) + r[f * n + 8 + j]) + r[f * n + 12 + j] for j in range(4)]
+        for k in range(2):
+            e = b[f][k]
+            terms[f][k] = (e[0] * w[0] + e[2] * w[2]) + (e[1] * w[1] + e[3] * w[3])
+    return np.array([terms[0][0] + terms[1][0], terms[0][1] + terms[1][1]])
+
+
+def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
+    """A foot the last whole-body tick stood on (any corner) that the plan has in swing."""
+    corners, planned = wbc_contact.tolist(), contact.tolist()
+    return any(any(c) and not p for c, p in zip(corners, planned))
 
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:

@@ -317,3 +317,95 @@ def test_compiled_merged_bank_equals_numpy() -> None:
         times[rng.random(len(members)) < 0.2] = 0.0
         for g, w in zip(merged.evaluate(times, scale), merged.evaluate_numpy(times, scale)):
             np.testing.assert_array_equal(g, w)
+
+
+# ----------------------------------------------------------------------------- per-tick glue (issue 12, wbc pass)
+
+
+class ObserverReference:
+    """ExternalForceObserver before the speed-up (numpy 2-vectors, np.linalg.norm)."""
+
+    def __init__(self, mass_kg: float, time_constant_s: float = 0.08, deadband_n_per_kg: float = 0.25,
+                 max_n_per_kg: float = 4.0):
+        self.mass_kg = float(mass_kg)
+        self.gain = 1.0 / time_constant_s
+        self.deadband_n = deadband_n_per_kg * mass_kg
+        self.max_n = max_n_per_kg * mass_kg
+        self.reset()
+
+    def reset(self, com_vel_xy=None) -> None:  # noqa: ANN001
+        self._p0 = None if com_vel_xy is None else self.mass_kg * np.asarray(com_vel_xy, dtype=float)
+        self._integral = np.zeros(2)
+        self._residual = np.zeros(2)
+        self.force_n = np.zeros(2)
+
+    def update(self, dt_s: float, com_vel_xy, ground_force_xy_n):  # noqa: ANN001, ANN201
+        p = self.mass_kg * np.asarray(com_vel_xy, dtype=float)
+        if not np.all(np.isfinite(p)):
+            return self.force_n
+        if self._p0 is None:
+            self._p0 = p.copy()
+            return self.force_n
+        if ground_force_xy_n is None or not np.all(np.isfinite(ground_force_xy_n)):
+            self._integral = p - self._p0 - self._residual / self.gain
+            return self.force_n
+        self._integral += (np.asarray(ground_force_xy_n, dtype=float) + self._residual) * dt_s
+        self._residual = self.gain * (p - self._p0 - self._integral)
+        norm = float(np.linalg.norm(self._residual))
+        if norm > self.max_n:
+            self._residual *= self.max_n / norm
+            norm = self.max_n
+        self.force_n = self._residual * (1.0 - self.deadband_n / norm) if norm > self.deadband_n else np.zeros(2)
+        return self.force_n
+
+
+def test_observer_on_floats_equals_the_numpy_version() -> None:
+    from engine.control.disturbance_observer import ExternalForceObserver
+
+    rng = np.random.default_rng(1)
+    for trial in range(60):
+        mass = float(rng.uniform(20.0, 100.0))
+        ours, reference = ExternalForceObserver(mass), ObserverReference(mass)
+        v0 = rng.normal(0.0, 0.3, 2) if trial % 3 else None
+        ours.reset(v0)
+        reference.reset(v0)
+        v = np.zeros(2)
+        scale = 10.0 ** rng.uniform(0.0, 3.5)  # from inside the deadband to beyond the fall cap
+        for _ in range(300):
+            v = v + rng.normal(0.0, 1e-4 * scale, 2)
+            ground = rng.normal(0.0, scale, 2)
+            draw = rng.random()
+            told = None if draw < 0.05 else (np.array([np.nan, 1.0]) if draw < 0.07 else ground)
+            seen = v.copy()
+            if rng.random() < 0.02:
+                seen[0] = np.inf
+            np.testing.assert_array_equal(ours.update(0.002, seen, told), reference.update(0.002, seen, told))
+
+
+def test_horizontal_ground_force_equals_the_einsum() -> None:
+    """The float and compiled sums (numpy's order here) against the einsum they replace: equal to rounding
+    (bit for bit on the machine of this pass; numpy's SIMD order may differ on another CPU)."""
+    from engine.control.walking_controller import _horizontal_ground_force
+    from engine.control.wbc.kernels import horizontal_force
+    from engine.control.wbc.reference import WbcDiagnostics
+
+    rng = np.random.default_rng(5)
+    for k in range(500):
+        rho = np.abs(rng.normal(0.0, 10.0 ** rng.uniform(-2, 3), 32)) * (rng.random(32) > 0.3)
+        if k % 7 == 0:
+            rho[:16] = 0.0
+        basis = rng.normal(0.0, 1.0, (2, 3, 4))
+        want = np.einsum("fkb,fb->k", basis[:, :2, :], rho.reshape(2, -1, 4).sum(axis=1))
+        scale = float(np.abs(basis).max() * rho.sum())
+        for got in (_horizontal_ground_force(WbcDiagnostics(status="solved", rho=rho, basis=basis)),
+                    horizontal_force(rho, basis)):
+            np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-15 * scale)
+
+
+def test_early_touchdown_flag_equals_the_array_expression() -> None:
+    from engine.control.walking_controller import _early_touchdown
+
+    for bits in range(2 ** 10):
+        corners = np.array([(bits >> i) & 1 for i in range(8)], dtype=bool).reshape(2, 4)
+        planned = np.array([(bits >> 8) & 1, (bits >> 9) & 1], dtype=bool)
+        assert _early_touchdown(corners, planned) == bool(np.any(corners.any(axis=1) & ~planned))

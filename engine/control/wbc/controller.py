@@ -166,6 +166,10 @@ class TaskSpaceInverseDynamics:
         self._torque_limit = np.where(effort > 0.0, g.torque_limit_fraction * effort, 1e6)
         self._neg_torque_limit = -self._torque_limit
         self._zeros_6 = np.zeros(6)
+        # kernels.build_qp's scalar parameters (λ_q̈, pyramid z, λ_τ̄, λ_ρ, m g, k_l, b_l, q̈_max)
+        self._build_params = np.array([g.lambda_qdd, self._basis_template[0, 2, 0], g.lambda_tau, g.lambda_rho,
+                                       self.mass_kg * GRAVITY_MPS2, g.joint_limit_kl, g.joint_limit_bl,
+                                       g.max_joint_acc_radps2], dtype=float)
         self._servo_kp = g.servo_kp_scale * robot.kp
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
@@ -213,6 +217,8 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
         if self.q_des is None:
             self.reset(state)
+        if self.kernels == "numba":
+            return self._compute_compiled(state, q, v, ref, t0)
         if not ref.is_finite():
             return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
         contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
@@ -221,8 +227,7 @@ class TaskSpaceInverseDynamics:
 
         snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
         t1 = time.perf_counter()
-        if self.kernels == "numpy":  # (the compiled rows read the reference directly)
-            self._set_targets(ref, contact)
+        self._set_targets(ref, contact)
         qp = self._build_qp(snap, ref, contact)
         self.qp = qp
         t2 = time.perf_counter()
@@ -258,6 +263,106 @@ class TaskSpaceInverseDynamics:
             basis=self._basis, corners_m=self._corners_m, qp=qp)
         return cmd
 
+    def _compute_compiled(self, state: RobotState, q: FloatArray, v: FloatArray, ref: WbcReference,
+                          t0: float) -> JointCommand:
+        """:meth:`_compute` with the compiled kernels: the reference's finiteness, the task rows, the QP's
+        assembly and bounds in one call (:func:`engine.control.wbc.kernels.build_qp`), the torques and
+        set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers."""
+        contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
+        snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
+        t1 = time.perf_counter()
+        qp = self._build_qp_compiled(snap, ref, contact)
+        if qp is None:
+            return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
+        if not contact.any():
+            return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
+        self.qp = qp
+        t2 = time.perf_counter()
+        solution, backend, iterations, message = None, self.qp_backend, 0, ""
+        if self.qp_backend == "daqp":
+            solution = self.daqp_solver.solve(qp)
+            iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
+        elif self.qp_backend == "dense":
+            solution = self.dense_solver.solve(qp)
+            iterations = self.dense_solver.iterations
+        elif self.qp_backend != "osqp":
+            result = qp_backends.solve(qp.standard_form(), self.qp_backend)
+            message = result.status
+            if result.ok and result.x is not None:
+                solution = (result.x[:self.nv].copy(), np.clip(result.x[self.nv:], 0.0, qp.rho_up))
+        if solution is None:
+            backend = "osqp"
+            solution = self.osqp_solver.solve(qp)
+            iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
+        t3 = time.perf_counter()
+        if solution is None:
+            return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
+        qdd, rho = solution
+        g = self.gains
+        damping = self._joint_damping
+        assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
+        tau, rhs, gen, q_des, qd_des, force = _kernels.finish_tick(
+            snap.mass_matrix, snap.nonlinear_effects, self._tau_map, rho, qdd,
+            self._no_damping if damping is None else damping, damping is not None, snap.v, snap.q, self.q_des,
+            self.qd_des, float(self.dt_s), float(g.max_position_error_rad), float(g.max_velocity_error_radps),
+            self._basis)
+        if not tau.size:  # the base block is not positive definite: LU (see _torques)
+            m = snap.mass_matrix
+            qdd[:6] = np.linalg.solve(m[:6, :6], rhs)
+            tau = m[6:] @ qdd + snap.nonlinear_effects[6:] + gen[6:] + (
+                self._no_damping if damping is None else damping * snap.v[6:])
+            if not math.isfinite(tau.sum()):
+                return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
+            cmd = self._setpoints(state, qdd, tau)
+        else:
+            if not math.isfinite(tau.sum()):
+                return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
+            self.q_des, self.qd_des = q_des, qd_des
+            cmd = JointCommand(q_des.copy(), qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
+        self.last_tau = tau
+        status = "solved" if backend in ("dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
+        self.diagnostics = WbcDiagnostics(
+            status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
+            pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
+            basis=self._basis, corners_m=self._corners_m, qp=qp, horizontal_force_n=force)
+        return cmd
+
+    def _build_qp_compiled(self, snap: DynamicsSnapshot, ref: WbcReference,
+                           contact: NDArray[np.bool_]) -> CentroidalQp | None:
+        """:meth:`_build_qp` in one compiled call (:func:`engine.control.wbc.kernels.build_qp`); None when
+        the reference has a non-finite number (nothing is written then)."""
+        nv, n_rho = self.nv, self.n_rho
+        p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
+        g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
+        corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
+        zeros = self._zeros_2x3
+        ext, com_z, damping = ref.external_wrench, ref.com_z_m, self._joint_damping
+        finite, b, lo, up, bias = _kernels.build_qp(
+            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
+            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
+            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
+            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
+            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
+            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
+            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
+            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if com_z is None else float(com_z), com_z is not None,
+            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps,
+            self._zeros_6 if ext is None else np.asarray(ext, dtype=float), ext is not None, self._build_params,
+            self._corner_offsets_t, self._basis_xy, self._joint_lower, self._joint_upper, snap.nonlinear_effects,
+            self._no_damping if damping is None else damping, damping is not None,
+            p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+        if not finite:
+            return None
+        self._jac_filled = True
+        self._basis, self._corners_m, self._tau_map = basis, corners, tau_map
+        key = contact.tobytes()
+        if key != self._rho_up_cache[0]:
+            rho_max = self.gains.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
+            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
+        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, self._rho_up_cache[1],
+                            tau_qdd=snap.mass_matrix[6:], tau_rho=tau_map[6:], tau_bias=bias,
+                            tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
+
     def _set_targets(self, ref: WbcReference, contact: NDArray[np.bool_]) -> None:
         g = self.gains
         for i, task in enumerate(self.foot_tasks):
@@ -290,36 +395,18 @@ class TaskSpaceInverseDynamics:
         self.upper_task.set_target(ref.upper_body_q_rad, ref.upper_body_qd_radps)
 
     def _build_qp(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> CentroidalQp:
+        """The QP in numpy (the reference of :meth:`_build_qp_compiled`)."""
         g = self.gains
-        nv = self.nv
         # ---- tasks: stacked weighted least squares on q̈ (Eq. 20); both feet at once (rows 0..11)
-        if self.kernels == "numba":
-            self._rows_compiled(snap, ref, contact)
-        else:
-            self._rows_numpy(snap)
+        self._rows_numpy(snap)
         self._jac_filled = True
-        if self.kernels == "numba":
-            p_qq, c_q, r_rr, g_rho, tj = self._assemble_compiled(snap)
-        else:
-            p_qq, c_q, r_rr, g_rho, tj = self._assemble_numpy(snap)
+        p_qq, c_q, r_rr, g_rho, tj = self._assemble_numpy(snap)
 
         key = contact.tobytes()
         if key != self._rho_up_cache[0]:
             rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
             self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
         rho_up = self._rho_up_cache[1]
-        if self.kernels == "numba":  # the lines below in one call (kernels.qp_bounds)
-            ext = ref.external_wrench
-            damping = self._joint_damping
-            b, lo, up, bias = _kernels.qp_bounds(
-                snap.centroidal_drift, self.mass_kg * GRAVITY_MPS2, self._zeros_6 if ext is None else np.asarray(ext, dtype=float),
-                ext is not None,
-                snap.q, snap.v, self._joint_lower, self._joint_upper, float(g.joint_limit_kl), float(g.joint_limit_bl),
-                float(g.max_joint_acc_radps2), snap.nonlinear_effects, self._no_damping if damping is None else damping,
-                damping is not None)
-            return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
-                                tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
-                                tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
         # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
         b = -snap.centroidal_drift
         b[2] -= self.mass_kg * GRAVITY_MPS2
@@ -355,21 +442,6 @@ class TaskSpaceInverseDynamics:
             task.write_rows(snap, jac[r:r + d] if not task.constant_jacobian or not self._jac_filled else None,
                             rhs[r:r + d])
             r += d
-
-    def _rows_compiled(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> None:
-        """:meth:`_set_targets` and :meth:`_rows_numpy` in one compiled call
-        (:func:`engine.control.wbc.kernels.task_rows`), weights included."""
-        zeros = self._zeros_2x3
-        _kernels.task_rows(
-            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
-            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
-            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
-            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
-            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
-            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
-            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
-            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if ref.com_z_m is None else float(ref.com_z_m),
-            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps)
 
     def _assemble_numpy(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """The tasks' normal equations and the contact model in numpy (the reference of
@@ -414,20 +486,6 @@ class TaskSpaceInverseDynamics:
 
         return p_qq, c_q, r_rr, g_rho, tj
 
-    def _assemble_compiled(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-        """:meth:`_assemble_numpy` in one compiled call (:func:`engine.control.wbc.kernels.assemble_qp`)."""
-        g = self.gains
-        nv, n_rho = self.nv, self.n_rho
-        p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
-        g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
-        corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
-        _kernels.assemble_qp(self._jac, self._w, self._rhs, float(g.lambda_qdd), snap.frame_rotation,
-                             snap.frame_position_m, self._corner_offsets_t, snap.com_m, self._basis_xy,
-                             float(self._basis_template[0, 2, 0]), snap.frame_jacobian, float(g.lambda_tau),
-                             float(g.lambda_rho), p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
-        self._basis, self._corners_m, self._tau_map = basis, corners, tau_map
-        return p_qq, c_q, r_rr, g_rho, tau_map[6:]
-
     def _skew_stack(self, arms: FloatArray) -> FloatArray:
         s = self._skew
         s[:, 0, 1] = -arms[:, 2]
@@ -439,15 +497,8 @@ class TaskSpaceInverseDynamics:
         return s
 
     def _torques(self, snap: DynamicsSnapshot, qdd: FloatArray, rho: FloatArray) -> FloatArray:
-        """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows."""
-        if self.kernels == "numba":
-            damping = self._no_damping if self._joint_damping is None else self._joint_damping * snap.v[6:]
-            tau, rhs, gen = _kernels.torques(snap.mass_matrix, snap.nonlinear_effects, self._tau_map, rho, qdd, damping)
-            if tau.size:
-                return tau
-            m = snap.mass_matrix
-            qdd[:6] = np.linalg.solve(m[:6, :6], rhs)
-            return m[6:] @ qdd + snap.nonlinear_effects[6:] + gen[6:] + damping
+        """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows
+        (numpy: the reference of :func:`engine.control.wbc.kernels.finish_tick`)."""
         m = snap.mass_matrix
         contact_gen = self._tau_map @ rho  # −Σ J_cᵀ f_c
         rhs = -(m[:6, 6:] @ qdd[6:]) - snap.nonlinear_effects[:6] - contact_gen[:6]

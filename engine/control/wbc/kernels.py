@@ -419,3 +419,96 @@ def qp_bounds(centroidal_drift, weight_n, external_wrench, has_external, q, v, j
         up[j] = max(min(kl * (joint_upper[j] - q[7 + j]) - bl * v[6 + j], amax), lo[j])
         bias[j] = nle[6 + j] + damping[j] * v[6 + j] if has_damping else nle[6 + j]
     return b, lo, up, bias
+
+
+@njit(cache=True, nogil=True)
+def _all_finite(a):  # noqa: ANN001, ANN201
+    """Every entry of ``a`` (any shape) finite."""
+    for x in a.flat:
+        if not math.isfinite(x):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def build_qp(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+             foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+             pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+             momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, com_z_given, upper_v_idx, upper_q_ref,
+             upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
+             damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis):  # noqa: ANN001, ANN201
+    """One tick's QP in one call: the reference's finiteness, then :func:`task_rows`, :func:`assemble_qp` and
+    :func:`qp_bounds` (the same code, so the same numbers). ``params``: λ_q̈, the pyramid edges' z,
+    λ_τ̄, λ_ρ, the robot's weight m g, the soft joint limits' k_l, b_l and q̈_max. ``com_z``: the tracked
+    CoM height when ``com_z_given`` (else NaN). Returns (finite, b, lo, up, bias); when the reference
+    has a non-finite number nothing is written and the arrays are empty."""
+    finite = (math.isfinite(pelvis_height) and math.isfinite(pelvis_height_rate)
+              and (math.isfinite(com_z) or not com_z_given)
+              and _all_finite(foot_pos) and _all_finite(foot_rot) and _all_finite(foot_lin_vel)
+              and _all_finite(foot_ang_vel) and _all_finite(foot_lin_acc) and _all_finite(foot_ang_acc)
+              and _all_finite(pelvis_rot) and _all_finite(pelvis_ang_vel) and _all_finite(com_xy)
+              and _all_finite(com_xy_vel) and _all_finite(com_xy_acc) and _all_finite(upper_q_ref)
+              and _all_finite(upper_qd_ref) and (_all_finite(external_wrench) or not has_external))
+    empty = np.empty(0)
+    if not finite:
+        return False, empty, empty, empty, empty
+    tracked_com_z = com_z if com_z_given else math.nan
+    task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+              foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+              pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+              momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, tracked_com_z, upper_v_idx,
+              upper_q_ref, upper_qd_ref)
+    assemble_qp(jac, w, rhs, params[0], frame_rot, frame_pos, offsets_t, com, basis_xy, params[1], frame_jac,
+                params[2], params[3], p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+    b, lo, up, bias = qp_bounds(centroidal_drift, params[4], external_wrench, has_external, q, v, joint_lower,
+                                joint_upper, params[5], params[6], params[7], nle, damping, has_damping)
+    return True, b, lo, up, bias
+
+
+@njit(cache=True, nogil=True)
+def horizontal_force(rho, basis):  # noqa: ANN001, ANN201
+    """Σ of the horizontal contact forces Σ_c B_c ρ_c (2 sides, 4 corners, 4 edges), summed as numpy sums
+    ``rho.reshape(2, 4, 4).sum(axis=1)`` and einsums it with the edges here: corner after corner, each
+    foot's edges as ((e0 + e2) + (e1 + e3)), then foot + foot (the walking controller's push observer)."""
+    out = np.empty(2)
+    terms = np.empty((2, 2))
+    w = np.empty(4)
+    for f in range(2):
+        for j in range(4):
+            w[j] = ((rho[f * 16 + j] + rho[f * 16 + 4 + j]) + rho[f * 16 + 8 + j]) + rho[f * 16 + 12 + j]
+        for k in range(2):
+            terms[f, k] = ((basis[f, k, 0] * w[0] + basis[f, k, 2] * w[2])
+                           + (basis[f, k, 1] * w[1] + basis[f, k, 3] * w[3]))
+    for k in range(2):
+        out[k] = terms[0, k] + terms[1, k]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def finish_tick(mass_matrix, nle, tau_map, rho, qdd, joint_damping, has_damping, v, q, q_des, qd_des, dt,
+                max_position_error, max_velocity_error, basis):  # noqa: ANN001, ANN201
+    """:func:`torques` (the model's viscous joint damping ``joint_damping ⊙ q̇_j`` when ``has_damping``), the
+    set-points of :func:`engine.control.wbc.setpoints.integrate_setpoints` and the :func:`horizontal_force` of
+    the solution in one call: (τ, base rows' right-hand side, −Σ J_cᵀ f_c, q*, q̇*, horizontal force); τ is
+    empty when the base block is not positive definite (the caller solves it and integrates the set-points)."""
+    n = nle.shape[0] - 6
+    damping = np.zeros(n)
+    if has_damping:
+        for j in range(n):
+            damping[j] = joint_damping[j] * v[6 + j]
+    tau, rhs, gen = torques(mass_matrix, nle, tau_map, rho, qdd, damping)
+    force = horizontal_force(rho, basis)
+    if tau.size == 0:
+        return tau, rhs, gen, tau, tau, force
+    qd_new, q_new = np.empty(n), np.empty(n)
+    for j in range(n):  # np.minimum(np.maximum(·, lo), hi) on finite numbers
+        vj, qj = v[6 + j], q[7 + j]
+        x = qd_des[j] + qdd[6 + j] * dt
+        lo, hi = vj - max_velocity_error, vj + max_velocity_error
+        x = x if x > lo else lo
+        qd_new[j] = x if x < hi else hi
+        y = q_des[j] + qd_new[j] * dt
+        lo, hi = qj - max_position_error, qj + max_position_error
+        y = y if y > lo else lo
+        q_new[j] = y if y < hi else hi
+    return tau, rhs, gen, q_new, qd_new, force

@@ -471,7 +471,7 @@ class DaqpQpSolver:
         x, _, flag, info = ws.model.solve()
         self.status = f"daqp exitflag {flag}"
         self.iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
-        if flag not in (1, 2) or not math.isfinite(float(np.sum(x))):
+        if flag not in (1, 2) or not math.isfinite(float(x.sum())):
             ws.set_up = False  # start the next solve of this size cold
             return None
         return np.asarray(x)

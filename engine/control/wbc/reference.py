@@ -157,6 +157,8 @@ class WbcDiagnostics:
     basis: FloatArray | None = field(default=None, repr=False)  # (2, 3, 4) pyramid edges per foot
     corners_m: FloatArray | None = field(default=None, repr=False)  # (2, 3, 4) corner positions
     qp: CentroidalQp | None = field(default=None, repr=False)
+    # (2,) Σ of the solution's horizontal contact forces, when the solver computed it (the compiled kernels)
+    horizontal_force_n: FloatArray | None = field(default=None, repr=False)
 
     @property
     def ok(self) -> bool:

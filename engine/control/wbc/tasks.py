@@ -79,14 +79,15 @@ class DynamicsSnapshot:
         CRBA in the WORLD convention fills them, so no separate ``computeJointJacobians``), non-linear
         effects, CCRBA (A_h, h, CoM) and the centroidal momentum rate at q̈ = 0 (Ȧ_h q̇, and the
         frame acceleration drifts from the same forward pass)."""
-        pin.crba(model, data, q)
-        pin.nonLinearEffects(model, data, q, v)
-        pin.ccrba(model, data, q, v)
+        # (the bindings return owned copies of data.M, data.nle and data.Ag: no second copy)
+        mass_matrix = pin.crba(model, data, q)
+        nonlinear_effects = pin.nonLinearEffects(model, data, q, v)
+        centroidal_map = pin.ccrba(model, data, q, v)
         zeros = _ZEROS.get(model.nv)
         if zeros is None:
             zeros = _ZEROS[model.nv] = np.zeros(model.nv)
             zeros.flags.writeable = False
-        pin.computeCentroidalMomentumTimeVariation(model, data, q, v, zeros)
+        centroidal_drift = pin.computeCentroidalMomentumTimeVariation(model, data, q, v, zeros).vector.copy()
         n = len(frame_ids)
         pos = np.empty((n, 3))
         rot = np.empty((n, 3, 3))
@@ -100,8 +101,8 @@ class DynamicsSnapshot:
             jac[i] = pin.getFrameJacobian(model, data, fid, lwa)
             drift[i] = pin.getFrameClassicalAcceleration(model, data, fid, lwa).vector
         return cls(
-            q=q, v=v, mass_matrix=data.M.copy(), nonlinear_effects=data.nle.copy(), centroidal_map=data.Ag.copy(),
-            centroidal_drift=data.dhg.vector.copy(), momentum=data.hg.vector.copy(), com_m=data.com[0].copy(),
+            q=q, v=v, mass_matrix=mass_matrix, nonlinear_effects=nonlinear_effects, centroidal_map=centroidal_map,
+            centroidal_drift=centroidal_drift, momentum=data.hg.vector.copy(), com_m=data.com[0].copy(),
             mass_kg=float(data.mass[0]), base_rotation=data.oMi[1].rotation.copy(),
             frame_position_m=pos, frame_rotation=rot, frame_jacobian=jac, frame_velocity=jac @ v, frame_drift=drift,
         )
