@@ -156,6 +156,7 @@ class MergedBank:
         self.events = np.array([b.events for b in banks])
         self.attributes = np.array([b.attribute_vector for b in banks])
         self.boundary_pitch = np.array([[b.boundary_pitch[side] for side in SIDES] for b in banks])
+        self.boundary_pitch_rows = self.boundary_pitch.reshape(self.n_members, -1)  # tensordot's (members, 8) operand
         self.offset = np.array(offset)
         self.periodic = np.array(period) > 0
         self.period = np.where(self.periodic, np.array(period), 1.0)
@@ -199,7 +200,8 @@ class BlendedGait:
         self.events_s = (t_ltd, t_rlo, t_rtd, cycle)
         self.attribute_values = self.weights @ m.attributes
         self.phase_map = PhaseMap(t_ltd, t_rlo, t_rtd, cycle)
-        bp = np.tensordot(self.weights, m.boundary_pitch, axes=1).tolist()  # (side, liftoff/touchdown, heel/toe)
+        # np.tensordot(weights, boundary_pitch, axes=1) without its Python overhead: the same (1, n) · (n, 8) dot
+        bp = np.dot(self.weights.reshape(1, -1), m.boundary_pitch_rows).reshape(m.boundary_pitch.shape[1:]).tolist()
         self.boundary_pitch = {side: (tuple(bp[i][0]), tuple(bp[i][1])) for i, side in enumerate(SIDES)}
 
     @cached_property

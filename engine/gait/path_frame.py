@@ -44,6 +44,12 @@ class PathFrame:
 
 def predict(pose: np.ndarray, v: np.ndarray, dt_s: float) -> np.ndarray:
     """Pose after ``dt_s`` along the arc of constant body velocity ``v``."""
+    return np.array(predict_xy_yaw(float(pose[0]), float(pose[1]), float(pose[2]), v, dt_s))
+
+
+def predict_xy_yaw(x: float, y: float, yaw: float, v: np.ndarray | tuple[float, float, float],
+                   dt_s: float) -> tuple[float, float, float]:
+    """:func:`predict` on floats: (x, y, yaw) after ``dt_s`` along the arc of constant body velocity ``v``."""
     dx, dy, th = arc_displacement(v, dt_s)
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    return np.array([pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, pose[2] + th])
+    c, s = math.cos(yaw), math.sin(yaw)
+    return x + c * dx - s * dy, y + s * dx + c * dy, yaw + th

@@ -32,10 +32,10 @@ from engine.gait.footsteps import (
     stance_offset,
 )
 from engine.gait.heel_toe import foot_rig, stance_pitch
-from engine.gait.path_frame import PathFrame, predict
+from engine.gait.path_frame import PathFrame, predict_xy_yaw
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
-from engine.gait.planner_kernels import path_table_poses, support_hull
+from engine.gait.planner_kernels import command_ramp_pieces, path_table_poses, support_hull
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
 
@@ -167,6 +167,8 @@ class GaitPlanner:
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._path_rows: tuple[list, list, list] | None = None  # the table as lists of floats (rows read one by one)
+        self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
         self._hull_cache: dict[tuple, np.ndarray] = {}
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
@@ -248,6 +250,13 @@ class GaitPlanner:
         return stance_offset(side, b.attribute("stance_width_m"), b.attribute("stance_splay_rad"),
                              b.attribute("stance_x_bias_m"))
 
+    def _stance_xy_yaw(self, side: str) -> tuple[float, float, float]:
+        """:meth:`stance` of the current blend as floats, kept while the blend is."""
+        cached = self._stances
+        if cached is None or cached[0] is not self.blend:
+            cached = self._stances = (self.blend, {s: tuple(self.stance(s).tolist()) for s in SIDES})
+        return cached[1][side]
+
     @staticmethod
     def in_swing(side: str, phi: float) -> bool:
         lo, hi = SWING_PHASES[side]
@@ -287,7 +296,7 @@ class GaitPlanner:
         if rate > 0.0:
             self.phi = max(blend.phase_of_time(blend.time_at(phi_old) + rate * dt_s), phi_old)
             self.path.advance(self.command, rate * dt_s)
-        self._path_table = None
+        self._path_table = self._path_rows = None
         self._handle_events(phi_old, self.phi)
         adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
         for side in SIDES:
@@ -332,13 +341,21 @@ class GaitPlanner:
     def path_ahead(self, dt_s: float) -> np.ndarray:
         """The path pose ``dt_s`` of gait time ahead, the command ramping toward ``command_goal``
         within ``command_rate_limits`` (exact arcs per piece of a 50 ms table)."""
+        return np.array(self._path_pose_ahead(dt_s))
+
+    def _path_pose_ahead(self, dt_s: float) -> tuple[float, float, float]:
+        """:meth:`path_ahead` on floats (x, y, yaw)."""
         if self.command_goal is None or self.command_rate_limits is None:
-            return self.path.predicted(self.command, dt_s)
-        if self._path_table is None:
+            path = self.path
+            return predict_xy_yaw(float(path.x), float(path.y), float(path.yaw), self.command, dt_s)
+        if self._path_rows is None:
             self._path_table = self._build_path_table()
-        times, poses, vels = self._path_table
-        k = min(int(dt_s / PATH_TABLE_STEP_S), len(times) - 1)
-        return predict(poses[k], vels[k], dt_s - times[k])
+            times, poses, vels = self._path_table
+            self._path_rows = (times.tolist(), poses.tolist(), vels.tolist())
+        times_l, poses_l, vels_l = self._path_rows
+        k = min(int(dt_s / PATH_TABLE_STEP_S), len(times_l) - 1)
+        x, y, yaw = poses_l[k]
+        return predict_xy_yaw(x, y, yaw, vels_l[k], dt_s - times_l[k])
 
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
@@ -418,8 +435,8 @@ class GaitPlanner:
         phi_td, phi_lo = self._contact_midpoint_phase(side, self.phi)
         t_now = blend.time_at(self.phi)
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_lo))
-        pose = self.path_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self.stance(side))
+        pose = self._path_pose_ahead(max(t_mid - t_now, 0.0))
+        target = foothold_from_path(pose, self._stance_xy_yaw(side))
         if adjust_xy.any():
             target = Foothold(target.x + adjust_xy[0], target.y + adjust_xy[1], target.yaw)
         other = "right" if side == "left" else "left"
@@ -513,46 +530,45 @@ class GaitPlanner:
     def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
         """Support intervals over the next ``horizon_s``: timings, footholds, polygons."""
         blend = self.blend
-        events = (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
-        t_now = blend.time_at(self.phi)
-        phases: list[ContactPhase] = []
-        footholds = {s: (self.target[s] if self.in_swing(s, self.phi) else self.latched[s]) for s in SIDES}
-        swinging = {s for s in SIDES if self.in_swing(s, self.phi)}  # their target is already known
-        k = math.floor(self.phi)
-        boundaries = [k + c + e for c in range(4) for e in events if k + c + e > self.phi]
-        prev_phi = self.phi
+        phi = self.phi
+        t_ltd, t_rlo, t_rtd, cycle = blend.events_s
+        event_offsets = ((0.0, 0.0), (PHI_LTD, t_ltd), (PHI_RLO, t_rlo), (PHI_RTD, t_rtd))  # (φ, gait time) in a cycle
+        t_now = blend.time_at(phi)
+        swinging = {s for s in SIDES if self.in_swing(s, phi)}  # their target is already known
+        footholds = {s: (self.target[s] if s in swinging else self.latched[s]) for s in SIDES}
         # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
         hold = _remaining_ease_delay(self.hold_s)
         length = self.sole_length_m - 2.0 * self.preview_margin_m
         width = self.sole_width_m - 2.0 * self.preview_margin_m
-        stances: dict[str, np.ndarray] = {}  # p_stance per side (the blend is fixed during the call)
-        for b in boundaries:
-            t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
-            t1 = (blend.event_time(b) - t_now) / kappa
-            if prev_phi != self.phi:
-                t0 += hold
-            t1 += hold
-            down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
-            if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
-                polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
-            else:
-                # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before
-                # its liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
-                edges = tuple(self._rolling_edge(s, prev_phi, b) for s in down)
-                polygon = self._support_hull(tuple(footholds[s] for s in down), length, width, edges)
-            phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
-            if t1 >= horizon_s:
-                break
-            f = b - math.floor(b)
-            for side in SIDES:
-                if abs(f - SWING_PHASES[side][1]) < 1e-9:  # this foot touches down at b
-                    if side in swinging:
-                        swinging.discard(side)
+        toe_trim = self.preview_toe_trim_m
+        phases: list[ContactPhase] = []
+        k = math.floor(phi)
+        prev_phi, t0 = phi, 0.0  # the interval under way starts now
+        for cycle_index in range(k, k + 4):
+            for event, (event_phi, event_t) in enumerate(event_offsets):
+                b = cycle_index + event_phi
+                if not b > phi:
+                    continue
+                # blend.event_time(b) − t_now, in time scaled by κ, plus the ease-in's delay
+                t1 = (cycle_index * cycle + event_t - t_now) / kappa + hold
+                down = _down_sides(0.5 * (prev_phi + b))
+                if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
+                    polygon = footholds[down[0]].corners(length, width, toe_trim)
+                else:
+                    # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before
+                    # its liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
+                    edges = tuple(self._rolling_edge(s, prev_phi, b) for s in down)
+                    polygon = self._support_hull(tuple(footholds[s] for s in down), length, width, edges)
+                phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
+                if t1 >= horizon_s:
+                    return phases
+                landing = "left" if event == 1 else ("right" if event == 3 else None)  # touches down at b
+                if landing is not None:
+                    if landing in swinging:
+                        swinging.discard(landing)
                     else:
-                        if side not in stances:
-                            stances[side] = self.stance(side)
-                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds, stances[side])}
-            prev_phi = b
+                        footholds[landing] = self._predicted_foothold(landing, b, t_now, footholds)
+                prev_phi, t0 = b, t1
         return phases
 
     def _rolling_edge(self, side: str, phi_start: float, phi_end: float) -> str | None:
@@ -564,9 +580,9 @@ class GaitPlanner:
         lo, td = SWING_PHASES[side]
         liftoff_pitch, touchdown_pitch = self.blend.boundary_pitch[side]
         if phi_start == self.phi and self._last_pose is not None:
+            # The foot's pitch now: −asin of (Rz(yaw)ᵀ R)[2, 0], which is R[2, 0] (Rz leaves the z row alone).
             rot = self._last_pose["feet"][side].rot
-            yaw = math.atan2(rot[1, 0], rot[0, 0])
-            pitch = -math.asin(max(-1.0, min(1.0, (rot_z(yaw).T @ rot)[2, 0])))
+            pitch = -math.asin(max(-1.0, min(1.0, float(rot[2, 0]))))
             edge = _pitched_edge(min(pitch, 0.0), max(pitch, 0.0))
             if edge is not None:
                 return edge
@@ -584,7 +600,7 @@ class GaitPlanner:
         foot whose ``edges`` entry names one); latched footholds recur tick after tick, so the
         hulls are kept (by value: Foothold is frozen) until the cache is full."""
         edges = edges if edges is not None else (None,) * len(holds)
-        key = (holds, length, width, edges)
+        key = (*(v for h in holds for v in (h.x, h.y, h.yaw)), length, width, edges)  # Foothold's equality, flat
         hull = self._hull_cache.get(key)
         if hull is None:
             if len(self._hull_cache) >= 64:
@@ -594,14 +610,13 @@ class GaitPlanner:
             self._hull_cache[key] = hull
         return hull
 
-    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold],
-                            stance: np.ndarray | None = None) -> Foothold:
+    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
         blend = self.blend
         lo, _ = SWING_PHASES[side]
         phi_next_lo = math.floor(phi_td - lo) + 1 + lo
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
-        pose = self.path_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self.stance(side) if stance is None else stance)
+        pose = self._path_pose_ahead(max(t_mid - t_now, 0.0))
+        target = foothold_from_path(pose, self._stance_xy_yaw(side))
         other = "right" if side == "left" else "left"
         return project_to_safe_region(footholds[other], target, side, self.region)
 
@@ -609,6 +624,8 @@ class GaitPlanner:
 #: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
 #: rebuilds only the poses.
 _RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
+_PATH_TABLE_TIMES = np.arange(int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1) * PATH_TABLE_STEP_S
+_PATH_TABLE_TIMES.flags.writeable = False
 
 
 def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -619,29 +636,9 @@ def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray
     hit = _RAMP_CACHE.get(key)
     if hit is not None:
         return hit
-    h = PATH_TABLE_STEP_S
-    n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
-    times = np.arange(n) * PATH_TABLE_STEP_S
-    vels = np.empty((n, 3))
-    for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
-        g, lim, v = float(goal[j]), abs(float(rate_limits[j])) * h, float(command[j])
-        column = vels[:, j]
-        for i in range(n):
-            dv = min(max(g - v, -lim), lim)
-            column[i] = v + 0.5 * dv  # the piece's mean velocity
-            if dv == 0.0:
-                column[i + 1:] = v
-                break
-            v = v + dv
-    # Exact arcs of every piece (path_frame.arc_displacement, vectorised).
-    w = vels[:, 2]
-    th = w * h
-    small = np.abs(th) < 1e-9
-    w_safe = np.where(small, 1.0, w)
-    sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
-    cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
-    dx = vels[:, 0] * sinc - vels[:, 1] * cosc
-    dy = vels[:, 0] * cosc + vels[:, 1] * sinc
+    times = _PATH_TABLE_TIMES
+    vels, th, dx, dy = command_ramp_pieces(np.asarray(command, dtype=float), np.asarray(goal, dtype=float),
+                                           np.asarray(rate_limits, dtype=float), PATH_TABLE_STEP_S, len(times))  # compiled
     hit = (times, vels, th, dx, dy)
     for a in hit:
         a.flags.writeable = False
@@ -649,6 +646,21 @@ def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray
         _RAMP_CACHE.clear()
     _RAMP_CACHE[key] = hit
     return hit
+
+
+_LEFT_DOWN, _RIGHT_DOWN, _BOTH_DOWN = ("left",), ("right",), tuple(SIDES)
+
+
+def _down_sides(phi: float) -> tuple[str, ...]:
+    """The feet in their support phase at φ (:meth:`GaitPlanner.in_swing` of both sides, on one floor)."""
+    f = phi - math.floor(phi)
+    left_lo, left_td = SWING_PHASES["left"]
+    right_lo, right_td = SWING_PHASES["right"]
+    if left_lo <= f < left_td:
+        return _RIGHT_DOWN
+    if right_lo <= f < right_td:
+        return _LEFT_DOWN
+    return _BOTH_DOWN
 
 
 def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:

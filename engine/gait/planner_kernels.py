@@ -69,6 +69,40 @@ def _support_hull_compiled(poses, length_m, width_m, codes, strip_depth_m):  # n
 
 
 @njit(cache=True, nogil=True)
+def command_ramp_pieces(command, goal, rate_limits, step_s, n):  # noqa: ANN001, ANN201
+    """The path table's velocity part (``planner._command_ramp``): the mean velocity of each of the ``n`` pieces
+    (n, 3) of the rate-limited ramp toward ``goal`` (per axis v ← v + clip(goal − v, ±|limit|·step), each piece
+    at v + dv/2, the goal held once reached), and each piece's turn angle and exact arc (dx, dy) in its
+    start frame (``path_frame.arc_displacement``'s expressions, elementwise as the numpy code computed them)."""
+    vels = np.empty((n, 3))
+    for j in range(3):
+        g, lim, v = goal[j], abs(rate_limits[j]) * step_s, command[j]
+        for i in range(n):
+            dv = min(max(g - v, -lim), lim)
+            vels[i, j] = v + 0.5 * dv  # the piece's mean velocity
+            if dv == 0.0:
+                for k in range(i + 1, n):
+                    vels[k, j] = v
+                break
+            v = v + dv
+    th = np.empty(n)
+    dx = np.empty(n)
+    dy = np.empty(n)
+    h = step_s
+    for i in range(n):
+        w = vels[i, 2]
+        t = w * h
+        th[i] = t
+        if abs(t) < 1e-9:
+            sinc, cosc = h * (1.0 - t * t / 6.0), h * (0.5 * t)
+        else:
+            sinc, cosc = math.sin(t) / w, (1.0 - math.cos(t)) / w
+        dx[i] = vels[i, 0] * sinc - vels[i, 1] * cosc
+        dy[i] = vels[i, 0] * cosc + vels[i, 1] * sinc
+    return vels, th, dx, dy
+
+
+@njit(cache=True, nogil=True)
 def path_table_poses(x, y, yaw, th, dx, dy):  # noqa: ANN001, ANN201
     """The planner's path table poses (n, 3) from the start pose and the pieces' turn angles and arcs
     (``GaitPlanner._build_path_table``'s numpy cumsums, in their order: the same numbers)."""
