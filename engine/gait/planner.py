@@ -35,7 +35,7 @@ from engine.gait.heel_toe import foot_rig, stance_pitch
 from engine.gait.path_frame import PathFrame, predict_xy_yaw
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
-from engine.gait.planner_kernels import command_ramp_pieces, path_table_poses, support_hull
+from engine.gait.planner_kernels import EDGE_CODES, command_ramp_pieces, path_table_poses, preview_polygons
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
 
@@ -169,7 +169,6 @@ class GaitPlanner:
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._path_rows: tuple[list, list, list] | None = None  # the table as lists of floats (rows read one by one)
         self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
-        self._hull_cache: dict[tuple, np.ndarray] = {}
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -538,10 +537,7 @@ class GaitPlanner:
         footholds = {s: (self.target[s] if s in swinging else self.latched[s]) for s in SIDES}
         # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
         hold = _remaining_ease_delay(self.hold_s)
-        length = self.sole_length_m - 2.0 * self.preview_margin_m
-        width = self.sole_width_m - 2.0 * self.preview_margin_m
-        toe_trim = self.preview_toe_trim_m
-        phases: list[ContactPhase] = []
+        intervals: list[tuple[float, float, tuple[str, ...], dict[str, Foothold], tuple[str | None, ...]]] = []
         k = math.floor(phi)
         prev_phi, t0 = phi, 0.0  # the interval under way starts now
         for cycle_index in range(k, k + 4):
@@ -552,16 +548,13 @@ class GaitPlanner:
                 # blend.event_time(b) − t_now, in time scaled by κ, plus the ease-in's delay
                 t1 = (cycle_index * cycle + event_t - t_now) / kappa + hold
                 down = _down_sides(0.5 * (prev_phi + b))
-                if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
-                    polygon = footholds[down[0]].corners(length, width, toe_trim)
-                else:
-                    # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before
-                    # its liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
-                    edges = tuple(self._rolling_edge(s, prev_phi, b) for s in down)
-                    polygon = self._support_hull(tuple(footholds[s] for s in down), length, width, edges)
-                phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
+                # One ankle holds the whole weight: no further than it can reach (the sole trimmed at the toe).
+                # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before its
+                # liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
+                edges = (None,) if len(down) == 1 else tuple(self._rolling_edge(s, prev_phi, b) for s in down)
+                intervals.append((t0, t1, down, {s: footholds[s] for s in down}, edges))
                 if t1 >= horizon_s:
-                    return phases
+                    return self._contact_phases(intervals)
                 landing = "left" if event == 1 else ("right" if event == 3 else None)  # touches down at b
                 if landing is not None:
                     if landing in swinging:
@@ -569,7 +562,30 @@ class GaitPlanner:
                     else:
                         footholds[landing] = self._predicted_foothold(landing, b, t_now, footholds)
                 prev_phi, t0 = b, t1
-        return phases
+        return self._contact_phases(intervals)
+
+    def _contact_phases(self, intervals: list[tuple[float, float, tuple[str, ...], dict[str, Foothold],
+                                                    tuple[str | None, ...]]]) -> list[ContactPhase]:
+        """The preview's ContactPhases from its intervals (start, end [s from now], feet down, their footholds,
+        their rolling edges); the polygons of all intervals in one compiled call."""
+        n = len(intervals)
+        poses = np.zeros((n, 2, 3))
+        down = np.zeros((n, 2), dtype=np.bool_)
+        codes = np.zeros((n, 2), dtype=np.int64)
+        for i, (_, _, sides, holds, edges) in enumerate(intervals):
+            for side, edge in zip(sides, edges):
+                j = 0 if side == "left" else 1
+                h = holds[side]
+                poses[i, j, 0], poses[i, j, 1], poses[i, j, 2] = h.x, h.y, h.yaw
+                down[i, j] = True
+                codes[i, j] = EDGE_CODES[edge]
+        polygons, counts = preview_polygons(poses, down, codes, self.sole_length_m - 2.0 * self.preview_margin_m,
+                                            self.sole_width_m - 2.0 * self.preview_margin_m, self.preview_toe_trim_m,
+                                            EDGE_SUPPORT_DEPTH_M)  # compiled: Foothold.corners / support_hull's numbers
+        polygons.flags.writeable = False  # the phases' polygons are views of it
+        t_s = self.t_s
+        return [ContactPhase(t_s + t0, t_s + t1, holds, polygons[i, :m])
+                for i, ((t0, t1, _, holds, _), m) in enumerate(zip(intervals, counts.tolist()))]
 
     def _rolling_edge(self, side: str, phi_start: float, phi_end: float) -> str | None:
         """The sole edge ("heel"/"toe") ``side`` rolls on during the double support [phi_start, phi_end]
@@ -593,22 +609,6 @@ class GaitPlanner:
         if _at_event(phi_end, lo):
             return _pitched_edge(*liftoff_pitch)
         return None
-
-    def _support_hull(self, holds: tuple[Foothold, ...], length: float, width: float,
-                      edges: tuple[str | None, ...] | None = None) -> np.ndarray:
-        """Convex hull of the soles on ``holds`` (of only the strip along the heel or toe edge for a
-        foot whose ``edges`` entry names one); latched footholds recur tick after tick, so the
-        hulls are kept (by value: Foothold is frozen) until the cache is full."""
-        edges = edges if edges is not None else (None,) * len(holds)
-        key = (*(v for h in holds for v in (h.x, h.y, h.yaw)), length, width, edges)  # Foothold's equality, flat
-        hull = self._hull_cache.get(key)
-        if hull is None:
-            if len(self._hull_cache) >= 64:
-                self._hull_cache.clear()
-            hull = support_hull(holds, length, width, edges, EDGE_SUPPORT_DEPTH_M)  # compiled: the same numbers
-            hull.flags.writeable = False  # shared between calls
-            self._hull_cache[key] = hull
-        return hull
 
     def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
         blend = self.blend

@@ -35,37 +35,72 @@ def support_hull(holds: tuple, length_m: float, width_m: float, edges: tuple, st
 
 
 @njit(cache=True, nogil=True)
+def _sole_points(pts, k, x0, y0, yaw, length_m, width_m, front_trim_m, code, strip_share):  # noqa: ANN001, ANN201, PLR0913
+    """Rows k..k+3 of ``pts``: the corners of the sole on (x0, y0, yaw) as :meth:`Foothold.corners` computes them
+    (back-left, back-right, front-right, front-left; ``front_trim_m`` cut at the toe), or its heel (code 1) or toe
+    (code 2) strip, ``strip_share`` of the length deep (the planner's edge strips)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    trim = min(max(front_trim_m, 0.0), 0.9 * length_m)
+    hl, hw = 0.5 * (length_m - trim), 0.5 * width_m
+    x, y = x0 - c * 0.5 * trim, y0 - s * 0.5 * trim
+    blx, bly = x - c * hl - s * hw, y - s * hl + c * hw
+    brx, bry = x - c * hl + s * hw, y - s * hl - c * hw
+    frx, fry = x + c * hl + s * hw, y + s * hl - c * hw
+    flx, fly = x + c * hl - s * hw, y + s * hl + c * hw
+    f = strip_share
+    if code == 1:  # heel strip: bl, br, br + f (fr − br), bl + f (fl − bl)
+        pts[k, 0], pts[k, 1] = blx, bly
+        pts[k + 1, 0], pts[k + 1, 1] = brx, bry
+        pts[k + 2, 0], pts[k + 2, 1] = brx + f * (frx - brx), bry + f * (fry - bry)
+        pts[k + 3, 0], pts[k + 3, 1] = blx + f * (flx - blx), bly + f * (fly - bly)
+    elif code == 2:  # toe strip: fl + f (bl − fl), fr + f (br − fr), fr, fl
+        pts[k, 0], pts[k, 1] = flx + f * (blx - flx), fly + f * (bly - fly)
+        pts[k + 1, 0], pts[k + 1, 1] = frx + f * (brx - frx), fry + f * (bry - fry)
+        pts[k + 2, 0], pts[k + 2, 1] = frx, fry
+        pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+    else:
+        pts[k, 0], pts[k, 1] = blx, bly
+        pts[k + 1, 0], pts[k + 1, 1] = brx, bry
+        pts[k + 2, 0], pts[k + 2, 1] = frx, fry
+        pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+
+
+@njit(cache=True, nogil=True)
 def _support_hull_compiled(poses, length_m, width_m, codes, strip_depth_m):  # noqa: ANN001, ANN201
     n = poses.shape[0]
     pts = np.empty((4 * n, 2))
     f = min(strip_depth_m / max(length_m, 1e-9), 1.0)
-    for i in range(n):
-        # Foothold.corners(length_m, width_m) (front trim 0): back-left, back-right, front-right, front-left
-        c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
-        trim = min(max(0.0, 0.0), 0.9 * length_m)
-        hl, hw = 0.5 * (length_m - trim), 0.5 * width_m
-        x, y = poses[i, 0] - c * 0.5 * trim, poses[i, 1] - s * 0.5 * trim
-        blx, bly = x - c * hl - s * hw, y - s * hl + c * hw
-        brx, bry = x - c * hl + s * hw, y - s * hl - c * hw
-        frx, fry = x + c * hl + s * hw, y + s * hl - c * hw
-        flx, fly = x + c * hl - s * hw, y + s * hl + c * hw
-        k = 4 * i
-        if codes[i] == 1:  # heel strip: bl, br, br + f (fr − br), bl + f (fl − bl)
-            pts[k, 0], pts[k, 1] = blx, bly
-            pts[k + 1, 0], pts[k + 1, 1] = brx, bry
-            pts[k + 2, 0], pts[k + 2, 1] = brx + f * (frx - brx), bry + f * (fry - bry)
-            pts[k + 3, 0], pts[k + 3, 1] = blx + f * (flx - blx), bly + f * (fly - bly)
-        elif codes[i] == 2:  # toe strip: fl + f (bl − fl), fr + f (br − fr), fr, fl
-            pts[k, 0], pts[k, 1] = flx + f * (blx - flx), fly + f * (bly - fly)
-            pts[k + 1, 0], pts[k + 1, 1] = frx + f * (brx - frx), fry + f * (bry - fry)
-            pts[k + 2, 0], pts[k + 2, 1] = frx, fry
-            pts[k + 3, 0], pts[k + 3, 1] = flx, fly
-        else:
-            pts[k, 0], pts[k, 1] = blx, bly
-            pts[k + 1, 0], pts[k + 1, 1] = brx, bry
-            pts[k + 2, 0], pts[k + 2, 1] = frx, fry
-            pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+    for i in range(n):  # Foothold.corners(length_m, width_m) (front trim 0), whole or cut to a strip
+        _sole_points(pts, 4 * i, poses[i, 0], poses[i, 1], poses[i, 2], length_m, width_m, 0.0, codes[i], f)
     return _hull_compiled(pts)
+
+
+@njit(cache=True, nogil=True)
+def preview_polygons(poses, down, codes, length_m, width_m, front_trim_m, strip_depth_m):  # noqa: ANN001, ANN201, PLR0913
+    """The support polygons of a contact preview in one call: interval i stands on the feet j with ``down[i, j]``
+    at ``poses[i, j]`` (x, y, yaw). One foot: its sole's corners (:meth:`Foothold.corners` with ``front_trim_m``);
+    both: :func:`support_hull` of the two soles (edge ``codes[i, j]``: 0 whole, 1 heel strip, 2 toe strip).
+    Returns the polygons padded to (n, 8, 2) and their vertex counts (n,)."""
+    n = poses.shape[0]
+    out = np.zeros((n, 8, 2))
+    counts = np.empty(n, dtype=np.int64)
+    f = min(strip_depth_m / max(length_m, 1e-9), 1.0)
+    pts = np.empty((8, 2))
+    for i in range(n):
+        if down[i, 0] and down[i, 1]:
+            for j in range(2):
+                _sole_points(pts, 4 * j, poses[i, j, 0], poses[i, j, 1], poses[i, j, 2], length_m, width_m, 0.0,
+                             codes[i, j], f)
+            hull = _hull_compiled(pts)
+            m = hull.shape[0]
+            out[i, :m] = hull
+            counts[i] = m
+        else:
+            j = 0 if down[i, 0] else 1
+            _sole_points(out[i], 0, poses[i, j, 0], poses[i, j, 1], poses[i, j, 2], length_m, width_m, front_trim_m,
+                         0, f)
+            counts[i] = 4
+    return out, counts
 
 
 @njit(cache=True, nogil=True)
