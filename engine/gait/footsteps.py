@@ -91,7 +91,12 @@ def project_to_safe_region(support: Foothold, target: Foothold, swing_side: str,
         (max(x, region.front_m), max(y_own, region.cross_m)),  # in front / behind (still not crossing)
         (min(x, -region.front_m), max(y_own, region.cross_m)),
     )
-    best = min(candidates, key=lambda p: (p[0] - x) ** 2 + (p[1] - y_own) ** 2)
+    # The nearest candidate (the first of equals: min() with this key, without its calls)
+    best, best_d2 = candidates[0], (candidates[0][0] - x) ** 2 + (candidates[0][1] - y_own) ** 2
+    for p in candidates[1:]:
+        d2 = (p[0] - x) ** 2 + (p[1] - y_own) ** 2
+        if d2 < best_d2:
+            best, best_d2 = p, d2
     yaw = min(max(local_yaw, -region.max_yaw_rad), region.max_yaw_rad)  # np.clip's order: max, then min
     if best == (x, y_own) and yaw == local_yaw:
         return target

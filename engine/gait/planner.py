@@ -224,10 +224,11 @@ class GaitPlanner:
 
     # ------------------------------------------------------------------ helpers
     def _blend(self) -> BlendedGait:
-        members = [(float(w), self.banks.banks[n]) for w, n in zip(self.weights, SAMPLE_NAMES) if w > 1e-9]
+        weights = self.weights.tolist()
+        members = [(w, self.banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
         if self._fade_from is not None:
             f = smoothstep(self._fade_elapsed_s / STYLE_FADE_S)
-            old = [(float(w) * (1 - f), self._fade_from.banks[n]) for w, n in zip(self.weights, SAMPLE_NAMES) if w > 1e-9]
+            old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * f, b) for w, b in members] + old
         return self.banks.blend(members)
 
@@ -277,7 +278,7 @@ class GaitPlanner:
             self._fade_elapsed_s += dt_s
             if self._fade_elapsed_s >= STYLE_FADE_S:
                 self._fade_from = None
-        if fading or self._blend_stale or not np.array_equal(weights, self.weights):
+        if fading or self._blend_stale or not bool((weights == self.weights).all()):  # np.array_equal of (9,) arrays
             self.weights = weights
             self.blend = self._blend()
             self._blend_stale = False
@@ -569,17 +570,24 @@ class GaitPlanner:
         """The preview's ContactPhases from its intervals (start, end [s from now], feet down, their footholds,
         their rolling edges); the polygons of all intervals in one compiled call."""
         n = len(intervals)
-        poses = np.zeros((n, 2, 3))
-        down = np.zeros((n, 2), dtype=np.bool_)
-        codes = np.zeros((n, 2), dtype=np.int64)
-        for i, (_, _, sides, holds, edges) in enumerate(intervals):
-            for side, edge in zip(sides, edges):
-                j = 0 if side == "left" else 1
-                h = holds[side]
-                poses[i, j, 0], poses[i, j, 1], poses[i, j, 2] = h.x, h.y, h.yaw
-                down[i, j] = True
-                codes[i, j] = EDGE_CODES[edge]
-        polygons, counts = preview_polygons(poses, down, codes, self.sole_length_m - 2.0 * self.preview_margin_m,
+        rows: list[float] = []  # per interval: left (x, y, yaw), right (x, y, yaw); zeros for a foot in the air
+        down: list[bool] = []
+        codes: list[int] = []
+        for _, _, sides, holds, edges in intervals:
+            edge_of = dict(zip(sides, edges))
+            for side in SIDES:
+                h = holds.get(side)
+                if h is None:
+                    rows += (0.0, 0.0, 0.0)
+                    down.append(False)
+                    codes.append(0)
+                else:
+                    rows += (h.x, h.y, h.yaw)
+                    down.append(True)
+                    codes.append(EDGE_CODES[edge_of[side]])
+        polygons, counts = preview_polygons(np.array(rows, dtype=float).reshape(n, 2, 3),
+                                            np.array(down).reshape(n, 2), np.array(codes, dtype=np.int64).reshape(n, 2),
+                                            self.sole_length_m - 2.0 * self.preview_margin_m,
                                             self.sole_width_m - 2.0 * self.preview_margin_m, self.preview_toe_trim_m,
                                             EDGE_SUPPORT_DEPTH_M)  # compiled: Foothold.corners / support_hull's numbers
         polygons.flags.writeable = False  # the phases' polygons are views of it
