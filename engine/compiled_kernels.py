@@ -53,7 +53,11 @@ def _warm_up_planner() -> None:
     from engine.gait.style import StyleContext, load_style, styles_dir
 
     planner = planner_for(load_robot("g1"), load_style(styles_dir("g1") / "neutral.json"), StyleContext.for_robot("g1"))
-    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the blended gait's channels (MergedBank)
+    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the blended gait's channels (MergedBank), the preview
+    from engine.gait.planner import PlannerFeedback
+
+    planner.step(0.008, np.array([0.2, 0.0, 0.0]), PlannerFeedback(  # the preview on a (read-only) path table
+        command_goal=np.array([0.3, 0.0, 0.1]), command_rate_limits=np.ones(3)))
     from engine.control.mpc import ComMpc, SupportInterval
 
     left = np.array([[-0.1, 0.06], [-0.1, 0.14], [0.1, 0.14], [0.1, 0.06]])[::-1]  # clockwise: either orientation

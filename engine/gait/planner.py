@@ -35,7 +35,13 @@ from engine.gait.heel_toe import foot_rig, stance_pitch
 from engine.gait.path_frame import PathFrame, predict_xy_yaw
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
-from engine.gait.planner_kernels import EDGE_CODES, command_ramp_pieces, path_table_poses, preview_polygons
+from engine.gait.planner_kernels import (
+    EDGE_CODES,
+    PREVIEW_EVENT_PHASES,
+    command_ramp_pieces,
+    path_table_poses,
+    preview_intervals,
+)
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
 
@@ -169,6 +175,7 @@ class GaitPlanner:
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._path_rows: tuple[list, list, list] | None = None  # the table as lists of floats (rows read one by one)
         self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
+        self._preview_constants: tuple[BlendedGait, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -528,105 +535,68 @@ class GaitPlanner:
 
     # ------------------------------------------------------------------ preview for the MPC
     def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
-        """Support intervals over the next ``horizon_s``: timings, footholds, polygons."""
+        """Support intervals over the next ``horizon_s``: timings, footholds, polygons.
+
+        From now over the contact events ahead: the feet stand where they stand (a swinging foot on its
+        target), a foot that touches down later lands on its predicted foothold (the path at the middle of
+        that contact ⊕ its stance offset, in the safe region of the other foot). One foot down: its sole,
+        shortened at the toe by what the ankle cannot hold; both: the hull of both soles, the one of a foot
+        rolling on its heel or toe (heel strike after its touchdown, toe-off before its liftoff) cut to that
+        edge's strip. Compiled (:func:`engine.gait.planner_kernels.preview_intervals`)."""
         blend = self.blend
         phi = self.phi
-        t_ltd, t_rlo, t_rtd, cycle = blend.events_s
-        event_offsets = ((0.0, 0.0), (PHI_LTD, t_ltd), (PHI_RLO, t_rlo), (PHI_RTD, t_rtd))  # (φ, gait time) in a cycle
-        t_now = blend.time_at(phi)
-        swinging = {s for s in SIDES if self.in_swing(s, phi)}  # their target is already known
-        footholds = {s: (self.target[s] if s in swinging else self.latched[s]) for s in SIDES}
-        # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
-        hold = _remaining_ease_delay(self.hold_s)
-        intervals: list[tuple[float, float, tuple[str, ...], dict[str, Foothold], tuple[str | None, ...]]] = []
-        k = math.floor(phi)
-        prev_phi, t0 = phi, 0.0  # the interval under way starts now
-        for cycle_index in range(k, k + 4):
-            for event, (event_phi, event_t) in enumerate(event_offsets):
-                b = cycle_index + event_phi
-                if not b > phi:
-                    continue
-                # blend.event_time(b) − t_now, in time scaled by κ, plus the ease-in's delay
-                t1 = (cycle_index * cycle + event_t - t_now) / kappa + hold
-                down = _down_sides(0.5 * (prev_phi + b))
-                # One ankle holds the whole weight: no further than it can reach (the sole trimmed at the toe).
-                # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before its
-                # liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
-                edges = (None,) if len(down) == 1 else tuple(self._rolling_edge(s, prev_phi, b) for s in down)
-                intervals.append((t0, t1, down, {s: footholds[s] for s in down}, edges))
-                if t1 >= horizon_s:
-                    return self._contact_phases(intervals)
-                landing = "left" if event == 1 else ("right" if event == 3 else None)  # touches down at b
-                if landing is not None:
-                    if landing in swinging:
-                        swinging.discard(landing)
-                    else:
-                        footholds[landing] = self._predicted_foothold(landing, b, t_now, footholds)
-                prev_phi, t0 = b, t1
-        return self._contact_phases(intervals)
-
-    def _contact_phases(self, intervals: list[tuple[float, float, tuple[str, ...], dict[str, Foothold],
-                                                    tuple[str | None, ...]]]) -> list[ContactPhase]:
-        """The preview's ContactPhases from its intervals (start, end [s from now], feet down, their footholds,
-        their rolling edges); the polygons of all intervals in one compiled call."""
-        n = len(intervals)
-        rows: list[float] = []  # per interval: left (x, y, yaw), right (x, y, yaw); zeros for a foot in the air
-        down: list[bool] = []
-        codes: list[int] = []
-        for _, _, sides, holds, edges in intervals:
-            edge_of = dict(zip(sides, edges))
-            for side in SIDES:
-                h = holds.get(side)
-                if h is None:
-                    rows += (0.0, 0.0, 0.0)
-                    down.append(False)
-                    codes.append(0)
-                else:
-                    rows += (h.x, h.y, h.yaw)
-                    down.append(True)
-                    codes.append(EDGE_CODES[edge_of[side]])
-        polygons, counts = preview_polygons(np.array(rows, dtype=float).reshape(n, 2, 3),
-                                            np.array(down).reshape(n, 2), np.array(codes, dtype=np.int64).reshape(n, 2),
-                                            self.sole_length_m - 2.0 * self.preview_margin_m,
-                                            self.sole_width_m - 2.0 * self.preview_margin_m, self.preview_toe_trim_m,
-                                            EDGE_SUPPORT_DEPTH_M)  # compiled: Foothold.corners / support_hull's numbers
+        swinging = [self.in_swing(s, phi) for s in SIDES]
+        start = [self.target[s] if swing else self.latched[s] for s, swing in zip(SIDES, swinging)]
+        stances, touchdown_edges, liftoff_edges = self._blend_constants()
+        if self.command_goal is None or self.command_rate_limits is None:  # the command holds: one piece
+            path = self.path
+            table = (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
+                     np.asarray(self.command, dtype=float).reshape(1, 3))
+        else:
+            self._path_pose_ahead(0.0)  # builds the table if this tick has not yet
+            assert self._path_table is not None
+            table = self._path_table
+        region = self.region
+        n, t_start, t_end, down, hold_index, holds, polygons, counts = preview_intervals(
+            float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
+            np.array(blend.events_s), np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
+            self._edges_now(), np.array([self.landed[s] for s in SIDES]), touchdown_edges, liftoff_edges, stances,
+            *table, PATH_TABLE_STEP_S, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]),
+            self.sole_length_m - 2.0 * self.preview_margin_m, self.sole_width_m - 2.0 * self.preview_margin_m,
+            self.preview_toe_trim_m, EDGE_SUPPORT_DEPTH_M, 2.0)
+        footholds = start + [Foothold(*row) for row in holds[2:].tolist()]
         polygons.flags.writeable = False  # the phases' polygons are views of it
         t_s = self.t_s
-        return [ContactPhase(t_s + t0, t_s + t1, holds, polygons[i, :m])
-                for i, ((t0, t1, _, holds, _), m) in enumerate(zip(intervals, counts.tolist()))]
+        phases = []
+        for i, (t0, t1, (left, right), (i_left, i_right), m) in enumerate(zip(
+                t_start.tolist(), t_end.tolist(), down.tolist(), hold_index.tolist(), counts.tolist())):
+            on = {"left": footholds[i_left], "right": footholds[i_right]} if left and right else (
+                {"left": footholds[i_left]} if left else {"right": footholds[i_right]})
+            phases.append(ContactPhase(t_s + t0, t_s + t1, on, polygons[i, :m]))
+        return phases
 
-    def _rolling_edge(self, side: str, phi_start: float, phi_end: float) -> str | None:
-        """The sole edge ("heel"/"toe") ``side`` rolls on during the double support [phi_start, phi_end]
-        of the preview, or None if it stays flat: a pitched touchdown just after it touched down at
-        ``phi_start`` (for the interval under way: its pitch now), a pitched liftoff before it lifts
-        off at ``phi_end``."""
-        assert self.blend is not None
-        lo, td = SWING_PHASES[side]
-        liftoff_pitch, touchdown_pitch = self.blend.boundary_pitch[side]
-        if phi_start == self.phi and self._last_pose is not None:
-            # The foot's pitch now: −asin of (Rz(yaw)ᵀ R)[2, 0], which is R[2, 0] (Rz leaves the z row alone).
-            rot = self._last_pose["feet"][side].rot
-            pitch = -math.asin(max(-1.0, min(1.0, float(rot[2, 0]))))
-            edge = _pitched_edge(min(pitch, 0.0), max(pitch, 0.0))
-            if edge is not None:
-                return edge
-        elif self.landed[side] and _at_event(phi_start, td):
-            edge = _pitched_edge(*touchdown_pitch)
-            if edge is not None:
-                return edge
-        if _at_event(phi_end, lo):
-            return _pitched_edge(*liftoff_pitch)
-        return None
+    def _edges_now(self) -> np.ndarray:
+        """Edge codes (EDGE_CODES) of the sole edge each foot stands on at the last evaluated pose (from its pitch:
+        −asin of (Rz(yaw)ᵀ R)[2, 0], which is R[2, 0]); −1 for both before the first pose."""
+        if self._last_pose is None:
+            return np.array([-1, -1])
+        codes = []
+        for side in SIDES:
+            pitch = -math.asin(max(-1.0, min(1.0, float(self._last_pose["feet"][side].rot[2, 0]))))
+            codes.append(EDGE_CODES[_pitched_edge(min(pitch, 0.0), max(pitch, 0.0))])
+        return np.array(codes)
 
-    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold]) -> Foothold:
-        blend = self.blend
-        lo, _ = SWING_PHASES[side]
-        phi_next_lo = math.floor(phi_td - lo) + 1 + lo
-        t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
-        pose = self._path_pose_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self._stance_xy_yaw(side))
-        other = "right" if side == "left" else "left"
-        return project_to_safe_region(footholds[other], target, side, self.region)
+    def _blend_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The current blend's stance offsets (2, 3) and the edge codes of its touchdown and liftoff pitches
+        (2,) per foot, kept while the blend is."""
+        cached = self._preview_constants
+        if cached is None or cached[0] is not self.blend:
+            pitch = self.blend.boundary_pitch
+            cached = self._preview_constants = (
+                self.blend, np.array([self._stance_xy_yaw(s) for s in SIDES]),
+                np.array([EDGE_CODES[_pitched_edge(*pitch[s][1])] for s in SIDES]),
+                np.array([EDGE_CODES[_pitched_edge(*pitch[s][0])] for s in SIDES]))
+        return cached[1], cached[2], cached[3]
 
 
 #: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
@@ -634,6 +604,8 @@ class GaitPlanner:
 _RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
 _PATH_TABLE_TIMES = np.arange(int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1) * PATH_TABLE_STEP_S
 _PATH_TABLE_TIMES.flags.writeable = False
+_ONE_PIECE_TIMES = np.zeros(1)  # the preview's path table while the command holds
+assert tuple(PREVIEW_EVENT_PHASES) == (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
 
 
 def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -656,21 +628,6 @@ def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray
     return hit
 
 
-_LEFT_DOWN, _RIGHT_DOWN, _BOTH_DOWN = ("left",), ("right",), tuple(SIDES)
-
-
-def _down_sides(phi: float) -> tuple[str, ...]:
-    """The feet in their support phase at φ (:meth:`GaitPlanner.in_swing` of both sides, on one floor)."""
-    f = phi - math.floor(phi)
-    left_lo, left_td = SWING_PHASES["left"]
-    right_lo, right_td = SWING_PHASES["right"]
-    if left_lo <= f < left_td:
-        return _RIGHT_DOWN
-    if right_lo <= f < right_td:
-        return _LEFT_DOWN
-    return _BOTH_DOWN
-
-
 def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:
     """The sole edge a foot at (ψ_heel, ψ_toe) stands on: the heel when the toe is up (ψ_heel < 0),
     the toe when the heel is up (ψ_toe > 0), None when it is (nearly) flat."""
@@ -679,9 +636,3 @@ def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:
     if toe_pitch > EDGE_CONTACT_PITCH_RAD:
         return "toe"
     return None
-
-
-def _at_event(phi: float, event_phi: float) -> bool:
-    """φ is the event at ``event_phi`` of some cycle."""
-    d = phi - event_phi
-    return abs(d - round(d)) < 1e-9

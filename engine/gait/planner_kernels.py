@@ -182,3 +182,182 @@ def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, per
         values[r] = c0 + tau * (c1 + tau * (c2 + tau * c3))
         rates[r] = (c1 + tau * (2.0 * c2 + 3.0 * c3 * tau)) * member_rate_scale[member_of_row[r]]
     return values, rates
+
+
+# ---------------------------------------------------------------------------------------------------- the preview
+# GaitPlanner.preview's loop compiled. Python's float semantics are kept where they could differ from LLVM's: min
+# and max keep their first argument on ties, squares go through libm's pow (Python's x ** 2 is pow(x, 2.0), which
+# differs from x * x in the last bit for ~0.1 % of x; a literal exponent would let LLVM fold it into x * x).
+
+#: GaitPlanner.preview's contact events in a cycle: LLO, LTD, RLO, RTD (phases; SWING_PHASES' liftoff / touchdown).
+PREVIEW_EVENT_PHASES = np.array([0.0, 0.1, 0.5, 0.6])
+MAX_PREVIEW_INTERVALS = 16  # four cycles of four events
+
+
+@njit(cache=True, nogil=True)
+def _first_max(a, b):  # noqa: ANN001, ANN202
+    """Python's max(a, b): a unless b > a."""
+    return b if b > a else a
+
+
+@njit(cache=True, nogil=True)
+def _first_min(a, b):  # noqa: ANN001, ANN202
+    """Python's min(a, b): a unless b < a."""
+    return b if b < a else a
+
+
+@njit(cache=True, nogil=True)
+def _event_time(phi_event, events):  # noqa: ANN001, ANN202
+    """BlendedGait.event_time on its events (t_LTD, t_RLO, t_RTD, cycle)."""
+    k = math.floor(phi_event + 1e-9)
+    f = phi_event - k
+    if f < 0.05:
+        t = 0.0
+    elif f < 0.3:
+        t = events[0]
+    elif f < 0.55:
+        t = events[1]
+    else:
+        t = events[2]
+    return k * events[3] + t
+
+
+@njit(cache=True, nogil=True)
+def _at_event(phi, event_phi):  # noqa: ANN001, ANN202
+    d = phi - event_phi
+    return abs(d - round(d)) < 1e-9
+
+
+@njit(cache=True, nogil=True)
+def _predicted_foothold(side, phi_td, t_now, events, support, stance, table_times, table_poses, table_vels,  # noqa: ANN001, ANN202, PLR0913
+                        table_step_s, region, two, out):
+    """GaitPlanner._predicted_foothold into ``out`` (x, y, yaw): the path pose at the middle of the contact that
+    starts at ``phi_td`` (path_ahead: the table's piece, then its arc), ⊕ the stance offset (foothold_from_path),
+    projected to the safe region beside ``support`` (footsteps.project_to_safe_region)."""
+    lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
+    phi_next_lo = math.floor(phi_td - lo) + 1 + lo
+    t_mid = 0.5 * (_event_time(phi_td, events) + _event_time(phi_next_lo, events))
+    dt = _first_max(t_mid - t_now, 0.0)
+    k = min(int(dt / table_step_s), table_times.shape[0] - 1)
+    x0, y0, yaw0 = table_poses[k, 0], table_poses[k, 1], table_poses[k, 2]
+    vx, vy, w = table_vels[k, 0], table_vels[k, 1], table_vels[k, 2]
+    ds = dt - table_times[k]
+    th = w * ds  # path_frame.arc_displacement
+    if abs(th) < 1e-9:
+        sinc, cosc = ds * (1.0 - th * th / 6.0), ds * (0.5 * th)
+    else:
+        sinc, cosc = math.sin(th) / w, (1.0 - math.cos(th)) / w
+    dx = vx * sinc - vy * cosc
+    dy = vx * cosc + vy * sinc
+    c, s = math.cos(yaw0), math.sin(yaw0)  # path_frame.predict_xy_yaw
+    px, py, pyaw = x0 + c * dx - s * dy, y0 + s * dx + c * dy, yaw0 + th
+    c, s = math.cos(pyaw), math.sin(pyaw)  # foothold_from_path
+    tx, ty, tyaw = px + c * stance[0] - s * stance[1], py + s * stance[0] + c * stance[1], pyaw + stance[2]
+    # project_to_safe_region
+    sx, sy, syaw = support[0], support[1], support[2]
+    c, s = math.cos(syaw), math.sin(syaw)
+    dx, dy = tx - sx, ty - sy
+    local_yaw = ((tyaw - syaw) + math.pi) % (2 * math.pi) - math.pi  # wrap_angle
+    sign = 1.0 if side == 0 else -1.0
+    x, y_own = c * dx + s * dy, sign * (-s * dx + c * dy)
+    side_m, front_m, cross_m, max_yaw = region[0], region[1], region[2], region[3]
+    bx, by = x, _first_max(y_own, side_m)  # beside
+    best_d2 = (bx - x) ** two + (by - y_own) ** two
+    cx, cy = _first_max(x, front_m), _first_max(y_own, cross_m)  # in front (still not crossing)
+    d2 = (cx - x) ** two + (cy - y_own) ** two
+    if d2 < best_d2:
+        bx, by, best_d2 = cx, cy, d2
+    cx, cy = _first_min(x, -front_m), _first_max(y_own, cross_m)  # behind
+    d2 = (cx - x) ** two + (cy - y_own) ** two
+    if d2 < best_d2:
+        bx, by, best_d2 = cx, cy, d2
+    yaw = _first_min(_first_max(local_yaw, -max_yaw), max_yaw)
+    if bx == x and by == y_own and yaw == local_yaw:
+        out[0], out[1], out[2] = tx, ty, tyaw
+    else:  # support.from_local((best x, sign · best y, yaw))
+        ly = sign * by
+        out[0], out[1], out[2] = sx + c * bx - s * ly, sy + s * bx + c * ly, syaw + yaw
+
+
+@njit(cache=True, nogil=True)
+def _rolling_edge(side, phi_start, phi_end, phi, edge_now, landed, touchdown_edge, liftoff_edge):  # noqa: ANN001, ANN202, PLR0913
+    """GaitPlanner._rolling_edge as an edge code: ``edge_now`` is the code of the foot's pitch now (−1: no last
+    pose), ``touchdown_edge`` / ``liftoff_edge`` those of the blend's boundary pitches."""
+    lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
+    td = PREVIEW_EVENT_PHASES[1] if side == 0 else PREVIEW_EVENT_PHASES[3]
+    if phi_start == phi and edge_now[side] >= 0:
+        if edge_now[side] != 0:
+            return edge_now[side]
+    elif landed[side] and _at_event(phi_start, td):
+        if touchdown_edge[side] != 0:
+            return touchdown_edge[side]
+    if _at_event(phi_end, lo):
+        return liftoff_edge[side]
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def preview_intervals(phi, t_now, kappa, hold_s, horizon_s, events, holds, swinging, edge_now, landed,  # noqa: ANN001, ANN201, PLR0913, PLR0915
+                      touchdown_edge, liftoff_edge, stances, table_times, table_poses, table_vels, table_step_s,
+                      region, length_m, width_m, front_trim_m, strip_depth_m, two):
+    """GaitPlanner.preview's support intervals: from phase ``phi`` (gait time ``t_now``) over the contact events
+    of the next four cycles (``events``: t_LTD, t_RLO, t_RTD, cycle) until one ends ``horizon_s`` ahead.
+
+    The feet start on ``holds`` (2, 3) (a swinging foot's on its target, ``swinging``); a foot that touches down
+    later lands on its predicted foothold (``stances`` (2, 3), the path table, the safe ``region`` (side, front,
+    cross, max yaw)). Returns the number of intervals n, their start and end [s from now] (n,), feet down (n, 2),
+    foothold index per foot (n, 2; 0, 1: ``holds``, 2…: the predicted ones, returned (m, 3)), their polygons
+    (n, 8, 2) and vertex counts (n,) (:func:`preview_polygons`)."""
+    t_start = np.empty(MAX_PREVIEW_INTERVALS)
+    t_end = np.empty(MAX_PREVIEW_INTERVALS)
+    down = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.bool_)
+    hold_index = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.int64)
+    codes = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.int64)
+    poses = np.zeros((MAX_PREVIEW_INTERVALS, 2, 3))
+    footholds = np.empty((2 + MAX_PREVIEW_INTERVALS, 3))
+    footholds[:2] = holds
+    n_holds = 2
+    current = np.array([0, 1])
+    still_swinging = swinging.copy()
+    k = math.floor(phi)
+    prev_phi, t0 = phi, 0.0
+    n = 0
+    done = False
+    for cycle_index in range(k, k + 4):
+        for event in range(4):
+            b = cycle_index + PREVIEW_EVENT_PHASES[event]
+            if not b > phi:
+                continue
+            t1 = (cycle_index * events[3] + (0.0 if event == 0 else events[event - 1]) - t_now) / kappa + hold_s
+            mid = 0.5 * (prev_phi + b)
+            f = mid - math.floor(mid)
+            left_down = not (PREVIEW_EVENT_PHASES[0] <= f < PREVIEW_EVENT_PHASES[1])  # GaitPlanner.in_swing
+            right_down = not (PREVIEW_EVENT_PHASES[2] <= f < PREVIEW_EVENT_PHASES[3])
+            t_start[n], t_end[n] = t0, t1
+            down[n, 0], down[n, 1] = left_down, right_down
+            for side in range(2):
+                hold_index[n, side] = current[side]
+                poses[n, side] = footholds[current[side]]
+                if left_down and right_down:
+                    codes[n, side] = _rolling_edge(side, prev_phi, b, phi, edge_now, landed, touchdown_edge,
+                                                   liftoff_edge)
+            n += 1
+            if t1 >= horizon_s:
+                done = True
+                break
+            if event == 1 or event == 3:  # the left (LTD) / right (RTD) foot touches down at b
+                side = 0 if event == 1 else 1
+                if still_swinging[side]:
+                    still_swinging[side] = False
+                else:
+                    _predicted_foothold(side, b, t_now, events, footholds[current[1 - side]], stances[side],
+                                        table_times, table_poses, table_vels, table_step_s, region, two,
+                                        footholds[n_holds])
+                    current[side] = n_holds
+                    n_holds += 1
+            prev_phi, t0 = b, t1
+        if done:
+            break
+    polygons, counts = preview_polygons(poses[:n], down[:n], codes[:n], length_m, width_m, front_trim_m,
+                                        strip_depth_m)
+    return n, t_start[:n], t_end[:n], down[:n], hold_index[:n], footholds[:n_holds], polygons, counts

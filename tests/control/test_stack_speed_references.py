@@ -392,6 +392,11 @@ def test_compiled_preview_polygons_equal_corners_and_support_hull() -> None:
             np.testing.assert_array_equal(polygons[i, :counts[i]], want)
 
 
+def _at_event(phi: float, event_phi: float) -> bool:
+    d = phi - event_phi
+    return abs(d - round(d)) < 1e-9
+
+
 def preview_reference(planner, kappa: float = 1.0, horizon_s: float = 2.0, edges_seen: list | None = None):  # noqa: ANN001, ANN201
     """GaitPlanner.preview before the speed-up: event times from blend.event_time, one support_hull / corners
     call per interval, the rolling edge's pitch from Rz(yaw)ᵀ R, footholds from the numpy path table."""
@@ -399,7 +404,7 @@ def preview_reference(planner, kappa: float = 1.0, horizon_s: float = 2.0, edges
     from engine.gait.footsteps import foothold_from_path, project_to_safe_region
     from engine.gait.path_frame import predict
     from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
-    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M, ContactPhase, _at_event, _pitched_edge, _remaining_ease_delay
+    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M, ContactPhase, _pitched_edge, _remaining_ease_delay
     from engine.gait.planner_kernels import support_hull
     from engine.geometry import rot_z
 
