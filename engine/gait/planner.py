@@ -136,8 +136,8 @@ def _remaining_ease_delay(hold_s: float) -> float:
 
 def _angular_velocity(r0: np.ndarray, r1: np.ndarray, dt: float) -> np.ndarray:
     """World angular velocity taking r0 to r1 in dt (small-angle)."""
-    d = r1 @ r0.T
-    return np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]]) / (2.0 * dt)
+    d = (r1 @ r0.T).tolist()
+    return np.array([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]]) / (2.0 * dt)
 
 
 @dataclass
@@ -444,8 +444,9 @@ class GaitPlanner:
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_lo))
         pose = self._path_pose_ahead(max(t_mid - t_now, 0.0))
         target = foothold_from_path(pose, self._stance_xy_yaw(side))
-        if adjust_xy.any():
-            target = Foothold(target.x + adjust_xy[0], target.y + adjust_xy[1], target.yaw)
+        adjust_x, adjust_y = adjust_xy.tolist()
+        if adjust_x != 0.0 or adjust_y != 0.0:  # adjust_xy.any()
+            target = Foothold(target.x + adjust_x, target.y + adjust_y, target.yaw)
         other = "right" if side == "left" else "left"
         return project_to_safe_region(self.latched[other], target, side, self.region)
 
