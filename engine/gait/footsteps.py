@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,7 @@ def stance_offset(side: str, width_m: float, splay_rad: float, x_bias_m: float) 
     return np.array([sign * 0.5 * x_bias_m, sign * 0.5 * width_m, sign * 0.5 * splay_rad])
 
 
-def foothold_from_path(path_pose: np.ndarray, stance: np.ndarray) -> Foothold:
+def foothold_from_path(path_pose: np.ndarray | Sequence[float], stance: np.ndarray | Sequence[float]) -> Foothold:
     """Eq. 4: p_foothold = p^v(t_foothold) ⊕ p_stance."""
     c, s = math.cos(path_pose[2]), math.sin(path_pose[2])
     return Foothold(path_pose[0] + c * stance[0] - s * stance[1], path_pose[1] + s * stance[0] + c * stance[1],

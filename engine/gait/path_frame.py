@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 
-def arc_displacement(v: np.ndarray, dt_s: float) -> tuple[float, float, float]:
+def arc_displacement(v: np.ndarray | Sequence[float], dt_s: float) -> tuple[float, float, float]:
     """Exact displacement (dx, dy, dθ) in the starting frame after ``dt_s`` at constant body
     velocity v = (ẋ, ẏ, θ̇): a circular arc ("a simple arc assuming zero acceleration")."""
     vx, vy, w = float(v[0]), float(v[1]), float(v[2])
@@ -47,7 +48,7 @@ def predict(pose: np.ndarray, v: np.ndarray, dt_s: float) -> np.ndarray:
     return np.array(predict_xy_yaw(float(pose[0]), float(pose[1]), float(pose[2]), v, dt_s))
 
 
-def predict_xy_yaw(x: float, y: float, yaw: float, v: np.ndarray | tuple[float, float, float],
+def predict_xy_yaw(x: float, y: float, yaw: float, v: np.ndarray | Sequence[float],
                    dt_s: float) -> tuple[float, float, float]:
     """:func:`predict` on floats: (x, y, yaw) after ``dt_s`` along the arc of constant body velocity ``v``."""
     dx, dy, th = arc_displacement(v, dt_s)
