@@ -459,7 +459,7 @@ class GaitPlanner:
         prev, self._last_pose = self._last_pose, pose
         dt = self.t_s - prev["t"] if prev is not None else 0.0
         feet = pose["feet"]
-        foot_pos = np.array([feet[s].pos for s in SIDES])
+        foot_pos = pose["foot_pos"].copy()  # the reference's own: the pose keeps its for the next rates
         foot_rot = np.array([feet[s].rot for s in SIDES])
         corners = (foot_rot @ self.sole_corners_local.T).transpose(0, 2, 1) + foot_pos[:, None, :]
         if prev is None or dt <= 0:
@@ -469,7 +469,7 @@ class GaitPlanner:
         else:
             z_rate = (pose["pelvis_z"] - prev["pelvis_z"]) / dt
             pelvis_w = _angular_velocity(prev["pelvis_rot"], pose["pelvis_rot"], dt)
-            lin = np.array([(feet[s].pos - prev["feet"][s].pos) / dt for s in SIDES])
+            lin = (pose["foot_pos"] - prev["foot_pos"]) / dt  # per foot: (pos − previous pos) / dt
             ang = np.array([_angular_velocity(prev["feet"][s].rot, feet[s].rot, dt) for s in SIDES])
             upper_qd = (pose["upper"] - prev["upper"]) / dt
         return GaitReference(
@@ -493,7 +493,8 @@ class GaitPlanner:
         for side, vals in (("left", left_vals), ("right", right_vals)):
             feet[side], progress[side] = self._foot_at(side, phi, t, blend, vals)
         return {"t": self.t_s, "pelvis_z": blend.attribute("pelvis_height_m") + cycle_vals[0], "pelvis_rot": pelvis_rot,
-                "feet": feet, "upper": cycle_vals[4:].copy(), "progress": progress}
+                "feet": feet, "foot_pos": np.array([feet[s].pos for s in SIDES]), "upper": cycle_vals[4:].copy(),
+                "progress": progress}
 
     def _foot_at(self, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray) -> tuple[_Pose, float]:
         lo, td = SWING_PHASES[side]
@@ -502,7 +503,8 @@ class GaitPlanner:
             t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
             s = min(max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
             x, y, yaw, _ = nominal_swing(self.swing_start[side], self.target[side], s)
-            rig_r, rig_t = foot_rig(self.sole_length_m, vals[3], vals[HEEL], vals[TOE], vals[6], self.sole_width_m)
+            v = vals.tolist()  # the rig's angles as floats (the same numbers, without numpy scalars)
+            rig_r, rig_t = foot_rig(self.sole_length_m, v[3], v[HEEL], v[TOE], v[6], self.sole_width_m)
             offset = vals[0:3] + rig_t
             base = rot_z(yaw)
             return _Pose(np.array([x, y, 0.0]) + base @ offset, base @ rig_r), s
