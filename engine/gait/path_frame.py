@@ -37,7 +37,7 @@ class PathFrame:
         return np.array([self.x, self.y, self.yaw])
 
     def advance(self, v: np.ndarray, dt_s: float) -> None:
-        self.x, self.y, self.yaw = predict(self.pose(), v, dt_s)
+        self.x, self.y, self.yaw = predict_xy_yaw(float(self.x), float(self.y), float(self.yaw), v, dt_s)
 
     def predicted(self, v: np.ndarray, dt_s: float) -> np.ndarray:
         return predict(self.pose(), v, dt_s)
