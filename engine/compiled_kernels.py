@@ -4,7 +4,7 @@ the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` bes
 
 Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
 the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
-planner's path table, blended channels and double-support hulls (:mod:`engine.gait.planner_kernels`) and the CoM MPC's polygon geometry
+planner's command ramp, path table, blended channels and preview polygons (:mod:`engine.gait.planner_kernels`) and the CoM MPC's polygon geometry
 (:mod:`engine.control.mpc.kernels`).
 """
 
@@ -42,16 +42,22 @@ def _warm_up_planner() -> None:
     from engine.robot.model import load_robot
     from engine.gait.footsteps import Foothold
     from engine.gait.planner import _command_ramp
-    from engine.gait.planner_kernels import path_table_poses, support_hull
+    from engine.gait.planner_kernels import path_table_poses, preview_polygons, support_hull
 
     support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
-    _, _, th, dx, dy = _command_ramp(np.zeros(3), np.array([0.3, 0.0, 0.2]), np.ones(3))
+    preview_polygons(np.zeros((2, 2, 3)), np.array([[True, True], [True, False]]), np.zeros((2, 2), dtype=np.int64),
+                     0.2, 0.08, 0.01, 0.02)
+    _, _, th, dx, dy = _command_ramp(np.zeros(3), np.array([0.3, 0.0, 0.2]), np.ones(3))  # command_ramp_pieces
     path_table_poses(0.0, 0.0, 0.0, th, dx, dy)
     from engine.gait.offline_plan import planner_for
     from engine.gait.style import StyleContext, load_style, styles_dir
 
     planner = planner_for(load_robot("g1"), load_style(styles_dir("g1") / "neutral.json"), StyleContext.for_robot("g1"))
-    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the blended gait's channels (MergedBank)
+    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the blended gait's channels (MergedBank), the preview
+    from engine.gait.planner import PlannerFeedback
+
+    planner.step(0.008, np.array([0.2, 0.0, 0.0]), PlannerFeedback(  # the preview on a (read-only) path table
+        command_goal=np.array([0.3, 0.0, 0.1]), command_rate_limits=np.ones(3)))
     from engine.control.mpc import ComMpc, SupportInterval
 
     left = np.array([[-0.1, 0.06], [-0.1, 0.14], [0.1, 0.14], [0.1, 0.06]])[::-1]  # clockwise: either orientation

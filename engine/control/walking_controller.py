@@ -20,7 +20,7 @@ from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval
 from engine.control.controller import JointCommand, RobotState
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
-from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
+from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains, vector_norm
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
 from engine.control.wbc.reference import N_BASIS, N_CORNERS
 from engine.control.walking_parameters import WalkingParameters
@@ -334,7 +334,7 @@ class WalkingController:
         pos_now, vel_now, _ = plan.com_at(planner.t_s)
         com, com_vel = self._com_state()
         dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
-        err = float(np.linalg.norm(dcm_error))  # ordinary tracking error is the MPC's to handle
+        err = vector_norm(dcm_error)  # ordinary tracking error is the MPC's to handle
         dcm_error *= max(err - self.params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
         if self.observer.force_n.any():
             self._pushed_at_s = planner.t_s
@@ -373,10 +373,10 @@ class WalkingController:
                 along_c = min(max(along, -self.params.max_step_length_m), self.params.max_step_length_m)
                 lateral_c = sign * min(sign * lateral, self.params.max_step_width_m)
                 adjust += (along_c - along) * forward + (lateral_c - lateral) * left
-        norm = float(np.linalg.norm(adjust))
+        norm = vector_norm(adjust)
         if norm > self.params.max_step_adjust_m and not from_stance:  # within the legs' reach
             adjust *= self.params.max_step_adjust_m / norm
-        if np.array_equal(adjust, fb.step_adjust_m):
+        if bool((adjust == fb.step_adjust_m).all()):  # np.array_equal of two (2,) arrays
             return fb
         return dataclasses.replace(fb, step_adjust_m=adjust)
 

@@ -156,6 +156,7 @@ class MergedBank:
         self.events = np.array([b.events for b in banks])
         self.attributes = np.array([b.attribute_vector for b in banks])
         self.boundary_pitch = np.array([[b.boundary_pitch[side] for side in SIDES] for b in banks])
+        self.boundary_pitch_rows = self.boundary_pitch.reshape(self.n_members, -1)  # tensordot's (members, 8) operand
         self.offset = np.array(offset)
         self.periodic = np.array(period) > 0
         self.period = np.where(self.periodic, np.array(period), 1.0)
@@ -198,8 +199,11 @@ class BlendedGait:
         t_ltd, t_rlo, t_rtd, cycle = (self.weights @ m.events).tolist()
         self.events_s = (t_ltd, t_rlo, t_rtd, cycle)
         self.attribute_values = self.weights @ m.attributes
+        self._attribute_list: list[float] = self.attribute_values.tolist()  # read one by one, as floats
         self.phase_map = PhaseMap(t_ltd, t_rlo, t_rtd, cycle)
-        bp = np.tensordot(self.weights, m.boundary_pitch, axes=1).tolist()  # (side, liftoff/touchdown, heel/toe)
+        self._last_time_at: tuple[float, float] | None = None  # (φ, time_at(φ)) of the last call
+        # np.tensordot(weights, boundary_pitch, axes=1) without its Python overhead: the same (1, n) · (n, 8) dot
+        bp = np.dot(self.weights.reshape(1, -1), m.boundary_pitch_rows).reshape(m.boundary_pitch.shape[1:]).tolist()
         self.boundary_pitch = {side: (tuple(bp[i][0]), tuple(bp[i][1])) for i, side in enumerate(SIDES)}
 
     @cached_property
@@ -212,12 +216,18 @@ class BlendedGait:
         return Attributes(**{k: float(v) for k, v in zip(ATTRIBUTE_NAMES, self.attribute_values)})
 
     def attribute(self, name: str) -> float:
-        return float(self.attribute_values[ATTRIBUTE_INDEX[name]])
+        return self._attribute_list[ATTRIBUTE_INDEX[name]]
 
     def time_at(self, phi: float) -> float:
-        """Gait time of phase φ in the blended cycle (φ may exceed 1: later cycles)."""
+        """Gait time of phase φ in the blended cycle (φ may exceed 1: later cycles). The last answer is kept:
+        a planner tick asks for the time of its phase several times."""
+        last = self._last_time_at
+        if last is not None and last[0] == phi:
+            return last[1]
         k = math.floor(phi)
-        return k * self.events_s[3] + float(self.phase_map.time_at(phi - k))
+        t = k * self.events_s[3] + float(self.phase_map.time_at(phi - k))
+        self._last_time_at = (phi, t)
+        return t
 
     def phase_of_time(self, t_s: float) -> float:
         """Inverse of :meth:`time_at` on the unwrapped gait time (cycles + phase)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,7 @@ def stance_offset(side: str, width_m: float, splay_rad: float, x_bias_m: float) 
     return np.array([sign * 0.5 * x_bias_m, sign * 0.5 * width_m, sign * 0.5 * splay_rad])
 
 
-def foothold_from_path(path_pose: np.ndarray, stance: np.ndarray) -> Foothold:
+def foothold_from_path(path_pose: np.ndarray | Sequence[float], stance: np.ndarray | Sequence[float]) -> Foothold:
     """Eq. 4: p_foothold = p^v(t_foothold) ⊕ p_stance."""
     c, s = math.cos(path_pose[2]), math.sin(path_pose[2])
     return Foothold(path_pose[0] + c * stance[0] - s * stance[1], path_pose[1] + s * stance[0] + c * stance[1],
@@ -91,7 +92,12 @@ def project_to_safe_region(support: Foothold, target: Foothold, swing_side: str,
         (max(x, region.front_m), max(y_own, region.cross_m)),  # in front / behind (still not crossing)
         (min(x, -region.front_m), max(y_own, region.cross_m)),
     )
-    best = min(candidates, key=lambda p: (p[0] - x) ** 2 + (p[1] - y_own) ** 2)
+    # The nearest candidate (the first of equals: min() with this key, without its calls)
+    best, best_d2 = candidates[0], (candidates[0][0] - x) ** 2 + (candidates[0][1] - y_own) ** 2
+    for p in candidates[1:]:
+        d2 = (p[0] - x) ** 2 + (p[1] - y_own) ** 2
+        if d2 < best_d2:
+            best, best_d2 = p, d2
     yaw = min(max(local_yaw, -region.max_yaw_rad), region.max_yaw_rad)  # np.clip's order: max, then min
     if best == (x, y_own) and yaw == local_yaw:
         return target

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 
-def arc_displacement(v: np.ndarray, dt_s: float) -> tuple[float, float, float]:
+def arc_displacement(v: np.ndarray | Sequence[float], dt_s: float) -> tuple[float, float, float]:
     """Exact displacement (dx, dy, dθ) in the starting frame after ``dt_s`` at constant body
     velocity v = (ẋ, ẏ, θ̇): a circular arc ("a simple arc assuming zero acceleration")."""
     vx, vy, w = float(v[0]), float(v[1]), float(v[2])
@@ -36,7 +37,7 @@ class PathFrame:
         return np.array([self.x, self.y, self.yaw])
 
     def advance(self, v: np.ndarray, dt_s: float) -> None:
-        self.x, self.y, self.yaw = predict(self.pose(), v, dt_s)
+        self.x, self.y, self.yaw = predict_xy_yaw(float(self.x), float(self.y), float(self.yaw), v, dt_s)
 
     def predicted(self, v: np.ndarray, dt_s: float) -> np.ndarray:
         return predict(self.pose(), v, dt_s)
@@ -44,6 +45,12 @@ class PathFrame:
 
 def predict(pose: np.ndarray, v: np.ndarray, dt_s: float) -> np.ndarray:
     """Pose after ``dt_s`` along the arc of constant body velocity ``v``."""
+    return np.array(predict_xy_yaw(float(pose[0]), float(pose[1]), float(pose[2]), v, dt_s))
+
+
+def predict_xy_yaw(x: float, y: float, yaw: float, v: np.ndarray | Sequence[float],
+                   dt_s: float) -> tuple[float, float, float]:
+    """:func:`predict` on floats: (x, y, yaw) after ``dt_s`` along the arc of constant body velocity ``v``."""
     dx, dy, th = arc_displacement(v, dt_s)
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    return np.array([pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, pose[2] + th])
+    c, s = math.cos(yaw), math.sin(yaw)
+    return x + c * dx - s * dy, y + s * dx + c * dy, yaw + th

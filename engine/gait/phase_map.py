@@ -71,7 +71,7 @@ class PhaseMap:
     """
 
     __slots__ = ("_events", "_cycle_s", "_phi", "_times", "_slopes", "_seg", "_t_list",
-                 "_coef", "_phi_arr", "_t_arr", "_h_arr")
+                 "_arrays")
 
     def __init__(self, t_ltd_s: float, t_rlo_s: float, t_rtd_s: float, cycle_s: float) -> None:
         ev = (float(t_ltd_s), float(t_rlo_s), float(t_rtd_s), float(cycle_s))
@@ -103,10 +103,16 @@ class PhaseMap:
             seg.append((phi[i], times[i], m0, c2, c3, h, times[i + 1]))
         self._seg = seg
         self._t_list = times[:4]
-        self._coef = np.array([[s[1], s[2], s[3], s[4]] for s in seg])
-        self._phi_arr = np.array(phi[:4])
-        self._t_arr = np.array(times)
-        self._h_arr = np.array(hs)
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # built on first array use
+
+    def _array_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(coefficients (4, 4), waypoint phases (4,), times (5,), phase steps (4,)) for the array paths; built
+        on first use (a blend's phase map is rebuilt every planner tick and evaluated on floats only)."""
+        if self._arrays is None:
+            seg = self._seg
+            self._arrays = (np.array([[s[1], s[2], s[3], s[4]] for s in seg]), np.array(self._phi[:4]),
+                            np.array(self._times), np.array([s[5] for s in seg]))
+        return self._arrays
 
     # ------------------------------------------------------------- properties
     @property
@@ -168,9 +174,10 @@ class PhaseMap:
         wrap = ra >= 1.0
         ra = np.where(wrap, 0.0, ra)
         ka = np.where(wrap, ka + 1.0, ka)
-        ia = np.clip(np.searchsorted(self._phi_arr, ra, side="right") - 1, 0, 3)
-        sa = ra - self._phi_arr[ia]
-        c = self._coef[ia]
+        coef, phi_arr, _, _ = self._array_tables()
+        ia = np.clip(np.searchsorted(phi_arr, ra, side="right") - 1, 0, 3)
+        sa = ra - phi_arr[ia]
+        c = coef[ia]
         ta = c[..., 0] + sa * (c[..., 1] + sa * (c[..., 2] + sa * c[..., 3])) + ka * self._cycle_s
         return ta if pa.ndim else float(ta)
 
@@ -186,9 +193,10 @@ class PhaseMap:
             return c1 + s * (2.0 * c2 + 3.0 * s * c3)
         pa = np.mod(np.asarray(phi, dtype=float), 1.0)
         pa = np.where(pa >= 1.0, 0.0, pa)
-        ia = np.clip(np.searchsorted(self._phi_arr, pa, side="right") - 1, 0, 3)
-        sa = pa - self._phi_arr[ia]
-        c = self._coef[ia]
+        coef, phi_arr, _, _ = self._array_tables()
+        ia = np.clip(np.searchsorted(phi_arr, pa, side="right") - 1, 0, 3)
+        sa = pa - phi_arr[ia]
+        c = coef[ia]
         out = c[..., 1] + sa * (2.0 * c[..., 2] + 3.0 * sa * c[..., 3])
         return out if np.ndim(out) else float(out)
 
@@ -238,14 +246,15 @@ class PhaseMap:
         return phi if phi < 1.0 else math.nextafter(1.0, 0.0)
 
     def _solve_array(self, r: np.ndarray) -> np.ndarray:
-        i = np.clip(np.searchsorted(self._t_arr[:4], r, side="right") - 1, 0, 3)
-        c = self._coef[i]
+        coef, phi_arr, t_arr, h_arr = self._array_tables()
+        i = np.clip(np.searchsorted(t_arr[:4], r, side="right") - 1, 0, 3)
+        c = coef[i]
         c0, c1, c2, c3 = c[..., 0], c[..., 1], c[..., 2], c[..., 3]
-        h = self._h_arr[i]
+        h = h_arr[i]
         y = r - c0
         lo = np.zeros_like(r)
         hi = h.copy()
-        s = h * y / (self._t_arr[i + 1] - c0)
+        s = h * y / (t_arr[i + 1] - c0)
         for _ in range(_MAX_ITER):
             f = s * (c1 + s * (c2 + s * c3)) - y
             hi = np.where(f > 0.0, s, hi)
@@ -260,7 +269,7 @@ class PhaseMap:
             s = s_new
             if np.all(done):
                 break
-        phi = self._phi_arr[i] + s
+        phi = phi_arr[i] + s
         return np.minimum(phi, np.nextafter(1.0, 0.0))
 
     def phase_at(self, t_s: float | np.ndarray) -> float | np.ndarray:

@@ -32,10 +32,16 @@ from engine.gait.footsteps import (
     stance_offset,
 )
 from engine.gait.heel_toe import foot_rig, stance_pitch
-from engine.gait.path_frame import PathFrame, predict
+from engine.gait.path_frame import PathFrame, predict_xy_yaw
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
-from engine.gait.planner_kernels import path_table_poses, support_hull
+from engine.gait.planner_kernels import (
+    EDGE_CODES,
+    PREVIEW_EVENT_PHASES,
+    command_ramp_pieces,
+    path_table_poses,
+    preview_intervals,
+)
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
 
@@ -130,8 +136,8 @@ def _remaining_ease_delay(hold_s: float) -> float:
 
 def _angular_velocity(r0: np.ndarray, r1: np.ndarray, dt: float) -> np.ndarray:
     """World angular velocity taking r0 to r1 in dt (small-angle)."""
-    d = r1 @ r0.T
-    return np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]]) / (2.0 * dt)
+    d = (r1 @ r0.T).tolist()
+    return np.array([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]]) / (2.0 * dt)
 
 
 @dataclass
@@ -167,7 +173,9 @@ class GaitPlanner:
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._hull_cache: dict[tuple, np.ndarray] = {}
+        self._path_rows: tuple[list, list, list] | None = None  # the table as lists of floats (rows read one by one)
+        self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
+        self._preview_constants: tuple[BlendedGait, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -223,10 +231,11 @@ class GaitPlanner:
 
     # ------------------------------------------------------------------ helpers
     def _blend(self) -> BlendedGait:
-        members = [(float(w), self.banks.banks[n]) for w, n in zip(self.weights, SAMPLE_NAMES) if w > 1e-9]
+        weights = self.weights.tolist()
+        members = [(w, self.banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
         if self._fade_from is not None:
             f = smoothstep(self._fade_elapsed_s / STYLE_FADE_S)
-            old = [(float(w) * (1 - f), self._fade_from.banks[n]) for w, n in zip(self.weights, SAMPLE_NAMES) if w > 1e-9]
+            old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * f, b) for w, b in members] + old
         return self.banks.blend(members)
 
@@ -247,6 +256,13 @@ class GaitPlanner:
         b = blend or self.blend
         return stance_offset(side, b.attribute("stance_width_m"), b.attribute("stance_splay_rad"),
                              b.attribute("stance_x_bias_m"))
+
+    def _stance_xy_yaw(self, side: str) -> tuple[float, float, float]:
+        """:meth:`stance` of the current blend as floats, kept while the blend is."""
+        cached = self._stances
+        if cached is None or cached[0] is not self.blend:
+            cached = self._stances = (self.blend, {s: tuple(self.stance(s).tolist()) for s in SIDES})
+        return cached[1][side]
 
     @staticmethod
     def in_swing(side: str, phi: float) -> bool:
@@ -269,7 +285,7 @@ class GaitPlanner:
             self._fade_elapsed_s += dt_s
             if self._fade_elapsed_s >= STYLE_FADE_S:
                 self._fade_from = None
-        if fading or self._blend_stale or not np.array_equal(weights, self.weights):
+        if fading or self._blend_stale or not bool((weights == self.weights).all()):  # np.array_equal of (9,) arrays
             self.weights = weights
             self.blend = self._blend()
             self._blend_stale = False
@@ -287,7 +303,7 @@ class GaitPlanner:
         if rate > 0.0:
             self.phi = max(blend.phase_of_time(blend.time_at(phi_old) + rate * dt_s), phi_old)
             self.path.advance(self.command, rate * dt_s)
-        self._path_table = None
+        self._path_table = self._path_rows = None
         self._handle_events(phi_old, self.phi)
         adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
         for side in SIDES:
@@ -332,13 +348,21 @@ class GaitPlanner:
     def path_ahead(self, dt_s: float) -> np.ndarray:
         """The path pose ``dt_s`` of gait time ahead, the command ramping toward ``command_goal``
         within ``command_rate_limits`` (exact arcs per piece of a 50 ms table)."""
+        return np.array(self._path_pose_ahead(dt_s))
+
+    def _path_pose_ahead(self, dt_s: float) -> tuple[float, float, float]:
+        """:meth:`path_ahead` on floats (x, y, yaw)."""
         if self.command_goal is None or self.command_rate_limits is None:
-            return self.path.predicted(self.command, dt_s)
-        if self._path_table is None:
+            path = self.path
+            return predict_xy_yaw(float(path.x), float(path.y), float(path.yaw), self.command, dt_s)
+        if self._path_rows is None:
             self._path_table = self._build_path_table()
-        times, poses, vels = self._path_table
-        k = min(int(dt_s / PATH_TABLE_STEP_S), len(times) - 1)
-        return predict(poses[k], vels[k], dt_s - times[k])
+            times, poses, vels = self._path_table
+            self._path_rows = (times.tolist(), poses.tolist(), vels.tolist())
+        times_l, poses_l, vels_l = self._path_rows
+        k = min(int(dt_s / PATH_TABLE_STEP_S), len(times_l) - 1)
+        x, y, yaw = poses_l[k]
+        return predict_xy_yaw(x, y, yaw, vels_l[k], dt_s - times_l[k])
 
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
@@ -418,10 +442,11 @@ class GaitPlanner:
         phi_td, phi_lo = self._contact_midpoint_phase(side, self.phi)
         t_now = blend.time_at(self.phi)
         t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_lo))
-        pose = self.path_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self.stance(side))
-        if adjust_xy.any():
-            target = Foothold(target.x + adjust_xy[0], target.y + adjust_xy[1], target.yaw)
+        pose = self._path_pose_ahead(max(t_mid - t_now, 0.0))
+        target = foothold_from_path(pose, self._stance_xy_yaw(side))
+        adjust_x, adjust_y = adjust_xy.tolist()
+        if adjust_x != 0.0 or adjust_y != 0.0:  # adjust_xy.any()
+            target = Foothold(target.x + adjust_x, target.y + adjust_y, target.yaw)
         other = "right" if side == "left" else "left"
         return project_to_safe_region(self.latched[other], target, side, self.region)
 
@@ -434,7 +459,7 @@ class GaitPlanner:
         prev, self._last_pose = self._last_pose, pose
         dt = self.t_s - prev["t"] if prev is not None else 0.0
         feet = pose["feet"]
-        foot_pos = np.array([feet[s].pos for s in SIDES])
+        foot_pos = pose["foot_pos"].copy()  # the reference's own: the pose keeps its for the next rates
         foot_rot = np.array([feet[s].rot for s in SIDES])
         corners = (foot_rot @ self.sole_corners_local.T).transpose(0, 2, 1) + foot_pos[:, None, :]
         if prev is None or dt <= 0:
@@ -444,7 +469,7 @@ class GaitPlanner:
         else:
             z_rate = (pose["pelvis_z"] - prev["pelvis_z"]) / dt
             pelvis_w = _angular_velocity(prev["pelvis_rot"], pose["pelvis_rot"], dt)
-            lin = np.array([(feet[s].pos - prev["feet"][s].pos) / dt for s in SIDES])
+            lin = (pose["foot_pos"] - prev["foot_pos"]) / dt  # per foot: (pos − previous pos) / dt
             ang = np.array([_angular_velocity(prev["feet"][s].rot, feet[s].rot, dt) for s in SIDES])
             upper_qd = (pose["upper"] - prev["upper"]) / dt
         return GaitReference(
@@ -468,7 +493,8 @@ class GaitPlanner:
         for side, vals in (("left", left_vals), ("right", right_vals)):
             feet[side], progress[side] = self._foot_at(side, phi, t, blend, vals)
         return {"t": self.t_s, "pelvis_z": blend.attribute("pelvis_height_m") + cycle_vals[0], "pelvis_rot": pelvis_rot,
-                "feet": feet, "upper": cycle_vals[4:].copy(), "progress": progress}
+                "feet": feet, "foot_pos": np.array([feet[s].pos for s in SIDES]), "upper": cycle_vals[4:].copy(),
+                "progress": progress}
 
     def _foot_at(self, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray) -> tuple[_Pose, float]:
         lo, td = SWING_PHASES[side]
@@ -477,7 +503,8 @@ class GaitPlanner:
             t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
             s = min(max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
             x, y, yaw, _ = nominal_swing(self.swing_start[side], self.target[side], s)
-            rig_r, rig_t = foot_rig(self.sole_length_m, vals[3], vals[HEEL], vals[TOE], vals[6], self.sole_width_m)
+            v = vals.tolist()  # the rig's angles as floats (the same numbers, without numpy scalars)
+            rig_r, rig_t = foot_rig(self.sole_length_m, v[3], v[HEEL], v[TOE], v[6], self.sole_width_m)
             offset = vals[0:3] + rig_t
             base = rot_z(yaw)
             return _Pose(np.array([x, y, 0.0]) + base @ offset, base @ rig_r), s
@@ -511,104 +538,77 @@ class GaitPlanner:
 
     # ------------------------------------------------------------------ preview for the MPC
     def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
-        """Support intervals over the next ``horizon_s``: timings, footholds, polygons."""
+        """Support intervals over the next ``horizon_s``: timings, footholds, polygons.
+
+        From now over the contact events ahead: the feet stand where they stand (a swinging foot on its
+        target), a foot that touches down later lands on its predicted foothold (the path at the middle of
+        that contact ⊕ its stance offset, in the safe region of the other foot). One foot down: its sole,
+        shortened at the toe by what the ankle cannot hold; both: the hull of both soles, the one of a foot
+        rolling on its heel or toe (heel strike after its touchdown, toe-off before its liftoff) cut to that
+        edge's strip. Compiled (:func:`engine.gait.planner_kernels.preview_intervals`)."""
         blend = self.blend
-        events = (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
-        t_now = blend.time_at(self.phi)
-        phases: list[ContactPhase] = []
-        footholds = {s: (self.target[s] if self.in_swing(s, self.phi) else self.latched[s]) for s in SIDES}
-        swinging = {s for s in SIDES if self.in_swing(s, self.phi)}  # their target is already known
-        k = math.floor(self.phi)
-        boundaries = [k + c + e for c in range(4) for e in events if k + c + e > self.phi]
-        prev_phi = self.phi
-        # While easing in, the clock runs slow: events come later by ∫(1 − rate) over the rest.
-        hold = _remaining_ease_delay(self.hold_s)
-        length = self.sole_length_m - 2.0 * self.preview_margin_m
-        width = self.sole_width_m - 2.0 * self.preview_margin_m
-        stances: dict[str, np.ndarray] = {}  # p_stance per side (the blend is fixed during the call)
-        for b in boundaries:
-            t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
-            t1 = (blend.event_time(b) - t_now) / kappa
-            if prev_phi != self.phi:
-                t0 += hold
-            t1 += hold
-            down = [s for s in SIDES if not self.in_swing(s, 0.5 * (prev_phi + b))]
-            if len(down) == 1:  # one ankle holds the whole weight: no further than it can reach
-                polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
-            else:
-                # A foot rolling on its heel or toe (heel strike after its touchdown, toe-off before
-                # its liftoff) bears weight only on that edge: the CoP has no support elsewhere on it.
-                edges = tuple(self._rolling_edge(s, prev_phi, b) for s in down)
-                polygon = self._support_hull(tuple(footholds[s] for s in down), length, width, edges)
-            phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
-            if t1 >= horizon_s:
-                break
-            f = b - math.floor(b)
-            for side in SIDES:
-                if abs(f - SWING_PHASES[side][1]) < 1e-9:  # this foot touches down at b
-                    if side in swinging:
-                        swinging.discard(side)
-                    else:
-                        if side not in stances:
-                            stances[side] = self.stance(side)
-                        footholds = {**footholds, side: self._predicted_foothold(side, b, t_now, footholds, stances[side])}
-            prev_phi = b
+        phi = self.phi
+        swinging = [self.in_swing(s, phi) for s in SIDES]
+        start = [self.target[s] if swing else self.latched[s] for s, swing in zip(SIDES, swinging)]
+        stances, touchdown_edges, liftoff_edges = self._blend_constants()
+        if self.command_goal is None or self.command_rate_limits is None:  # the command holds: one piece
+            path = self.path
+            table = (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
+                     np.asarray(self.command, dtype=float).reshape(1, 3))
+        else:
+            self._path_pose_ahead(0.0)  # builds the table if this tick has not yet
+            assert self._path_table is not None
+            table = self._path_table
+        region = self.region
+        n, t_start, t_end, down, hold_index, holds, polygons, counts = preview_intervals(
+            float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
+            np.array(blend.events_s), np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
+            self._edges_now(), np.array([self.landed[s] for s in SIDES]), touchdown_edges, liftoff_edges, stances,
+            *table, PATH_TABLE_STEP_S, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]),
+            self.sole_length_m - 2.0 * self.preview_margin_m, self.sole_width_m - 2.0 * self.preview_margin_m,
+            self.preview_toe_trim_m, EDGE_SUPPORT_DEPTH_M, 2.0)
+        footholds = start + [Foothold(*row) for row in holds[2:].tolist()]
+        polygons.flags.writeable = False  # the phases' polygons are views of it
+        t_s = self.t_s
+        phases = []
+        for i, (t0, t1, (left, right), (i_left, i_right), m) in enumerate(zip(
+                t_start.tolist(), t_end.tolist(), down.tolist(), hold_index.tolist(), counts.tolist())):
+            on = {"left": footholds[i_left], "right": footholds[i_right]} if left and right else (
+                {"left": footholds[i_left]} if left else {"right": footholds[i_right]})
+            phases.append(ContactPhase(t_s + t0, t_s + t1, on, polygons[i, :m]))
         return phases
 
-    def _rolling_edge(self, side: str, phi_start: float, phi_end: float) -> str | None:
-        """The sole edge ("heel"/"toe") ``side`` rolls on during the double support [phi_start, phi_end]
-        of the preview, or None if it stays flat: a pitched touchdown just after it touched down at
-        ``phi_start`` (for the interval under way: its pitch now), a pitched liftoff before it lifts
-        off at ``phi_end``."""
-        assert self.blend is not None
-        lo, td = SWING_PHASES[side]
-        liftoff_pitch, touchdown_pitch = self.blend.boundary_pitch[side]
-        if phi_start == self.phi and self._last_pose is not None:
-            rot = self._last_pose["feet"][side].rot
-            yaw = math.atan2(rot[1, 0], rot[0, 0])
-            pitch = -math.asin(max(-1.0, min(1.0, (rot_z(yaw).T @ rot)[2, 0])))
-            edge = _pitched_edge(min(pitch, 0.0), max(pitch, 0.0))
-            if edge is not None:
-                return edge
-        elif self.landed[side] and _at_event(phi_start, td):
-            edge = _pitched_edge(*touchdown_pitch)
-            if edge is not None:
-                return edge
-        if _at_event(phi_end, lo):
-            return _pitched_edge(*liftoff_pitch)
-        return None
+    def _edges_now(self) -> np.ndarray:
+        """Edge codes (EDGE_CODES) of the sole edge each foot stands on at the last evaluated pose (from its pitch:
+        −asin of (Rz(yaw)ᵀ R)[2, 0], which is R[2, 0]); −1 for both before the first pose."""
+        if self._last_pose is None:
+            return np.array([-1, -1])
+        codes = []
+        for side in SIDES:
+            pitch = -math.asin(max(-1.0, min(1.0, float(self._last_pose["feet"][side].rot[2, 0]))))
+            codes.append(EDGE_CODES[_pitched_edge(min(pitch, 0.0), max(pitch, 0.0))])
+        return np.array(codes)
 
-    def _support_hull(self, holds: tuple[Foothold, ...], length: float, width: float,
-                      edges: tuple[str | None, ...] | None = None) -> np.ndarray:
-        """Convex hull of the soles on ``holds`` (of only the strip along the heel or toe edge for a
-        foot whose ``edges`` entry names one); latched footholds recur tick after tick, so the
-        hulls are kept (by value: Foothold is frozen) until the cache is full."""
-        edges = edges if edges is not None else (None,) * len(holds)
-        key = (holds, length, width, edges)
-        hull = self._hull_cache.get(key)
-        if hull is None:
-            if len(self._hull_cache) >= 64:
-                self._hull_cache.clear()
-            hull = support_hull(holds, length, width, edges, EDGE_SUPPORT_DEPTH_M)  # compiled: the same numbers
-            hull.flags.writeable = False  # shared between calls
-            self._hull_cache[key] = hull
-        return hull
-
-    def _predicted_foothold(self, side: str, phi_td: float, t_now: float, footholds: dict[str, Foothold],
-                            stance: np.ndarray | None = None) -> Foothold:
-        blend = self.blend
-        lo, _ = SWING_PHASES[side]
-        phi_next_lo = math.floor(phi_td - lo) + 1 + lo
-        t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_next_lo))
-        pose = self.path_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self.stance(side) if stance is None else stance)
-        other = "right" if side == "left" else "left"
-        return project_to_safe_region(footholds[other], target, side, self.region)
+    def _blend_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The current blend's stance offsets (2, 3) and the edge codes of its touchdown and liftoff pitches
+        (2,) per foot, kept while the blend is."""
+        cached = self._preview_constants
+        if cached is None or cached[0] is not self.blend:
+            pitch = self.blend.boundary_pitch
+            cached = self._preview_constants = (
+                self.blend, np.array([self._stance_xy_yaw(s) for s in SIDES]),
+                np.array([EDGE_CODES[_pitched_edge(*pitch[s][1])] for s in SIDES]),
+                np.array([EDGE_CODES[_pitched_edge(*pitch[s][0])] for s in SIDES]))
+        return cached[1], cached[2], cached[3]
 
 
 #: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
 #: rebuilds only the poses.
 _RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
+_PATH_TABLE_TIMES = np.arange(int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1) * PATH_TABLE_STEP_S
+_PATH_TABLE_TIMES.flags.writeable = False
+_ONE_PIECE_TIMES = np.zeros(1)  # the preview's path table while the command holds
+assert tuple(PREVIEW_EVENT_PHASES) == (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
 
 
 def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -619,29 +619,9 @@ def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray
     hit = _RAMP_CACHE.get(key)
     if hit is not None:
         return hit
-    h = PATH_TABLE_STEP_S
-    n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
-    times = np.arange(n) * PATH_TABLE_STEP_S
-    vels = np.empty((n, 3))
-    for j in range(3):  # v ← v + clip(goal − v, ±limit·h): the ramp, then the goal held
-        g, lim, v = float(goal[j]), abs(float(rate_limits[j])) * h, float(command[j])
-        column = vels[:, j]
-        for i in range(n):
-            dv = min(max(g - v, -lim), lim)
-            column[i] = v + 0.5 * dv  # the piece's mean velocity
-            if dv == 0.0:
-                column[i + 1:] = v
-                break
-            v = v + dv
-    # Exact arcs of every piece (path_frame.arc_displacement, vectorised).
-    w = vels[:, 2]
-    th = w * h
-    small = np.abs(th) < 1e-9
-    w_safe = np.where(small, 1.0, w)
-    sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
-    cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
-    dx = vels[:, 0] * sinc - vels[:, 1] * cosc
-    dy = vels[:, 0] * cosc + vels[:, 1] * sinc
+    times = _PATH_TABLE_TIMES
+    vels, th, dx, dy = command_ramp_pieces(np.asarray(command, dtype=float), np.asarray(goal, dtype=float),
+                                           np.asarray(rate_limits, dtype=float), PATH_TABLE_STEP_S, len(times))  # compiled
     hit = (times, vels, th, dx, dy)
     for a in hit:
         a.flags.writeable = False
@@ -659,9 +639,3 @@ def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:
     if toe_pitch > EDGE_CONTACT_PITCH_RAD:
         return "toe"
     return None
-
-
-def _at_event(phi: float, event_phi: float) -> bool:
-    """φ is the event at ``event_phi`` of some cycle."""
-    d = phi - event_phi
-    return abs(d - round(d)) < 1e-9

@@ -1,12 +1,12 @@
-"""The gait planner's compiled (numba) kernels: the path table's poses and the preview's double-support
-polygons (the convex hull of the soles on a tuple of footholds, each sole whole or cut to the strip along
-its heel or toe edge: a foot rolling on that edge).
+"""The gait planner's compiled (numba) kernels: the command ramp and the path table's poses, the blended
+channels, and the contact preview (its intervals, predicted footholds and support polygons: one sole's corners,
+or the convex hull of two soles, each whole or cut to the strip along its heel or toe edge: a foot rolling on
+that edge).
 
-For the polygons one call computes what :meth:`engine.gait.footsteps.Foothold.corners`, the planner's ``_edge_strip`` and
-:func:`engine.geometry.polygon.convex_hull_2d` compute one after the other, with the same expressions in
-the same order (the same numbers: ``tests/control/test_stack_speed_references.py``). Most support hulls
-of a walk are new every planner tick (the predicted footholds move with the path), so the hull cache
-of the planner misses often and the miss is what this kernel makes cheap.
+Each computes what the Python code it replaced computed, with the same expressions in the same order (the same
+numbers: ``tests/control/test_stack_speed_references.py`` keeps the replaced code as references). The preview
+was the bulk of a planner tick: its footholds move with the path every tick, so nothing of it can be kept from
+one tick to the next, and one compiled call replaces ~10 intervals of small Python and numpy steps.
 """
 
 from __future__ import annotations
@@ -35,37 +35,106 @@ def support_hull(holds: tuple, length_m: float, width_m: float, edges: tuple, st
 
 
 @njit(cache=True, nogil=True)
+def _sole_points(pts, k, x0, y0, yaw, length_m, width_m, front_trim_m, code, strip_share):  # noqa: ANN001, ANN201, PLR0913
+    """Rows k..k+3 of ``pts``: the corners of the sole on (x0, y0, yaw) as :meth:`Foothold.corners` computes them
+    (back-left, back-right, front-right, front-left; ``front_trim_m`` cut at the toe), or its heel (code 1) or toe
+    (code 2) strip, ``strip_share`` of the length deep (the planner's edge strips)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    trim = min(max(front_trim_m, 0.0), 0.9 * length_m)
+    hl, hw = 0.5 * (length_m - trim), 0.5 * width_m
+    x, y = x0 - c * 0.5 * trim, y0 - s * 0.5 * trim
+    blx, bly = x - c * hl - s * hw, y - s * hl + c * hw
+    brx, bry = x - c * hl + s * hw, y - s * hl - c * hw
+    frx, fry = x + c * hl + s * hw, y + s * hl - c * hw
+    flx, fly = x + c * hl - s * hw, y + s * hl + c * hw
+    f = strip_share
+    if code == 1:  # heel strip: bl, br, br + f (fr − br), bl + f (fl − bl)
+        pts[k, 0], pts[k, 1] = blx, bly
+        pts[k + 1, 0], pts[k + 1, 1] = brx, bry
+        pts[k + 2, 0], pts[k + 2, 1] = brx + f * (frx - brx), bry + f * (fry - bry)
+        pts[k + 3, 0], pts[k + 3, 1] = blx + f * (flx - blx), bly + f * (fly - bly)
+    elif code == 2:  # toe strip: fl + f (bl − fl), fr + f (br − fr), fr, fl
+        pts[k, 0], pts[k, 1] = flx + f * (blx - flx), fly + f * (bly - fly)
+        pts[k + 1, 0], pts[k + 1, 1] = frx + f * (brx - frx), fry + f * (bry - fry)
+        pts[k + 2, 0], pts[k + 2, 1] = frx, fry
+        pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+    else:
+        pts[k, 0], pts[k, 1] = blx, bly
+        pts[k + 1, 0], pts[k + 1, 1] = brx, bry
+        pts[k + 2, 0], pts[k + 2, 1] = frx, fry
+        pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+
+
+@njit(cache=True, nogil=True)
 def _support_hull_compiled(poses, length_m, width_m, codes, strip_depth_m):  # noqa: ANN001, ANN201
     n = poses.shape[0]
     pts = np.empty((4 * n, 2))
     f = min(strip_depth_m / max(length_m, 1e-9), 1.0)
-    for i in range(n):
-        # Foothold.corners(length_m, width_m) (front trim 0): back-left, back-right, front-right, front-left
-        c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
-        trim = min(max(0.0, 0.0), 0.9 * length_m)
-        hl, hw = 0.5 * (length_m - trim), 0.5 * width_m
-        x, y = poses[i, 0] - c * 0.5 * trim, poses[i, 1] - s * 0.5 * trim
-        blx, bly = x - c * hl - s * hw, y - s * hl + c * hw
-        brx, bry = x - c * hl + s * hw, y - s * hl - c * hw
-        frx, fry = x + c * hl + s * hw, y + s * hl - c * hw
-        flx, fly = x + c * hl - s * hw, y + s * hl + c * hw
-        k = 4 * i
-        if codes[i] == 1:  # heel strip: bl, br, br + f (fr − br), bl + f (fl − bl)
-            pts[k, 0], pts[k, 1] = blx, bly
-            pts[k + 1, 0], pts[k + 1, 1] = brx, bry
-            pts[k + 2, 0], pts[k + 2, 1] = brx + f * (frx - brx), bry + f * (fry - bry)
-            pts[k + 3, 0], pts[k + 3, 1] = blx + f * (flx - blx), bly + f * (fly - bly)
-        elif codes[i] == 2:  # toe strip: fl + f (bl − fl), fr + f (br − fr), fr, fl
-            pts[k, 0], pts[k, 1] = flx + f * (blx - flx), fly + f * (bly - fly)
-            pts[k + 1, 0], pts[k + 1, 1] = frx + f * (brx - frx), fry + f * (bry - fry)
-            pts[k + 2, 0], pts[k + 2, 1] = frx, fry
-            pts[k + 3, 0], pts[k + 3, 1] = flx, fly
-        else:
-            pts[k, 0], pts[k, 1] = blx, bly
-            pts[k + 1, 0], pts[k + 1, 1] = brx, bry
-            pts[k + 2, 0], pts[k + 2, 1] = frx, fry
-            pts[k + 3, 0], pts[k + 3, 1] = flx, fly
+    for i in range(n):  # Foothold.corners(length_m, width_m) (front trim 0), whole or cut to a strip
+        _sole_points(pts, 4 * i, poses[i, 0], poses[i, 1], poses[i, 2], length_m, width_m, 0.0, codes[i], f)
     return _hull_compiled(pts)
+
+
+@njit(cache=True, nogil=True)
+def preview_polygons(poses, down, codes, length_m, width_m, front_trim_m, strip_depth_m):  # noqa: ANN001, ANN201, PLR0913
+    """The support polygons of a contact preview in one call: interval i stands on the feet j with ``down[i, j]``
+    at ``poses[i, j]`` (x, y, yaw). One foot: its sole's corners (:meth:`Foothold.corners` with ``front_trim_m``);
+    both: :func:`support_hull` of the two soles (edge ``codes[i, j]``: 0 whole, 1 heel strip, 2 toe strip).
+    Returns the polygons padded to (n, 8, 2) and their vertex counts (n,)."""
+    n = poses.shape[0]
+    out = np.zeros((n, 8, 2))
+    counts = np.empty(n, dtype=np.int64)
+    f = min(strip_depth_m / max(length_m, 1e-9), 1.0)
+    pts = np.empty((8, 2))
+    for i in range(n):
+        if down[i, 0] and down[i, 1]:
+            for j in range(2):
+                _sole_points(pts, 4 * j, poses[i, j, 0], poses[i, j, 1], poses[i, j, 2], length_m, width_m, 0.0,
+                             codes[i, j], f)
+            hull = _hull_compiled(pts)
+            m = hull.shape[0]
+            out[i, :m] = hull
+            counts[i] = m
+        else:
+            j = 0 if down[i, 0] else 1
+            _sole_points(out[i], 0, poses[i, j, 0], poses[i, j, 1], poses[i, j, 2], length_m, width_m, front_trim_m,
+                         0, f)
+            counts[i] = 4
+    return out, counts
+
+
+@njit(cache=True, nogil=True)
+def command_ramp_pieces(command, goal, rate_limits, step_s, n):  # noqa: ANN001, ANN201
+    """The path table's velocity part (``planner._command_ramp``): the mean velocity of each of the ``n`` pieces
+    (n, 3) of the rate-limited ramp toward ``goal`` (per axis v ← v + clip(goal − v, ±|limit|·step), each piece
+    at v + dv/2, the goal held once reached), and each piece's turn angle and exact arc (dx, dy) in its
+    start frame (``path_frame.arc_displacement``'s expressions, elementwise as the numpy code computed them)."""
+    vels = np.empty((n, 3))
+    for j in range(3):
+        g, lim, v = goal[j], abs(rate_limits[j]) * step_s, command[j]
+        for i in range(n):
+            dv = min(max(g - v, -lim), lim)
+            vels[i, j] = v + 0.5 * dv  # the piece's mean velocity
+            if dv == 0.0:
+                for k in range(i + 1, n):
+                    vels[k, j] = v
+                break
+            v = v + dv
+    th = np.empty(n)
+    dx = np.empty(n)
+    dy = np.empty(n)
+    h = step_s
+    for i in range(n):
+        w = vels[i, 2]
+        t = w * h
+        th[i] = t
+        if abs(t) < 1e-9:
+            sinc, cosc = h * (1.0 - t * t / 6.0), h * (0.5 * t)
+        else:
+            sinc, cosc = math.sin(t) / w, (1.0 - math.cos(t)) / w
+        dx[i] = vels[i, 0] * sinc - vels[i, 1] * cosc
+        dy[i] = vels[i, 0] * cosc + vels[i, 1] * sinc
+    return vels, th, dx, dy
 
 
 @njit(cache=True, nogil=True)
@@ -113,3 +182,182 @@ def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, per
         values[r] = c0 + tau * (c1 + tau * (c2 + tau * c3))
         rates[r] = (c1 + tau * (2.0 * c2 + 3.0 * c3 * tau)) * member_rate_scale[member_of_row[r]]
     return values, rates
+
+
+# ---------------------------------------------------------------------------------------------------- the preview
+# GaitPlanner.preview's loop compiled. Python's float semantics are kept where they could differ from LLVM's: min
+# and max keep their first argument on ties, squares go through libm's pow (Python's x ** 2 is pow(x, 2.0), which
+# differs from x * x in the last bit for ~0.1 % of x; a literal exponent would let LLVM fold it into x * x).
+
+#: GaitPlanner.preview's contact events in a cycle: LLO, LTD, RLO, RTD (phases; SWING_PHASES' liftoff / touchdown).
+PREVIEW_EVENT_PHASES = np.array([0.0, 0.1, 0.5, 0.6])
+MAX_PREVIEW_INTERVALS = 16  # four cycles of four events
+
+
+@njit(cache=True, nogil=True)
+def _first_max(a, b):  # noqa: ANN001, ANN202
+    """Python's max(a, b): a unless b > a."""
+    return b if b > a else a
+
+
+@njit(cache=True, nogil=True)
+def _first_min(a, b):  # noqa: ANN001, ANN202
+    """Python's min(a, b): a unless b < a."""
+    return b if b < a else a
+
+
+@njit(cache=True, nogil=True)
+def _event_time(phi_event, events):  # noqa: ANN001, ANN202
+    """BlendedGait.event_time on its events (t_LTD, t_RLO, t_RTD, cycle)."""
+    k = math.floor(phi_event + 1e-9)
+    f = phi_event - k
+    if f < 0.05:
+        t = 0.0
+    elif f < 0.3:
+        t = events[0]
+    elif f < 0.55:
+        t = events[1]
+    else:
+        t = events[2]
+    return k * events[3] + t
+
+
+@njit(cache=True, nogil=True)
+def _at_event(phi, event_phi):  # noqa: ANN001, ANN202
+    d = phi - event_phi
+    return abs(d - round(d)) < 1e-9
+
+
+@njit(cache=True, nogil=True)
+def _predicted_foothold(side, phi_td, t_now, events, support, stance, table_times, table_poses, table_vels,  # noqa: ANN001, ANN202, PLR0913
+                        table_step_s, region, two, out):
+    """GaitPlanner._predicted_foothold into ``out`` (x, y, yaw): the path pose at the middle of the contact that
+    starts at ``phi_td`` (path_ahead: the table's piece, then its arc), ⊕ the stance offset (foothold_from_path),
+    projected to the safe region beside ``support`` (footsteps.project_to_safe_region)."""
+    lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
+    phi_next_lo = math.floor(phi_td - lo) + 1 + lo
+    t_mid = 0.5 * (_event_time(phi_td, events) + _event_time(phi_next_lo, events))
+    dt = _first_max(t_mid - t_now, 0.0)
+    k = min(int(dt / table_step_s), table_times.shape[0] - 1)
+    x0, y0, yaw0 = table_poses[k, 0], table_poses[k, 1], table_poses[k, 2]
+    vx, vy, w = table_vels[k, 0], table_vels[k, 1], table_vels[k, 2]
+    ds = dt - table_times[k]
+    th = w * ds  # path_frame.arc_displacement
+    if abs(th) < 1e-9:
+        sinc, cosc = ds * (1.0 - th * th / 6.0), ds * (0.5 * th)
+    else:
+        sinc, cosc = math.sin(th) / w, (1.0 - math.cos(th)) / w
+    dx = vx * sinc - vy * cosc
+    dy = vx * cosc + vy * sinc
+    c, s = math.cos(yaw0), math.sin(yaw0)  # path_frame.predict_xy_yaw
+    px, py, pyaw = x0 + c * dx - s * dy, y0 + s * dx + c * dy, yaw0 + th
+    c, s = math.cos(pyaw), math.sin(pyaw)  # foothold_from_path
+    tx, ty, tyaw = px + c * stance[0] - s * stance[1], py + s * stance[0] + c * stance[1], pyaw + stance[2]
+    # project_to_safe_region
+    sx, sy, syaw = support[0], support[1], support[2]
+    c, s = math.cos(syaw), math.sin(syaw)
+    dx, dy = tx - sx, ty - sy
+    local_yaw = ((tyaw - syaw) + math.pi) % (2 * math.pi) - math.pi  # wrap_angle
+    sign = 1.0 if side == 0 else -1.0
+    x, y_own = c * dx + s * dy, sign * (-s * dx + c * dy)
+    side_m, front_m, cross_m, max_yaw = region[0], region[1], region[2], region[3]
+    bx, by = x, _first_max(y_own, side_m)  # beside
+    best_d2 = (bx - x) ** two + (by - y_own) ** two
+    cx, cy = _first_max(x, front_m), _first_max(y_own, cross_m)  # in front (still not crossing)
+    d2 = (cx - x) ** two + (cy - y_own) ** two
+    if d2 < best_d2:
+        bx, by, best_d2 = cx, cy, d2
+    cx, cy = _first_min(x, -front_m), _first_max(y_own, cross_m)  # behind
+    d2 = (cx - x) ** two + (cy - y_own) ** two
+    if d2 < best_d2:
+        bx, by, best_d2 = cx, cy, d2
+    yaw = _first_min(_first_max(local_yaw, -max_yaw), max_yaw)
+    if bx == x and by == y_own and yaw == local_yaw:
+        out[0], out[1], out[2] = tx, ty, tyaw
+    else:  # support.from_local((best x, sign · best y, yaw))
+        ly = sign * by
+        out[0], out[1], out[2] = sx + c * bx - s * ly, sy + s * bx + c * ly, syaw + yaw
+
+
+@njit(cache=True, nogil=True)
+def _rolling_edge(side, phi_start, phi_end, phi, edge_now, landed, touchdown_edge, liftoff_edge):  # noqa: ANN001, ANN202, PLR0913
+    """GaitPlanner._rolling_edge as an edge code: ``edge_now`` is the code of the foot's pitch now (−1: no last
+    pose), ``touchdown_edge`` / ``liftoff_edge`` those of the blend's boundary pitches."""
+    lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
+    td = PREVIEW_EVENT_PHASES[1] if side == 0 else PREVIEW_EVENT_PHASES[3]
+    if phi_start == phi and edge_now[side] >= 0:
+        if edge_now[side] != 0:
+            return edge_now[side]
+    elif landed[side] and _at_event(phi_start, td):
+        if touchdown_edge[side] != 0:
+            return touchdown_edge[side]
+    if _at_event(phi_end, lo):
+        return liftoff_edge[side]
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def preview_intervals(phi, t_now, kappa, hold_s, horizon_s, events, holds, swinging, edge_now, landed,  # noqa: ANN001, ANN201, PLR0913, PLR0915
+                      touchdown_edge, liftoff_edge, stances, table_times, table_poses, table_vels, table_step_s,
+                      region, length_m, width_m, front_trim_m, strip_depth_m, two):
+    """GaitPlanner.preview's support intervals: from phase ``phi`` (gait time ``t_now``) over the contact events
+    of the next four cycles (``events``: t_LTD, t_RLO, t_RTD, cycle) until one ends ``horizon_s`` ahead.
+
+    The feet start on ``holds`` (2, 3) (a swinging foot's on its target, ``swinging``); a foot that touches down
+    later lands on its predicted foothold (``stances`` (2, 3), the path table, the safe ``region`` (side, front,
+    cross, max yaw)). Returns the number of intervals n, their start and end [s from now] (n,), feet down (n, 2),
+    foothold index per foot (n, 2; 0, 1: ``holds``, 2…: the predicted ones, returned (m, 3)), their polygons
+    (n, 8, 2) and vertex counts (n,) (:func:`preview_polygons`)."""
+    t_start = np.empty(MAX_PREVIEW_INTERVALS)
+    t_end = np.empty(MAX_PREVIEW_INTERVALS)
+    down = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.bool_)
+    hold_index = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.int64)
+    codes = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.int64)
+    poses = np.zeros((MAX_PREVIEW_INTERVALS, 2, 3))
+    footholds = np.empty((2 + MAX_PREVIEW_INTERVALS, 3))
+    footholds[:2] = holds
+    n_holds = 2
+    current = np.array([0, 1])
+    still_swinging = swinging.copy()
+    k = math.floor(phi)
+    prev_phi, t0 = phi, 0.0
+    n = 0
+    done = False
+    for cycle_index in range(k, k + 4):
+        for event in range(4):
+            b = cycle_index + PREVIEW_EVENT_PHASES[event]
+            if not b > phi:
+                continue
+            t1 = (cycle_index * events[3] + (0.0 if event == 0 else events[event - 1]) - t_now) / kappa + hold_s
+            mid = 0.5 * (prev_phi + b)
+            f = mid - math.floor(mid)
+            left_down = not (PREVIEW_EVENT_PHASES[0] <= f < PREVIEW_EVENT_PHASES[1])  # GaitPlanner.in_swing
+            right_down = not (PREVIEW_EVENT_PHASES[2] <= f < PREVIEW_EVENT_PHASES[3])
+            t_start[n], t_end[n] = t0, t1
+            down[n, 0], down[n, 1] = left_down, right_down
+            for side in range(2):
+                hold_index[n, side] = current[side]
+                poses[n, side] = footholds[current[side]]
+                if left_down and right_down:
+                    codes[n, side] = _rolling_edge(side, prev_phi, b, phi, edge_now, landed, touchdown_edge,
+                                                   liftoff_edge)
+            n += 1
+            if t1 >= horizon_s:
+                done = True
+                break
+            if event == 1 or event == 3:  # the left (LTD) / right (RTD) foot touches down at b
+                side = 0 if event == 1 else 1
+                if still_swinging[side]:
+                    still_swinging[side] = False
+                else:
+                    _predicted_foothold(side, b, t_now, events, footholds[current[1 - side]], stances[side],
+                                        table_times, table_poses, table_vels, table_step_s, region, two,
+                                        footholds[n_holds])
+                    current[side] = n_holds
+                    n_holds += 1
+            prev_phi, t0 = b, t1
+        if done:
+            break
+    polygons, counts = preview_polygons(poses[:n], down[:n], codes[:n], length_m, width_m, front_trim_m,
+                                        strip_depth_m)
+    return n, t_start[:n], t_end[:n], down[:n], hold_index[:n], footholds[:n_holds], polygons, counts

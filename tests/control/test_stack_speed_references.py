@@ -409,3 +409,216 @@ def test_early_touchdown_flag_equals_the_array_expression() -> None:
         corners = np.array([(bits >> i) & 1 for i in range(8)], dtype=bool).reshape(2, 4)
         planned = np.array([(bits >> 8) & 1, (bits >> 9) & 1], dtype=bool)
         assert _early_touchdown(corners, planned) == bool(np.any(corners.any(axis=1) & ~planned))
+
+
+def command_ramp_reference(command, goal, rate_limits):  # noqa: ANN001, ANN201
+    """planner._command_ramp before the speed-up (a float loop for the ramp, numpy for the arcs)."""
+    from engine.gait.planner import PATH_TABLE_HORIZON_S, PATH_TABLE_STEP_S
+
+    h = PATH_TABLE_STEP_S
+    n = int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1
+    times = np.arange(n) * PATH_TABLE_STEP_S
+    vels = np.empty((n, 3))
+    for j in range(3):
+        g, lim, v = float(goal[j]), abs(float(rate_limits[j])) * h, float(command[j])
+        column = vels[:, j]
+        for i in range(n):
+            dv = min(max(g - v, -lim), lim)
+            column[i] = v + 0.5 * dv
+            if dv == 0.0:
+                column[i + 1:] = v
+                break
+            v = v + dv
+    w = vels[:, 2]
+    th = w * h
+    small = np.abs(th) < 1e-9
+    w_safe = np.where(small, 1.0, w)
+    sinc = np.where(small, h * (1.0 - th * th / 6.0), np.sin(th) / w_safe)
+    cosc = np.where(small, h * (0.5 * th), (1.0 - np.cos(th)) / w_safe)
+    return times, vels, th, vels[:, 0] * sinc - vels[:, 1] * cosc, vels[:, 0] * cosc + vels[:, 1] * sinc
+
+
+def test_compiled_command_ramp_equals_the_loop_and_numpy_arcs() -> None:
+    from engine.gait.planner import _RAMP_CACHE, _command_ramp
+
+    rng = np.random.default_rng(31)
+    for case in range(800):
+        command, goal, limits = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3), rng.uniform(0.05, 3.0, 3)
+        if case % 5 == 0:
+            goal = command.copy()  # held: the ramp's early exit
+        if case % 7 == 0:
+            goal[2] = command[2] = 0.0  # no turn: the arcs' straight-line branch
+        if case % 11 == 0:
+            limits = -limits  # |limit|
+        _RAMP_CACHE.clear()
+        got, want = _command_ramp(command, goal, limits), command_ramp_reference(command, goal, limits)
+        for g, w in zip(got[:3], want[:3]):  # times, the ramp and the turn angles: plain float arithmetic
+            np.testing.assert_array_equal(g, w)
+        for g, w in zip(got[3:], want[3:]):  # arcs: libm's sin/cos in the kernel, numpy's (the same on AVX2)
+            _assert_equal_to_rounding(g, w)
+
+
+def test_compiled_preview_polygons_equal_corners_and_support_hull() -> None:
+    from engine.gait.footsteps import Foothold
+    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M
+    from engine.gait.planner_kernels import EDGE_CODES, preview_polygons, support_hull
+
+    rng = np.random.default_rng(37)
+    names = [None, "heel", "toe"]
+    for _ in range(300):
+        n = int(rng.integers(1, 12))
+        poses = np.column_stack([rng.uniform(-2, 2, (n * 2, 2)), rng.uniform(-7, 7, n * 2)]).reshape(n, 2, 3)
+        down = rng.random((n, 2)) < 0.6
+        down[~down.any(axis=1), int(rng.integers(0, 2))] = True
+        edge_names = [[names[int(rng.integers(0, 3))] for _ in range(2)] for _ in range(n)]
+        codes = np.array([[EDGE_CODES[e] for e in row] for row in edge_names], dtype=np.int64)
+        length, width = float(rng.uniform(0.005, 0.3)), float(rng.uniform(0.005, 0.15))
+        trim = float(rng.choice([0.0, rng.uniform(-0.05, 0.4)]))
+        polygons, counts = preview_polygons(poses, down, codes, length, width, trim, EDGE_SUPPORT_DEPTH_M)
+        for i in range(n):
+            holds = [Foothold(*poses[i, j]) for j in range(2)]
+            if down[i].all():
+                want = support_hull(tuple(holds), length, width, tuple(edge_names[i]), EDGE_SUPPORT_DEPTH_M)
+            else:
+                want = holds[0 if down[i, 0] else 1].corners(length, width, trim)
+            np.testing.assert_array_equal(polygons[i, :counts[i]], want)
+
+
+def _at_event(phi: float, event_phi: float) -> bool:
+    d = phi - event_phi
+    return abs(d - round(d)) < 1e-9
+
+
+def preview_reference(planner, kappa: float = 1.0, horizon_s: float = 2.0, edges_seen: list | None = None):  # noqa: ANN001, ANN201
+    """GaitPlanner.preview before the speed-up: event times from blend.event_time, one support_hull / corners
+    call per interval, the rolling edge's pitch from Rz(yaw)ᵀ R, footholds from the numpy path table."""
+    from engine.gait.blending import SWING_PHASES
+    from engine.gait.footsteps import foothold_from_path, project_to_safe_region
+    from engine.gait.path_frame import predict
+    from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
+    from engine.gait.planner import EDGE_SUPPORT_DEPTH_M, ContactPhase, _pitched_edge, _remaining_ease_delay
+    from engine.gait.planner_kernels import support_hull
+    from engine.geometry import rot_z
+
+    self = planner
+    sides = ("left", "right")
+
+    def path_ahead(dt_s):  # noqa: ANN001, ANN202
+        if self.command_goal is None or self.command_rate_limits is None:
+            return self.path.predicted(self.command, dt_s)
+        # the table the planner built this tick (kept until its next step, as before: a touchdown's path shift
+        # under path_follows_feet does not rebuild it)
+        times, poses, vels = self._path_table if self._path_table is not None else self._build_path_table()
+        k = min(int(dt_s / 0.05), len(times) - 1)
+        return predict(poses[k], vels[k], dt_s - times[k])
+
+    def rolling_edge(side, phi_start, phi_end):  # noqa: ANN001, ANN202
+        lo, td = SWING_PHASES[side]
+        liftoff_pitch, touchdown_pitch = self.blend.boundary_pitch[side]
+        if phi_start == self.phi and self._last_pose is not None:
+            rot = self._last_pose["feet"][side].rot
+            yaw = math.atan2(rot[1, 0], rot[0, 0])
+            pitch = -math.asin(max(-1.0, min(1.0, (rot_z(yaw).T @ rot)[2, 0])))
+            edge = _pitched_edge(min(pitch, 0.0), max(pitch, 0.0))
+            if edge is not None:
+                return edge
+        elif self.landed[side] and _at_event(phi_start, td):
+            edge = _pitched_edge(*touchdown_pitch)
+            if edge is not None:
+                return edge
+        if _at_event(phi_end, lo):
+            return _pitched_edge(*liftoff_pitch)
+        return None
+
+    blend = self.blend
+    t_now = blend.time_at(self.phi)
+    phases = []
+    footholds = {s: (self.target[s] if self.in_swing(s, self.phi) else self.latched[s]) for s in sides}
+    swinging = {s for s in sides if self.in_swing(s, self.phi)}
+    k = math.floor(self.phi)
+    boundaries = [k + c + e for c in range(4) for e in (0.0, PHI_LTD, PHI_RLO, PHI_RTD) if k + c + e > self.phi]
+    prev_phi = self.phi
+    hold = _remaining_ease_delay(self.hold_s)
+    length = self.sole_length_m - 2.0 * self.preview_margin_m
+    width = self.sole_width_m - 2.0 * self.preview_margin_m
+    for b in boundaries:
+        t0 = ((blend.event_time(prev_phi) if prev_phi != self.phi else t_now) - t_now) / kappa
+        t1 = (blend.event_time(b) - t_now) / kappa
+        if prev_phi != self.phi:
+            t0 += hold
+        t1 += hold
+        down = [s for s in sides if not self.in_swing(s, 0.5 * (prev_phi + b))]
+        if len(down) == 1:
+            polygon = footholds[down[0]].corners(length, width, self.preview_toe_trim_m)
+        else:
+            edges = tuple(rolling_edge(s, prev_phi, b) for s in down)
+            if edges_seen is not None:
+                edges_seen.extend(e for e in edges if e is not None)
+            polygon = support_hull(tuple(footholds[s] for s in down), length, width, edges, EDGE_SUPPORT_DEPTH_M)
+        phases.append(ContactPhase(self.t_s + t0, self.t_s + t1, {s: footholds[s] for s in down}, polygon))
+        if t1 >= horizon_s:
+            break
+        f = b - math.floor(b)
+        for side in sides:
+            if abs(f - SWING_PHASES[side][1]) < 1e-9:
+                if side in swinging:
+                    swinging.discard(side)
+                else:
+                    lo, _ = SWING_PHASES[side]
+                    t_mid = 0.5 * (blend.event_time(b) + blend.event_time(math.floor(b - lo) + 1 + lo))
+                    target = foothold_from_path(path_ahead(max(t_mid - t_now, 0.0)), self.stance(side))
+                    other = "right" if side == "left" else "left"
+                    footholds = {**footholds, side: project_to_safe_region(footholds[other], target, side, self.region)}
+        prev_phi = b
+    return phases
+
+
+def _rolling_style():  # noqa: ANN202
+    """G1's neutral style with every sample lifting off on its toe and landing on its heel (0.3 rad)."""
+    from engine.gait.curves import HermiteCurve, Knot, TangentMode
+    from engine.gait.style import load_style, styles_dir
+
+    style = load_style(styles_dir("g1") / "neutral.json")
+    flat = TangentMode.FLAT
+    for name, sample in style.samples.items():
+        for side in ("left", "right"):
+            d = sample.intervals.swing_duration_s(side)
+            sample = sample.with_curve(f"{side}_foot.toe_pitch", HermiteCurve(
+                [Knot(0.0, 0.3, mode=flat), Knot(0.5 * d, 0.0, mode=flat), Knot(d, 0.0, mode=flat)], d))
+            sample = sample.with_curve(f"{side}_foot.heel_pitch", HermiteCurve(
+                [Knot(0.0, 0.0, mode=flat), Knot(0.5 * d, 0.0, mode=flat), Knot(d, -0.3, mode=flat)], d))
+        style = style.with_sample(name, sample)
+    return style
+
+
+def test_preview_equals_the_reference_preview() -> None:
+    """The planner's contact preview (timings, footholds, polygons) along a G1 walk under a ramping command with
+    its goal, time scaling and step adjustments, with heel/toe rolling edges and a toe trim, and without a goal."""
+    from engine.gait.offline_plan import planner_for
+    from engine.gait.planner import PlannerFeedback
+    from engine.gait.style import StyleContext, load_style, styles_dir
+    from engine.robot.model import load_robot
+
+    robot = load_robot("g1")
+    rng = np.random.default_rng(41)
+    compared, edges = 0, []
+    for with_goal, style in ((True, _rolling_style()), (False, load_style(styles_dir("g1") / "neutral.json"))):
+        planner = planner_for(robot, style, StyleContext.for_robot("g1"))
+        planner.preview_margin_m, planner.preview_toe_trim_m, planner.path_follows_feet = 0.01, 0.03, 0.5
+        command, goal = np.zeros(3), np.array([0.4, 0.1, 0.3])
+        for k in range(700):
+            if k % 150 == 0:
+                goal = rng.uniform([-0.3, -0.2, -0.6], [0.5, 0.2, 0.6])
+            command = command + np.clip(goal - command, -0.01, 0.01)
+            kappa = float(rng.uniform(0.7, 1.4))
+            fb = PlannerFeedback(kappa, rng.normal(0.0, 0.02, 2) if k % 3 else None,
+                                 goal if with_goal else None, np.array([0.5, 0.5, 1.0]) if with_goal else None)
+            ref = planner.step(0.008, command, fb)
+            want = preview_reference(planner, kappa, edges_seen=edges)
+            assert len(ref.preview) == len(want)
+            for got_phase, want_phase in zip(ref.preview, want):
+                assert (got_phase.t_start_s, got_phase.t_end_s) == (want_phase.t_start_s, want_phase.t_end_s)
+                assert got_phase.footholds == want_phase.footholds
+                np.testing.assert_array_equal(got_phase.polygon, want_phase.polygon)
+                compared += 1
+    assert compared > 5000 and edges.count("heel") > 100 and edges.count("toe") > 100  # soles on their edge strips
