@@ -483,11 +483,12 @@ class WalkingController:
             return fb
         planner = self.planner
         omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
-        xi = com + com_vel / omega - self._mpc_shift
+        (cx, cy), (vx, vy), (sx, sy) = com.tolist(), com_vel.tolist(), self._mpc_shift.tolist()
+        xi_x, xi_y = cx + vx / omega - sx, cy + vy / omega - sy  # on floats: the former 2-vector expressions' numbers
         c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
-        outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
+        sign = 1.0 if outer == "left" else -1.0
         foot = planner.latched[outer]
-        beyond = float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
+        beyond = (xi_x - foot.x) * (-s_ * sign) + (xi_y - foot.y) * (c * sign) - self._half_sole_width_m
         if beyond <= self.params.lateral_capture_margin_m:
             return fb
         lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double

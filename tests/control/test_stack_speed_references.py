@@ -798,3 +798,49 @@ def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
         c.observer.force_n = np.zeros(c.observer.force_n.shape)
         c._mpc_shift = np.zeros(2)
     assert checked > 300 and changed > 100, (checked, changed)  # the bounds did act
+
+
+def hurry_beyond_reference(self, com, com_vel, z, outer):  # noqa: ANN001, ANN201
+    """The distance of ξ beyond the outer sole edge in WalkingController._hurry_when_thrown_out before the speed-up."""
+    from engine.constants import GRAVITY_MPS2
+    planner = self.planner
+    omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
+    xi = com + com_vel / omega - self._mpc_shift
+    c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
+    outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
+    foot = planner.latched[outer]
+    return float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
+
+
+def test_hurry_when_thrown_out_on_floats_equals_the_numpy_version() -> None:
+    """The hurry decision flips exactly where the numpy version's distance crosses the margin."""
+    import dataclasses
+
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.footsteps import Foothold
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+
+    robot = load_robot("g1")
+    c = WalkingController(robot, load_style(styles_dir("g1") / "neutral.json"))
+    c.observer.force_n = np.zeros(c.observer.force_n.shape)
+    rng = np.random.default_rng(3)
+    fb = c.feedback.last
+    hurried = 0
+    for k in range(3000):
+        c.planner.path.yaw = float(rng.uniform(-4.0, 4.0))
+        outer = "left" if k % 2 else "right"
+        c.planner.latched[outer] = Foothold(*rng.normal(0.0, 0.2, 3).tolist())
+        c._mpc_shift = rng.normal(0.0, 0.01, 2) if k % 3 else np.zeros(2)
+        com, com_vel, z = rng.normal(0.0, 0.2, 2), rng.normal(0.0, 0.5, 2), float(rng.uniform(0.5, 0.9))
+        beyond = hurry_beyond_reference(c, com, com_vel, z, outer)
+        margin = c.params.lateral_capture_margin_m
+        if k % 5 < 2:  # right at the margin or an ulp below it: the decision must not move by an ulp
+            at = beyond if k % 5 == 0 else math.nextafter(beyond, -math.inf)
+            c.params = dataclasses.replace(c.params, lateral_capture_margin_m=at)
+        got = c._hurry_when_thrown_out(fb, com, com_vel, z, outer, single=bool(k % 4))
+        want_hurry = beyond > c.params.lateral_capture_margin_m
+        assert (got is fb) == (not want_hurry)
+        hurried += want_hurry
+        c.params = dataclasses.replace(c.params, lateral_capture_margin_m=margin)
+    assert 300 < hurried < 2700
