@@ -80,11 +80,13 @@ def vector_norm(x: np.ndarray) -> float:
     return math.sqrt(float(x.dot(x)))
 
 
-def _deadband(x: np.ndarray, width: float) -> np.ndarray:
-    norm = vector_norm(x)
+def _deadband_xy(x: float, y: float, width: float) -> tuple[float, float]:
+    """(x, y) shrunk toward 0 by ``width`` (0 within it)."""
+    norm = math.sqrt(x * x + y * y)
     if norm <= width:
-        return np.zeros(x.shape)
-    return x * (1.0 - width / norm)
+        return 0.0, 0.0
+    f = 1.0 - width / norm
+    return x * f, y * f
 
 
 class GaitFeedback:
@@ -101,36 +103,50 @@ class GaitFeedback:
     def update(self, dt_s: float, com_xy: np.ndarray, com_vel_xy: np.ndarray, ref_com_xy: np.ndarray,
                ref_com_vel_xy: np.ndarray, com_height_m: float, path_yaw_rad: float,
                stance_xy: np.ndarray | None, next_xy: np.ndarray | None, single_support: bool) -> FeedbackOutput:
+        # On floats (x, y): the same IEEE operations as the former 2-vector numpy expressions (a 2-vector
+        # dot is x0·y0 + x1·y1, unfused); tests/control/test_stack_speed_references.py keeps that version.
         g = self.gains
-        e = np.asarray(com_xy, dtype=float) - np.asarray(ref_com_xy, dtype=float)
-        ed = np.asarray(com_vel_xy, dtype=float) - np.asarray(ref_com_vel_xy, dtype=float)
-        if not self.enabled or not all(math.isfinite(v) for v in (*e.tolist(), *ed.tolist())):
+        cx, cy = np.asarray(com_xy, dtype=float).tolist()
+        rx, ry = np.asarray(ref_com_xy, dtype=float).tolist()
+        vx, vy = np.asarray(com_vel_xy, dtype=float).tolist()
+        wx, wy = np.asarray(ref_com_vel_xy, dtype=float).tolist()
+        ex, ey, edx, edy = cx - rx, cy - ry, vx - wx, vy - wy
+        e = np.array([ex, ey])
+        if not self.enabled or not (math.isfinite(ex) and math.isfinite(ey) and math.isfinite(edx) and math.isfinite(edy)):
             self.last = FeedbackOutput(np.zeros(2), np.zeros(2), 1.0, 0.0, 0.0, np.where(np.isfinite(e), e, 0.0))
             return self.last
         # Velocity adjustment: deadband, then a first-order low-pass at 0.15 Hz; path frame.
-        raw = _deadband(g.velocity_kp_per_s * e + g.velocity_kd * ed, g.velocity_deadband_mps)
+        kp, kd = g.velocity_kp_per_s, g.velocity_kd
+        raw_x, raw_y = _deadband_xy(kp * ex + kd * edx, kp * ey + kd * edy, g.velocity_deadband_mps)
         alpha = 1.0 - math.exp(-2.0 * math.pi * g.velocity_cutoff_hz * dt_s)
-        self.velocity_adjust += alpha * (raw - self.velocity_adjust)
-        norm = vector_norm(self.velocity_adjust)
+        ax, ay = self.velocity_adjust.tolist()
+        ax, ay = ax + alpha * (raw_x - ax), ay + alpha * (raw_y - ay)
+        norm = math.sqrt(ax * ax + ay * ay)
         if norm > g.velocity_max_mps:
-            self.velocity_adjust *= g.velocity_max_mps / norm
+            f = g.velocity_max_mps / norm
+            ax, ay = ax * f, ay * f
+        self.velocity_adjust[0], self.velocity_adjust[1] = ax, ay
         c, s = math.cos(path_yaw_rad), math.sin(path_yaw_rad)
-        vel_path = np.array([c * self.velocity_adjust[0] + s * self.velocity_adjust[1],
-                             -s * self.velocity_adjust[0] + c * self.velocity_adjust[1]])
+        vel_path = np.array([c * ax + s * ay, -s * ax + c * ay])
         # Step adjustment toward the capture-point error.
         omega = math.sqrt(GRAVITY_MPS2 / max(com_height_m, 0.2))
-        step = _deadband(g.step_gain * (e + ed / omega), g.step_deadband_m)
-        norm = vector_norm(step)
+        gain = g.step_gain
+        sx, sy = _deadband_xy(gain * (ex + edx / omega), gain * (ey + edy / omega), g.step_deadband_m)
+        norm = math.sqrt(sx * sx + sy * sy)
         if norm > g.step_max_m:
-            step *= g.step_max_m / norm
+            f = g.step_max_m / norm
+            sx, sy = sx * f, sy * f
+        step = np.array([sx, sy])
         # Time scaling along the axis from the current to the next foothold.
         eps = eps_rate = 0.0
         if stance_xy is not None and next_xy is not None:
-            axis = np.asarray(next_xy, dtype=float) - np.asarray(stance_xy, dtype=float)
-            length = vector_norm(axis)
+            nx, ny = np.asarray(next_xy, dtype=float).tolist()
+            px, py = np.asarray(stance_xy, dtype=float).tolist()
+            axis_x, axis_y = nx - px, ny - py
+            length = math.sqrt(axis_x * axis_x + axis_y * axis_y)
             if length > 1e-3:
-                u = axis / length
-                eps, eps_rate = float(e @ u), float(ed @ u)
+                ux, uy = axis_x / length, axis_y / length
+                eps, eps_rate = ex * ux + ey * uy, edx * ux + edy * uy
         lo, hi = g.kappa_single if single_support else g.kappa_double
         # np.clip's min(max(·)) on floats
         kappa = min(max(math.exp(min(max(g.time_kp_per_m * eps + g.time_kd_s_per_m * eps_rate, -5.0), 5.0)), lo), hi)

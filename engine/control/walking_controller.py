@@ -321,64 +321,81 @@ class WalkingController:
         sideways, a foot whose outer edge lies inside ξ cannot bring it back toward the other
         foot. The target is kept within those bounds; the difference joins the step adjustment.
         """
+        # On floats (x, y): the same IEEE operations as the 2-vector numpy expressions it replaced (a 2-vector dot
+        # is x0·y0 + x1·y1, unfused); tests/control/test_stack_speed_references.py keeps that version.
         planner, plan = self.planner, self.plan
         if plan is None:
             return fb
-        adjust = fb.step_adjust_m.copy()
+        params = self.params
+        ax, ay = fb.step_adjust_m.tolist()
         z = self._com_z if self._com_z is not None else self.robot.q_standing[2] + self.com_offset_m
         omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
-        c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
-        forward, left = np.array([c, s_]), np.array([-s_, c])
+        c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)  # forward (c, s_), left (−s_, c)
         # Where the robot is off the plan, its ξ runs away from the plan's as e^{ωt} under the
         # same CoP (the whole-body controller's corrections slow that: the growth is capped).
         pos_now, vel_now, _ = plan.com_at(planner.t_s)
         com, com_vel = self._com_state()
-        dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
-        err = vector_norm(dcm_error)  # ordinary tracking error is the MPC's to handle
-        dcm_error *= max(err - self.params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
-        if self.observer.force_n.any():
+        (cx, cy), (vx, vy) = com.tolist(), com_vel.tolist()
+        (px, py), (wx, wy) = pos_now.tolist(), vel_now.tolist()
+        ex, ey = (cx + vx / omega) - (px + wx / omega), (cy + vy / omega) - (py + wy / omega)
+        err = math.sqrt(ex * ex + ey * ey)  # ordinary tracking error is the MPC's to handle
+        f = max(err - params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
+        ex, ey = ex * f, ey * f
+        pushed = bool(self.observer.force_n.any())
+        if pushed:
             self._pushed_at_s = planner.t_s
-        from_stance = (self.params.capture_from_stance_foot
-                       and planner.t_s - self._pushed_at_s < self.params.stance_capture_after_push_s)
+        from_stance = (params.capture_from_stance_foot
+                       and planner.t_s - self._pushed_at_s < params.stance_capture_after_push_s)
+        shift_x, shift_y = self._mpc_shift.tolist()
         for side in SIDES:
             t_td = planner.time_to_touchdown_s(side, fb.kappa)
             if t_td is None:
                 continue
             nominal = planner.nominal_target(side)
-            pos, vel, _ = plan.com_at(planner.t_s + t_td)
-            growth = min(math.exp(omega * t_td), self.params.dcm_error_growth_cap)
-            dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
+            sign = 1.0 if side == "left" else -1.0
             if from_stance:  # pushed: where the stance foot says ξ goes, whatever the plan says
-                dcm = self._xi_at_touchdown(side, com, com_vel, omega, t_td)
-            rel = np.array([nominal.x, nominal.y]) + adjust - dcm
-            ahead = float(rel @ forward)
+                dx, dy = self._xi_at_touchdown(side, com, com_vel, omega, t_td).tolist()
+            else:
+                (px, py), (wx, wy), _ = (a.tolist() for a in plan.com_at(planner.t_s + t_td))
+                growth = min(math.exp(omega * t_td), params.dcm_error_growth_cap)
+                dx = px + wx / omega + growth * ex - shift_x  # ξ against the real soles
+                dy = py + wy / omega + growth * ey - shift_y
+            rx, ry = (nominal.x + ax) - dx, (nominal.y + ay) - dy
+            ahead = rx * c + ry * s_
             # Under a push the CoP must hold ξ against it for the whole step: land with ξ near
             # the sole's middle (margin both ways), not at the edge of the CoP's reach.
-            share = self.params.pushed_reach_share if self.observer.force_n.any() else 1.0
+            share = params.pushed_reach_share if pushed else 1.0
             back, fwd = share * self._reach_back_m, share * self._reach_forward_m
             if ahead > back:
-                adjust -= (ahead - back) * forward
+                k = ahead - back
+                ax, ay = ax - k * c, ay - k * s_
             elif ahead < -fwd:
-                adjust += (-fwd - ahead) * forward
-            outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
-            if outward < self.params.lateral_xi_inset_m:
-                adjust += (self.params.lateral_xi_inset_m - outward) * (left if side == "left" else -left)
-            elif outward > self.params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
-                adjust -= (outward - self.params.lateral_xi_max_out_m) * (left if side == "left" else -left)
+                k = -fwd - ahead
+                ax, ay = ax + k * c, ay + k * s_
+            outward = (rx * -s_ + ry * c) * sign  # foot beyond ξ, outward
+            ox, oy = -s_ * sign, c * sign  # the outward direction (left, or −left)
+            if outward < params.lateral_xi_inset_m:
+                k = params.lateral_xi_inset_m - outward
+                ax, ay = ax + k * ox, ay + k * oy
+            elif outward > params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
+                k = outward - params.lateral_xi_max_out_m
+                ax, ay = ax - k * ox, ay - k * oy
             if from_stance:  # within the legs' reach of the stance foot
                 stance = planner.latched["right" if side == "left" else "left"]
-                rel = np.array([nominal.x - stance.x, nominal.y - stance.y]) + adjust
-                along, lateral = float(rel @ forward), float(rel @ left)
-                sign = 1.0 if side == "left" else -1.0
-                along_c = min(max(along, -self.params.max_step_length_m), self.params.max_step_length_m)
-                lateral_c = sign * min(sign * lateral, self.params.max_step_width_m)
-                adjust += (along_c - along) * forward + (lateral_c - lateral) * left
-        norm = vector_norm(adjust)
-        if norm > self.params.max_step_adjust_m and not from_stance:  # within the legs' reach
-            adjust *= self.params.max_step_adjust_m / norm
-        if bool((adjust == fb.step_adjust_m).all()):  # np.array_equal of two (2,) arrays
+                rx, ry = (nominal.x - stance.x) + ax, (nominal.y - stance.y) + ay
+                along, lateral = rx * c + ry * s_, rx * -s_ + ry * c
+                along_c = min(max(along, -params.max_step_length_m), params.max_step_length_m)
+                lateral_c = sign * min(sign * lateral, params.max_step_width_m)
+                d_along, d_lateral = along_c - along, lateral_c - lateral
+                ax, ay = ax + (d_along * c + d_lateral * -s_), ay + (d_along * s_ + d_lateral * c)
+        norm = math.sqrt(ax * ax + ay * ay)
+        if norm > params.max_step_adjust_m and not from_stance:  # within the legs' reach
+            f = params.max_step_adjust_m / norm
+            ax, ay = ax * f, ay * f
+        old_x, old_y = fb.step_adjust_m.tolist()
+        if ax == old_x and ay == old_y:  # np.array_equal of two (2,) arrays
             return fb
-        return dataclasses.replace(fb, step_adjust_m=adjust)
+        return dataclasses.replace(fb, step_adjust_m=np.array([ax, ay]))
 
     def _xi_at_touchdown(self, swing_side: str, com: np.ndarray, com_vel: np.ndarray, omega: float,
                          t_td: float) -> np.ndarray:
@@ -466,11 +483,12 @@ class WalkingController:
             return fb
         planner = self.planner
         omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
-        xi = com + com_vel / omega - self._mpc_shift
+        (cx, cy), (vx, vy), (sx, sy) = com.tolist(), com_vel.tolist(), self._mpc_shift.tolist()
+        xi_x, xi_y = cx + vx / omega - sx, cy + vy / omega - sy  # on floats: the former 2-vector expressions' numbers
         c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
-        outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
+        sign = 1.0 if outer == "left" else -1.0
         foot = planner.latched[outer]
-        beyond = float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
+        beyond = (xi_x - foot.x) * (-s_ * sign) + (xi_y - foot.y) * (c * sign) - self._half_sole_width_m
         if beyond <= self.params.lateral_capture_margin_m:
             return fb
         lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double

@@ -622,3 +622,225 @@ def test_preview_equals_the_reference_preview() -> None:
                 np.testing.assert_array_equal(got_phase.polygon, want_phase.polygon)
                 compared += 1
     assert compared > 5000 and edges.count("heel") > 100 and edges.count("toe") > 100  # soles on their edge strips
+
+
+def _deadband_reference(x, width):  # noqa: ANN001, ANN202
+    norm = math.sqrt(float(x.dot(x)))
+    if norm <= width:
+        return np.zeros(x.shape)
+    return x * (1.0 - width / norm)
+
+
+def gait_feedback_update_reference(fb, dt_s, com_xy, com_vel_xy, ref_com_xy, ref_com_vel_xy,  # noqa: ANN001, ANN201
+                                   com_height_m, path_yaw_rad, stance_xy, next_xy, single_support):
+    """GaitFeedback.update before the speed-up (2-vector numpy expressions)."""
+    from engine.control.gait_feedback import GRAVITY_MPS2, FeedbackOutput
+    g = fb.gains
+    e = np.asarray(com_xy, dtype=float) - np.asarray(ref_com_xy, dtype=float)
+    ed = np.asarray(com_vel_xy, dtype=float) - np.asarray(ref_com_vel_xy, dtype=float)
+    if not fb.enabled or not all(math.isfinite(v) for v in (*e.tolist(), *ed.tolist())):
+        fb.last = FeedbackOutput(np.zeros(2), np.zeros(2), 1.0, 0.0, 0.0, np.where(np.isfinite(e), e, 0.0))
+        return fb.last
+    raw = _deadband_reference(g.velocity_kp_per_s * e + g.velocity_kd * ed, g.velocity_deadband_mps)
+    alpha = 1.0 - math.exp(-2.0 * math.pi * g.velocity_cutoff_hz * dt_s)
+    fb.velocity_adjust += alpha * (raw - fb.velocity_adjust)
+    norm = math.sqrt(float(fb.velocity_adjust.dot(fb.velocity_adjust)))
+    if norm > g.velocity_max_mps:
+        fb.velocity_adjust *= g.velocity_max_mps / norm
+    c, s = math.cos(path_yaw_rad), math.sin(path_yaw_rad)
+    vel_path = np.array([c * fb.velocity_adjust[0] + s * fb.velocity_adjust[1],
+                         -s * fb.velocity_adjust[0] + c * fb.velocity_adjust[1]])
+    omega = math.sqrt(GRAVITY_MPS2 / max(com_height_m, 0.2))
+    step = _deadband_reference(g.step_gain * (e + ed / omega), g.step_deadband_m)
+    norm = math.sqrt(float(step.dot(step)))
+    if norm > g.step_max_m:
+        step *= g.step_max_m / norm
+    eps = eps_rate = 0.0
+    if stance_xy is not None and next_xy is not None:
+        axis = np.asarray(next_xy, dtype=float) - np.asarray(stance_xy, dtype=float)
+        length = math.sqrt(float(axis.dot(axis)))
+        if length > 1e-3:
+            u = axis / length
+            eps, eps_rate = float(e @ u), float(ed @ u)
+    lo, hi = g.kappa_single if single_support else g.kappa_double
+    kappa = min(max(math.exp(min(max(g.time_kp_per_m * eps + g.time_kd_s_per_m * eps_rate, -5.0), 5.0)), lo), hi)
+    fb.last = FeedbackOutput(vel_path, step, kappa, eps, eps_rate, e)
+    return fb.last
+
+
+def test_gait_feedback_on_floats_equals_the_numpy_version() -> None:
+    from engine.control.gait_feedback import GaitFeedback
+    rng = np.random.default_rng(12)
+    new, old = GaitFeedback(), GaitFeedback()
+    for k in range(4000):
+        scale = 10.0 ** rng.uniform(-4.0, 0.5)  # within and beyond the deadbands and limits
+        args = (0.008, rng.standard_normal(2) * scale, rng.standard_normal(2) * scale, rng.standard_normal(2) * scale,
+                rng.standard_normal(2) * scale, float(rng.uniform(0.4, 1.0)), float(rng.uniform(-4.0, 4.0)),
+                None if k % 7 == 0 else rng.standard_normal(2) * 0.3, rng.standard_normal(2) * 0.3 * (k % 5 != 0),
+                bool(k % 2))
+        if k % 97 == 0:
+            args[1][k % 2] = np.nan
+        got, want = new.update(*args), gait_feedback_update_reference(old, *args)
+        for name in ("velocity_adjust_mps", "step_adjust_m", "error_m"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        assert (got.kappa, got.epsilon_m, got.epsilon_rate_mps) == (want.kappa, want.epsilon_m, want.epsilon_rate_mps)
+        np.testing.assert_array_equal(new.velocity_adjust, old.velocity_adjust)
+
+
+def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
+    """WalkingController._reachable_steps before the speed-up (2-vector numpy expressions)."""
+    import dataclasses
+
+    from engine.constants import GRAVITY_MPS2
+    from engine.control.gait_feedback import vector_norm
+    from engine.gait.style import SIDES
+    planner, plan = self.planner, self.plan
+    if plan is None:
+        return fb
+    adjust = fb.step_adjust_m.copy()
+    z = self._com_z if self._com_z is not None else self.robot.q_standing[2] + self.com_offset_m
+    omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
+    c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
+    forward, left = np.array([c, s_]), np.array([-s_, c])
+    # Where the robot is off the plan, its ξ runs away from the plan's as e^{ωt} under the
+    # same CoP (the whole-body controller's corrections slow that: the growth is capped).
+    pos_now, vel_now, _ = plan.com_at(planner.t_s)
+    com, com_vel = self._com_state()
+    dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
+    err = vector_norm(dcm_error)  # ordinary tracking error is the MPC's to handle
+    dcm_error *= max(err - self.params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
+    if self.observer.force_n.any():
+        self._pushed_at_s = planner.t_s
+    from_stance = (self.params.capture_from_stance_foot
+                   and planner.t_s - self._pushed_at_s < self.params.stance_capture_after_push_s)
+    for side in SIDES:
+        t_td = planner.time_to_touchdown_s(side, fb.kappa)
+        if t_td is None:
+            continue
+        nominal = planner.nominal_target(side)
+        pos, vel, _ = plan.com_at(planner.t_s + t_td)
+        growth = min(math.exp(omega * t_td), self.params.dcm_error_growth_cap)
+        dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
+        if from_stance:  # pushed: where the stance foot says ξ goes, whatever the plan says
+            dcm = self._xi_at_touchdown(side, com, com_vel, omega, t_td)
+        rel = np.array([nominal.x, nominal.y]) + adjust - dcm
+        ahead = float(rel @ forward)
+        # Under a push the CoP must hold ξ against it for the whole step: land with ξ near
+        # the sole's middle (margin both ways), not at the edge of the CoP's reach.
+        share = self.params.pushed_reach_share if self.observer.force_n.any() else 1.0
+        back, fwd = share * self._reach_back_m, share * self._reach_forward_m
+        if ahead > back:
+            adjust -= (ahead - back) * forward
+        elif ahead < -fwd:
+            adjust += (-fwd - ahead) * forward
+        outward = float(rel @ left) * (1.0 if side == "left" else -1.0)  # foot beyond ξ, outward
+        if outward < self.params.lateral_xi_inset_m:
+            adjust += (self.params.lateral_xi_inset_m - outward) * (left if side == "left" else -left)
+        elif outward > self.params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
+            adjust -= (outward - self.params.lateral_xi_max_out_m) * (left if side == "left" else -left)
+        if from_stance:  # within the legs' reach of the stance foot
+            stance = planner.latched["right" if side == "left" else "left"]
+            rel = np.array([nominal.x - stance.x, nominal.y - stance.y]) + adjust
+            along, lateral = float(rel @ forward), float(rel @ left)
+            sign = 1.0 if side == "left" else -1.0
+            along_c = min(max(along, -self.params.max_step_length_m), self.params.max_step_length_m)
+            lateral_c = sign * min(sign * lateral, self.params.max_step_width_m)
+            adjust += (along_c - along) * forward + (lateral_c - lateral) * left
+    norm = vector_norm(adjust)
+    if norm > self.params.max_step_adjust_m and not from_stance:  # within the legs' reach
+        adjust *= self.params.max_step_adjust_m / norm
+    if bool((adjust == fb.step_adjust_m).all()):  # np.array_equal of two (2,) arrays
+        return fb
+    return dataclasses.replace(fb, step_adjust_m=adjust)
+
+
+def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
+    """Random states around a G1 walk: plan tracking, pushes (reach share, capture from the stance foot)."""
+    import dataclasses
+
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.sim import Simulation
+
+    robot = load_robot("g1")
+    style = load_style(styles_dir("g1") / "neutral.json")
+    c = WalkingController(robot, style)
+    sim = Simulation(robot, c)
+    c.set_command(np.array([0.4, 0.05, 0.2]))
+    rng = np.random.default_rng(7)
+    checked = changed = 0
+    for k in range(500):
+        sim.step()
+        if k < 150 or k % 4:
+            continue
+        fb = c.feedback.last
+        for trial in range(6):
+            com, vel = c._com_now
+            c._com_now = (com + np.r_[rng.normal(0.0, 0.03, 2), 0.0], vel + np.r_[rng.normal(0.0, 0.2, 2), 0.0])
+            pushed = trial % 3 == 2
+            c.observer.force_n = rng.normal(0.0, 40.0, c.observer.force_n.shape) if pushed else \
+                np.zeros(c.observer.force_n.shape)
+            c._mpc_shift = rng.normal(0.0, 0.01, 2) if trial % 2 else np.zeros(2)
+            f = dataclasses.replace(fb, step_adjust_m=rng.normal(0.0, 0.05, 2) * (trial != 0))
+            c.params = dataclasses.replace(c.params, capture_from_stance_foot=trial % 3 != 1)
+            saved = c._pushed_at_s
+            got = c._reachable_steps(f)
+            got_pushed_at = c._pushed_at_s
+            c._pushed_at_s = saved
+            want = reachable_steps_reference(c, f)
+            np.testing.assert_array_equal(got.step_adjust_m, want.step_adjust_m)
+            assert (got is f) == (want is f)
+            assert got_pushed_at == c._pushed_at_s
+            c._com_now = (com, vel)
+            checked += 1
+            changed += got is not f
+        c.observer.force_n = np.zeros(c.observer.force_n.shape)
+        c._mpc_shift = np.zeros(2)
+    assert checked > 300 and changed > 100, (checked, changed)  # the bounds did act
+
+
+def hurry_beyond_reference(self, com, com_vel, z, outer):  # noqa: ANN001, ANN201
+    """The distance of ξ beyond the outer sole edge in WalkingController._hurry_when_thrown_out before the speed-up."""
+    from engine.constants import GRAVITY_MPS2
+    planner = self.planner
+    omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
+    xi = com + com_vel / omega - self._mpc_shift
+    c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
+    outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
+    foot = planner.latched[outer]
+    return float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
+
+
+def test_hurry_when_thrown_out_on_floats_equals_the_numpy_version() -> None:
+    """The hurry decision flips exactly where the numpy version's distance crosses the margin."""
+    import dataclasses
+
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.footsteps import Foothold
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+
+    robot = load_robot("g1")
+    c = WalkingController(robot, load_style(styles_dir("g1") / "neutral.json"))
+    c.observer.force_n = np.zeros(c.observer.force_n.shape)
+    rng = np.random.default_rng(3)
+    fb = c.feedback.last
+    hurried = 0
+    for k in range(3000):
+        c.planner.path.yaw = float(rng.uniform(-4.0, 4.0))
+        outer = "left" if k % 2 else "right"
+        c.planner.latched[outer] = Foothold(*rng.normal(0.0, 0.2, 3).tolist())
+        c._mpc_shift = rng.normal(0.0, 0.01, 2) if k % 3 else np.zeros(2)
+        com, com_vel, z = rng.normal(0.0, 0.2, 2), rng.normal(0.0, 0.5, 2), float(rng.uniform(0.5, 0.9))
+        beyond = hurry_beyond_reference(c, com, com_vel, z, outer)
+        margin = c.params.lateral_capture_margin_m
+        if k % 5 < 2:  # right at the margin or an ulp below it: the decision must not move by an ulp
+            at = beyond if k % 5 == 0 else math.nextafter(beyond, -math.inf)
+            c.params = dataclasses.replace(c.params, lateral_capture_margin_m=at)
+        got = c._hurry_when_thrown_out(fb, com, com_vel, z, outer, single=bool(k % 4))
+        want_hurry = beyond > c.params.lateral_capture_margin_m
+        assert (got is fb) == (not want_hurry)
+        hurried += want_hurry
+        c.params = dataclasses.replace(c.params, lateral_capture_margin_m=margin)
+    assert 300 < hurried < 2700
