@@ -10,13 +10,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
 from engine.constants import GRAVITY_MPS2
-from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval
+from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval, SupportPhase
 from engine.control.controller import JointCommand, RobotState
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
@@ -262,7 +263,8 @@ class WalkingController:
             self._telemetry_stale = True
             return
         # CoM MPC over the planner's contact preview; initial conditions continue the last plan.
-        supports = [SupportInterval(p.t_start_s, p.t_end_s, p.polygon) for p in ref.preview]
+        # The planner's contact phases are the MPC's supports as they are (read only, no copy per tick).
+        supports: Sequence[SupportPhase] = ref.preview
         # LIP height: the measured CoM height, low-passed (the walking posture differs from standing).
         com_z = float(self.data.com[0][2])
         self._com_z = com_z if self._com_z is None else self._com_z + self.params.com_z_filter * (com_z - self._com_z)
@@ -289,7 +291,8 @@ class WalkingController:
         cop0 = _clip_to_polygon(cop0, supports[0].polygon)
         plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
         goal = supports[-1].polygon.mean(axis=0)
-        lost = plan.ok and np.linalg.norm(plan.final_capture_point_xy_m - goal) > self.params.capture_tolerance_m
+        miss = vector_norm(plan.final_capture_point_xy_m - goal) if plan.ok else math.inf  # np.linalg.norm's number
+        lost = plan.ok and miss > self.params.capture_tolerance_m
         # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
         # continued with the CoP ramping off the trailing foot throws it further.
         xi_robot = com + com_vel / math.sqrt(omega2)
@@ -301,8 +304,7 @@ class WalkingController:
             # The restart's CoP starts where it best holds the robot's ξ (a CoP can move at once;
             # one left on the trailing foot while ξ runs past the new one throws the robot on).
             retry = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(xi_robot, supports[0].polygon), z_com, supports)
-            if retry.ok and (not plan.ok or thrown or np.linalg.norm(retry.final_capture_point_xy_m - goal)
-                             < np.linalg.norm(plan.final_capture_point_xy_m - goal)):
+            if retry.ok and (not plan.ok or thrown or vector_norm(retry.final_capture_point_xy_m - goal) < miss):
                 plan = retry
                 self.replans += 1
         if plan.ok or self.plan is None:
@@ -642,7 +644,7 @@ def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
     normals, offsets, bound = halfplanes_cached(polygon)
-    return len(offsets) == 0 or bool(np.all(normals @ p <= bound))
+    return len(offsets) == 0 or bool((normals @ p <= bound).all())
 
 
 def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:

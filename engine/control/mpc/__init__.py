@@ -98,7 +98,7 @@ test detects without clipping.
 from engine.constants import GRAVITY_MPS2
 from engine.control.mpc.controller import ComMpc
 from engine.control.mpc.lip import propagate_lip
-from engine.control.mpc.types import ComMpcSolution, ComMpcWeights, SupportInterval
+from engine.control.mpc.types import ComMpcSolution, ComMpcWeights, SupportInterval, SupportPhase
 from engine.geometry.polygon import (
     clip_convex_polygons,
     convex_hull,
@@ -113,6 +113,7 @@ __all__ = [
     "ComMpcSolution",
     "ComMpcWeights",
     "SupportInterval",
+    "SupportPhase",
     "clip_convex_polygons",
     "convex_hull",
     "polygon_area",

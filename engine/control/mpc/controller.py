@@ -40,7 +40,7 @@ from engine.control.mpc.types import (
     MAX_STABILITY_WEIGHT,
     ComMpcSolution,
     ComMpcWeights,
-    SupportInterval,
+    SupportPhase,
 )
 from engine.geometry.polygon import clip_convex_polygons, convex_hull, polygon_centroid
 
@@ -178,7 +178,7 @@ class ComMpc:
         com_vel_xy_mps: ArrayLike,
         cop_xy_m: ArrayLike,
         com_height_m: float,
-        supports: Sequence[SupportInterval],
+        supports: Sequence[SupportPhase],
     ) -> ComMpcSolution:
         """Plan CoP waypoints and the CoM over ``[t_now_s, t_now_s + preview_s]``.
 
@@ -217,7 +217,7 @@ class ComMpc:
         com_vel_xy_mps: ArrayLike,
         cop_xy_m: ArrayLike,
         com_height_m: float,
-        supports: Sequence[SupportInterval],
+        supports: Sequence[SupportPhase],
         *,
         t_start: float,
     ) -> ComMpcSolution:
@@ -295,7 +295,7 @@ class ComMpc:
         """Geometry of one polygon (reference path, used by the fallback plan)."""
         return _make_region(polygon)  # type: ignore[arg-type]
 
-    def _build_problem(self, t_now: float, supports: Sequence[SupportInterval]) -> tuple[_Problem | None, str]:
+    def _build_problem(self, t_now: float, supports: Sequence[SupportPhase]) -> tuple[_Problem | None, str]:
         t_horizon = t_now + self.preview_s
         try:
             t_start = np.array([s.t_start_s for s in supports], dtype=float)
@@ -551,7 +551,7 @@ class ComMpc:
         com_vel_xy_mps: ArrayLike,
         cop_xy_m: ArrayLike,
         com_height_m: float,
-        supports: Sequence[SupportInterval],
+        supports: Sequence[SupportPhase],
         *,
         reason: str,
         message: str,
@@ -579,7 +579,7 @@ class ComMpc:
         cop: FloatArray,
         height: float,
         state_ok: bool,
-        supports: Sequence[SupportInterval],
+        supports: Sequence[SupportPhase],
     ) -> ComMpcSolution:
         """Safe plan: CoP waypoints at their regions' centroids (from the current CoP), CoM integrated exactly."""
         t_horizon = t_now + self.preview_s

@@ -5,6 +5,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,6 +26,20 @@ MAX_STABILITY_WEIGHT = 1e12
 
 
 # --------------------------------------------------------------------------- data
+
+
+class SupportPhase(Protocol):
+    """What :meth:`ComMpc.solve` reads of a support: :class:`SupportInterval` or anything with these
+    attributes (the planner's contact phases are passed as they are, without a copy per tick)."""
+
+    @property
+    def t_start_s(self) -> float: ...
+
+    @property
+    def t_end_s(self) -> float: ...
+
+    @property
+    def polygon(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
