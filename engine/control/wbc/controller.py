@@ -231,22 +231,7 @@ class TaskSpaceInverseDynamics:
         qp = self._build_qp(snap, ref, contact)
         self.qp = qp
         t2 = time.perf_counter()
-        solution, backend, iterations, message = None, self.qp_backend, 0, ""
-        if self.qp_backend == "dense":  # (the default, "daqp", is the next branch)
-            solution = self.dense_solver.solve(qp)
-            iterations = self.dense_solver.iterations
-        elif self.qp_backend == "daqp":
-            solution = self.daqp_solver.solve(qp)
-            iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
-        elif self.qp_backend != "osqp":
-            result = qp_backends.solve(qp.standard_form(), self.qp_backend)
-            message = result.status
-            if result.ok and result.x is not None:
-                solution = (result.x[:self.nv].copy(), np.clip(result.x[self.nv:], 0.0, qp.rho_up))
-        if solution is None:
-            backend = "osqp"
-            solution = self.osqp_solver.solve(qp)
-            iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
+        solution, backend, iterations, message = self._solve_qp(qp)
         t3 = time.perf_counter()
         if solution is None:
             return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
@@ -263,22 +248,11 @@ class TaskSpaceInverseDynamics:
             basis=self._basis, corners_m=self._corners_m, qp=qp)
         return cmd
 
-    def _compute_compiled(self, state: RobotState, q: FloatArray, v: FloatArray, ref: WbcReference,
-                          t0: float) -> JointCommand:
-        """:meth:`_compute` with the compiled kernels: the reference's finiteness, the task rows, the QP's
-        assembly and bounds in one call (:func:`engine.control.wbc.kernels.build_qp`), the torques and
-        set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers."""
-        contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
-        snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
-        t1 = time.perf_counter()
-        qp = self._build_qp_compiled(snap, ref, contact)
-        if qp is None:
-            return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
-        if not contact.any():
-            return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
-        self.qp = qp
-        t2 = time.perf_counter()
-        solution, backend, iterations, message = None, self.qp_backend, 0, ""
+    def _solve_qp(self, qp: CentroidalQp) -> tuple[tuple[FloatArray, FloatArray] | None, str, int, str]:
+        """The QP by the chosen backend (DAQP by default), OSQP when that one gives no solution: (q̈, ρ) or
+        None, the backend that solved it, its iterations and its status message."""
+        solution: tuple[FloatArray, FloatArray] | None = None
+        backend, iterations, message = self.qp_backend, 0, ""
         if self.qp_backend == "daqp":
             solution = self.daqp_solver.solve(qp)
             iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
@@ -294,6 +268,24 @@ class TaskSpaceInverseDynamics:
             backend = "osqp"
             solution = self.osqp_solver.solve(qp)
             iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
+        return solution, backend, iterations, message
+
+    def _compute_compiled(self, state: RobotState, q: FloatArray, v: FloatArray, ref: WbcReference,
+                          t0: float) -> JointCommand:
+        """:meth:`_compute` with the compiled kernels: the reference's finiteness, the task rows, the QP's
+        assembly and bounds in one call (:func:`engine.control.wbc.kernels.build_qp`), the torques and
+        set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers."""
+        contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
+        snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
+        t1 = time.perf_counter()
+        qp = self._build_qp_compiled(snap, ref, contact)
+        if qp is None:
+            return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
+        if not contact.any():
+            return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
+        self.qp = qp
+        t2 = time.perf_counter()
+        solution, backend, iterations, message = self._solve_qp(qp)
         t3 = time.perf_counter()
         if solution is None:
             return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
