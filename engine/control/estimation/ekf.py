@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
+from engine.constants import GRAVITY_MPS2
 from engine.control.estimation.quaternion import Quat, Rows, _quat_mul, _quat_step, _rot_rows, _tilt_with_yaw, _yaw_of, quat_to_rotation, rotation_to_quat
 
 
@@ -64,7 +65,7 @@ class ImuEkf:
     :meth:`correct` for both at once.
     """
 
-    def __init__(self, params: ImuEkfParams | None = None, gravity_mps2: float = 9.81):
+    def __init__(self, params: ImuEkfParams | None = None, gravity_mps2: float = GRAVITY_MPS2):
         self.params = params or ImuEkfParams()
         self.gravity_mps2 = float(gravity_mps2)
         self.quat_wxyz: Quat = (1.0, 0.0, 0.0, 0.0)

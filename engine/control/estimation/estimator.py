@@ -65,6 +65,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.constants import GRAVITY_MPS2
 from engine.control.controller import RobotState
 from engine.robot.model import RobotModel
 
@@ -129,7 +130,7 @@ class StateEstimator:
         if self.params.correction_divider < 1:
             raise ValueError("correction_divider must be ≥ 1")
         gravity = float(-robot.mj_model.opt.gravity[2])
-        self.gravity_mps2 = gravity if gravity > 0.0 else 9.81
+        self.gravity_mps2 = gravity if gravity > 0.0 else GRAVITY_MPS2
         imu_params = self.params.imu
         if self.params.linear_accel_compensation:
             imu_params = replace(imu_params, accel_dynamic_std_mps2=self.params.compensated_accel_dynamic_std_mps2,
