@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from engine.retarget.humanoid_arm.capsules import CapsuleModel, fit_capsule, mujoco_agreement, segment_distance
@@ -14,6 +14,7 @@ coord = st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False)
 point = st.tuples(coord, coord, coord).map(np.array)
 
 
+@example(p1=np.array([0.0, 0.0, 6.103515625e-05]), q1=np.zeros(3), p2=np.zeros(3), q2=np.array([0.0, 0.015625, 0.0]))
 @settings(max_examples=100, deadline=None)
 @given(point, point, point, point)
 def test_segment_distance_matches_brute_force(p1, q1, p2, q2):

@@ -49,7 +49,11 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     a, e, f, c, b = dot(d1, d1), dot(d2, d2), dot(d2, r), dot(d1, r), dot(d1, d2)
     eps = 1e-12
     denom = a * e - b * b
-    s = np.where(denom > eps, np.clip((b * f - c * e) / np.where(denom > eps, denom, 1.0), 0.0, 1.0), 0.0)
+    # parallel (s arbitrary: 0) only when the angle between them is below ~3e-5 rad: a threshold relative to
+    # a·e, not absolute (two perpendicular segments of 6e-5 m and 1.6 cm have a·e − b² ≈ 1e-12 and met at a
+    # point, but an absolute 1e-12 took them for parallel and returned 6e-5 m)
+    skew = denom > 1e-9 * a * e
+    s = np.where(skew, np.clip((b * f - c * e) / np.where(skew, denom, 1.0), 0.0, 1.0), 0.0)
     t = np.where(e > eps, (b * s + f) / np.where(e > eps, e, 1.0), 0.0)
     # t outside [0, 1]: clamp t and recompute s
     s = np.where(t < 0.0, np.clip(-c / np.where(a > eps, a, 1.0), 0.0, 1.0), s)
