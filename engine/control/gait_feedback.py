@@ -74,12 +74,6 @@ class FeedbackOutput:
     error_m: np.ndarray  # (2,) world CoM position error
 
 
-def vector_norm(x: np.ndarray) -> float:
-    """Euclidean norm of a 1-D float array: ``np.linalg.norm``'s own expression (√ of ``x.dot(x)``, the same
-    number) without its Python overhead (called several times every planner tick)."""
-    return math.sqrt(float(x.dot(x)))
-
-
 def _deadband_xy(x: float, y: float, width: float) -> tuple[float, float]:
     """(x, y) shrunk toward 0 by ``width`` (0 within it)."""
     norm = math.sqrt(x * x + y * y)

@@ -21,12 +21,13 @@ from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval, SupportP
 from engine.control.controller import JointCommand, RobotState
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
-from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains, vector_norm
+from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
 from engine.control.wbc.reference import N_BASIS, N_CORNERS
 from engine.control.walking_parameters import WalkingParameters
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
+from engine.geometry.vector import vector_norm
 from engine.gait.offline_plan import planner_for
 from engine.gait.planner import PLANNER_RATE_HZ, GaitReference, PlannerFeedback
 from engine.gait.style import SIDES, Style, StyleContext

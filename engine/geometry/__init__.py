@@ -25,3 +25,4 @@ from engine.geometry.rotation import (  # noqa: F401
     yaw_of,
 )
 from engine.geometry.smooth import smooth_max, smooth_min, smoothstep, smoothstep_rate  # noqa: F401
+from engine.geometry.vector import vector_norm  # noqa: F401

@@ -692,7 +692,7 @@ def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
     import dataclasses
 
     from engine.constants import GRAVITY_MPS2
-    from engine.control.gait_feedback import vector_norm
+    from engine.geometry.vector import vector_norm
     from engine.gait.style import SIDES
     planner, plan = self.planner, self.plan
     if plan is None:
