@@ -31,6 +31,12 @@ class Push:
     body_id: int
 
 
+def _finite_sum(x: np.ndarray) -> bool:
+    """``math.isfinite(x.sum())``: Σ x² is cheaper and finite only when every |x| < 1.3e154, and then so
+    is the sum (the sum is taken only when Σ x² is not finite)."""
+    return math.isfinite(x.dot(x)) or math.isfinite(float(x.sum()))
+
+
 def standing_controller(robot: RobotModel) -> StandingPdController:
     """Joint PD on the standing pose with static-balance feed-forward torques."""
     tau = static_contact_torques(robot, robot.q_standing)
@@ -53,6 +59,12 @@ class Simulation:
         self.standing_base_z = float(robot.q_standing[2])
         self.fallen = False
         self.imu: MujocoImu | None = None
+        # The servos' torque bounds, and where their torques go in data.ctrl (a slice when in order).
+        self._effort_limits = np.asarray(robot.effort_limits, dtype=float)
+        self._neg_effort_limits = -self._effort_limits
+        act = np.asarray(robot.mj_actuator_index)
+        self._ctrl_index: slice | np.ndarray = (
+            slice(0, act.size) if np.array_equal(act, np.arange(act.size)) else act)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -66,10 +78,10 @@ class Simulation:
         return RobotState(self.time_s, q, v)
 
     def joint_positions(self) -> np.ndarray:
-        return self.data.qpos[self.robot.mj_qpos_index].copy()
+        return self.data.qpos[self.robot.mj_qpos_index]  # a gather: already a copy
 
     def joint_velocities(self) -> np.ndarray:
-        return self.data.qvel[self.robot.mj_dof_index].copy()
+        return self.data.qvel[self.robot.mj_dof_index]
 
     def body_poses(self) -> tuple[np.ndarray, np.ndarray]:
         """World positions (B,3) and wxyz quaternions (B,4) of every body but the world."""
@@ -104,20 +116,30 @@ class Simulation:
     def step(self) -> None:
         """One control tick: controller → joint servos → one physics step."""
         state = self.state()
+        # The servos measure the joints the controller is handed (the same tick, read once);
+        # copies, so that a controller writing into its state cannot move them.
+        joint_q, joint_qd = state.q[7:].copy(), state.v[6:].copy()
         if self.imu is not None:
             state.imu = self.imu.read(self.data)
         self.command = self.controller.compute(state)
-        self._apply_servos(self.command)
+        self._apply_servos(self.command, joint_q, joint_qd)
         self._apply_pushes()
         mujoco.mj_step(self.model, self.data)
         if not self.fallen:
             self.fallen = self.detect_fall()
 
-    def _apply_servos(self, cmd: JointCommand) -> None:
-        tau = cmd.torque(self.joint_positions(), self.joint_velocities(), self.robot.effort_limits)
-        if not np.all(np.isfinite(tau)):
+    def _apply_servos(self, cmd: JointCommand, joint_q: np.ndarray | None = None,
+                      joint_qd: np.ndarray | None = None) -> None:
+        """PD + feed-forward torques on the measured joints (read now unless given), clipped to the
+        effort limits; all zero when any is not finite."""
+        q = self.joint_positions() if joint_q is None else joint_q
+        qd = self.joint_velocities() if joint_qd is None else joint_qd
+        tau = cmd.torque(q, qd, self._effort_limits, self._neg_effort_limits)
+        # Σ τ² is finite when every τ is (the clipped torques cannot overflow it unless the limits
+        # are huge): only then is the element-wise check needed.
+        if not math.isfinite(tau.dot(tau)) and not np.isfinite(tau).all():
             tau = np.zeros_like(tau)
-        self.data.ctrl[self.robot.mj_actuator_index] = tau
+        self.data.ctrl[self._ctrl_index] = tau
 
     def _apply_pushes(self) -> None:
         if not self.pushes and not self._pushed:
@@ -131,9 +153,9 @@ class Simulation:
 
     def detect_fall(self) -> bool:
         qpos = self.data.qpos
-        z, qx, qy = float(qpos[2]), float(qpos[4]), float(qpos[5])
+        z, _, qx, qy = qpos[2:6].tolist()
         # Tilt: angle between the base z axis and world z.
         up_z = 1.0 - 2.0 * (qx * qx + qy * qy)
         tilt = math.acos(min(max(up_z, -1.0), 1.0)) if math.isfinite(up_z) else math.inf
         return bool(z < FALL_HEIGHT_FRACTION * self.standing_base_z or tilt > FALL_TILT_RAD
-                    or not math.isfinite(float(qpos.sum())))
+                    or not _finite_sum(qpos))

@@ -35,9 +35,19 @@ class JointCommand:
     kp: np.ndarray
     kd: np.ndarray
 
-    def torque(self, q: np.ndarray, qd: np.ndarray, limits: np.ndarray) -> np.ndarray:
-        tau = self.kp * (self.q_des - q) + self.kd * (self.qd_des - qd) + self.tau_ff
-        return np.clip(tau, -limits, limits)
+    def torque(self, q: np.ndarray, qd: np.ndarray, limits: np.ndarray,
+               neg_limits: np.ndarray | None = None) -> np.ndarray:
+        """kp (q* − q) + kd (q̇* − q̇) + τ_ff clipped to ±``limits`` (``neg_limits``: −limits, when the
+        caller keeps it). In place on one new array: the same operations, in the same order, as the
+        expression ``np.clip(kp * (q* − q) + kd * (q̇* − q̇) + τ_ff, −limits, limits)``."""
+        tau = self.q_des - q
+        tau *= self.kp
+        rate = self.qd_des - qd
+        rate *= self.kd
+        tau += rate
+        tau += self.tau_ff
+        np.maximum(tau, -limits if neg_limits is None else neg_limits, out=tau)
+        return np.minimum(tau, limits, out=tau)
 
 
 class Controller(Protocol):

@@ -38,7 +38,7 @@ TICKS_PER_PLAN = int(round(1.0 / (PLANNER_RATE_HZ * CONTROL_PERIOD_S)))  # 4
 PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
 
 
-@dataclass
+@dataclass(slots=True)
 class StepTimings:
     """Wall-clock cost of each stage (s) in the last tick; None when the stage did not run."""
 
@@ -169,6 +169,8 @@ class WalkingController:
         self._plan_ticks = 0
         self.ref = None
         self.plan = None
+        self._contact_ref: GaitReference | None = None
+        self._ref_contact = np.ones((2, N_CORNERS), dtype=bool)
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
@@ -184,14 +186,14 @@ class WalkingController:
     # ------------------------------------------------------------------ one tick
     def compute(self, state: RobotState) -> JointCommand:
         t_start = time.perf_counter()
-        contact = self.ref.contact if self.ref is not None else np.ones(2, dtype=bool)
         if self.state_source == "estimated":
+            contact = self.ref.contact if self.ref is not None else np.ones(2, dtype=bool)
             est = self.estimator.update(state.t_s, getattr(state, "imu", None), state.q[7:], state.v[6:], contact, truth=state)
         else:
             est = state
         self.estimate = est
-        pin.centerOfMass(self.model, self.data, est.q, est.v)
-        self._com_now = (self.data.com[0].copy(), self.data.vcom[0].copy())
+        # centerOfMass returns a copy of data.com[0] (each read of data.com/vcom crosses into pinocchio).
+        self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self.data.vcom[0].copy())
         # Around a landing the ground force is an impact the QP did not plan: the observer holds
         # (planned landings, and a swing foot already on the ground early).
         early = self.ref is not None and _early_touchdown(self.wbc_contact, self.ref.contact)
@@ -236,14 +238,16 @@ class WalkingController:
         else:
             ref_pos, ref_vel = self._init_com[0], self._init_com[1]
         fb = self._feedback(com, com_vel, ref_pos, ref_vel)
-        target = np.where(np.isfinite(self.command), self.command, 0.0)
-        limit = self._command_accel_limits * PLAN_DT_S
-        step = np.clip(target - self.command_filtered, -limit, limit)
-        self.command_filtered = self.command_filtered + step
-        command = self.command_filtered.copy()
-        command[:2] += fb.velocity_adjust_mps
-        goal = target.copy()
-        goal[:2] += fb.velocity_adjust_mps
+        # The command rate-limited toward its (finite) target, on floats (x, y, yaw): the same operations
+        # as on the 3-vectors (np.clip(d, −l, l) is min(max(d, −l), l)).
+        target = [c if math.isfinite(c) else 0.0 for c in self.command.tolist()]
+        limits = [a * PLAN_DT_S for a in self._command_accel_limits.tolist()]
+        filtered = [f + min(max(t - f, -lim), lim)
+                    for t, f, lim in zip(target, self.command_filtered.tolist(), limits)]
+        self.command_filtered = np.array(filtered)
+        adjust_x, adjust_y = fb.velocity_adjust_mps.tolist()
+        command = np.array([filtered[0] + adjust_x, filtered[1] + adjust_y, filtered[2]])
+        goal = np.array([target[0] + adjust_x, target[1] + adjust_y, target[2]])
         contact_before = self.ref.contact.copy() if self.ref is not None else np.ones(2, dtype=bool)
         fb = self._reachable_steps(fb)
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
@@ -252,8 +256,9 @@ class WalkingController:
         self._feet_feedforward(ref)
         self.ref = ref
         self._relatch_landed_feet(est, contact_before)
+        in_contact, progress = ref.contact.tolist(), ref.swing_progress.tolist()
         self._landing = any(
-            (not ref.contact[i] and ref.swing_progress[i] > 1.0 - self.params.observer_hold_swing_share)
+            (not in_contact[i] and progress[i] > 1.0 - self.params.observer_hold_swing_share)
             or 0 <= self._since_touchdown[i] < self.params.observer_hold_after_touchdown_plan_ticks for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
@@ -267,7 +272,7 @@ class WalkingController:
         # The planner's contact phases are the MPC's supports as they are (read only, no copy per tick).
         supports: Sequence[SupportPhase] = ref.preview
         # LIP height: the measured CoM height, low-passed (the walking posture differs from standing).
-        com_z = float(self.data.com[0][2])
+        com_z = float(self._com_now[0][2])  # data.com[0] of this tick (nothing since moved it)
         self._com_z = com_z if self._com_z is None else self._com_z + self.params.com_z_filter * (com_z - self._com_z)
         z_com = self._com_z
         # A steady push f shifts the LIP's equilibrium by f/(m ω²): plan in a frame whose supports
@@ -291,7 +296,8 @@ class WalkingController:
         # scaling and touchdowns move contact switches relative to the last plan): clip it in.
         cop0 = _clip_to_polygon(cop0, supports[0].polygon)
         plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
-        goal = supports[-1].polygon.mean(axis=0)
+        last = supports[-1].polygon
+        goal = last.sum(axis=0) / len(last)  # polygon.mean(axis=0), without np.mean's Python layer
         miss = vector_norm(plan.final_capture_point_xy_m - goal) if plan.ok else math.inf  # np.linalg.norm's number
         lost = plan.ok and miss > self.params.capture_tolerance_m
         # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
@@ -424,8 +430,8 @@ class WalkingController:
             return
         self._foot_acc = (ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S
         self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
-        for i in range(2):
-            if ref.contact[i]:
+        for i, in_contact in enumerate(ref.contact.tolist()):
+            if in_contact:
                 self._foot_acc[i] = 0.0
                 self._foot_ang_acc[i] = 0.0
 
@@ -521,8 +527,14 @@ class WalkingController:
         t = ref.t_s + dt_since
         com, com_vel, com_acc = self.plan.com_at(t)
         foot_pos = ref.foot_pos + ref.foot_lin_vel * dt_since
-        foot_rot = np.array([_rotate(ref.foot_rot[i], ref.foot_ang_vel[i], dt_since) for i in range(2)])
-        contact = ref.corner_contact & ref.contact[:, None]
+        foot_rot = ref.foot_rot.copy()
+        if dt_since != 0.0:
+            for i, omega in enumerate(ref.foot_ang_vel.tolist()):
+                if omega[0] != 0.0 or omega[1] != 0.0 or omega[2] != 0.0:  # a foot at rest keeps its rotation
+                    foot_rot[i] = _rotate(foot_rot[i], omega, dt_since)
+        if self._contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
+            self._contact_ref, self._ref_contact = ref, ref.corner_contact & ref.contact[:, None]
+        contact = self._ref_contact
         return WbcReference(
             com_xy_m=com, com_xy_vel_mps=com_vel, com_xy_acc_mps2=com_acc,
             pelvis_height_m=ref.pelvis_z + ref.pelvis_z_rate * dt_since, pelvis_height_rate_mps=ref.pelvis_z_rate,
@@ -648,8 +660,9 @@ def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
     return len(offsets) == 0 or bool((normals @ p <= bound).all())
 
 
-def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
-    """rot advanced by a world angular velocity for dt (Rodrigues, closed form on floats)."""
+def _rotate(rot: np.ndarray, omega: Sequence[float] | np.ndarray, dt: float) -> np.ndarray:
+    """rot advanced by a world angular velocity for dt (Rodrigues, closed form on floats).
+    ``r.dot(rot)``: the BLAS product ``r @ rot`` calls, without the matmul ufunc's dispatch."""
     if dt == 0.0:
         return rot
     wx, wy, wz = float(omega[0]) * dt, float(omega[1]) * dt, float(omega[2]) * dt
@@ -663,4 +676,4 @@ def _rotate(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
         [c * kx * ky + s * kz, 1 - c * (kx * kx + kz * kz), c * ky * kz - s * kx],
         [c * kx * kz - s * ky, c * ky * kz + s * kx, 1 - c * (kx * kx + ky * ky)],
     ])
-    return r @ rot
+    return r.dot(rot)

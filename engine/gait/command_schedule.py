@@ -6,8 +6,9 @@ limits: forward fast, reverse, strafe both ways, turn both ways, then stop.
 
 from __future__ import annotations
 
+import bisect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -27,17 +28,27 @@ class CommandSchedule:
 
     times_s: np.ndarray  # (K,)
     values: np.ndarray  # (K, 3)
+    # The keyframes as Python floats, for the per-tick lookup (numpy's per-call cost dominates at K ≈ 30).
+    _times: list[float] = field(init=False, repr=False, compare=False)
+    _rows: list[list[float]] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_times", np.asarray(self.times_s, dtype=float).tolist())
+        object.__setattr__(self, "_rows", np.asarray(self.values, dtype=float).tolist())
 
     def __call__(self, t_s: float) -> np.ndarray:
-        if t_s <= self.times_s[0]:
+        times = self._times
+        if t_s <= times[0]:
             return self.values[0].copy()
-        if t_s >= self.times_s[-1]:
+        if t_s >= times[-1]:
             return self.values[-1].copy()
-        # np.interp's formula on all three axes at once (one search instead of three interps)
-        j = int(np.searchsorted(self.times_s, t_s, side="right")) - 1
-        t0, t1 = self.times_s[j], self.times_s[j + 1]
-        v0 = self.values[j]
-        return (self.values[j + 1] - v0) / (t1 - t0) * (t_s - t0) + v0
+        # np.interp's formula on all three axes (bisect = searchsorted side="right"), on floats: the same
+        # operations as the former (3,)-array expression (v1 − v0) / (t1 − t0) · (t − t0) + v0.
+        j = bisect.bisect_right(times, t_s) - 1
+        t0 = times[j]
+        h, s = times[j + 1] - t0, t_s - t0
+        (a0, a1, a2), (b0, b1, b2) = self._rows[j], self._rows[j + 1]
+        return np.array([(b0 - a0) / h * s + a0, (b1 - a1) / h * s + a1, (b2 - a2) / h * s + a2])
 
     @property
     def end_s(self) -> float:

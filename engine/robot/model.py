@@ -130,22 +130,30 @@ class RobotModel:
         return qpos
 
     def pin_q_from_mj(self, qpos: np.ndarray) -> np.ndarray:
-        q = np.zeros(self.pin_model.nq)
-        q[0:3] = qpos[0:3]
-        q[3:6] = qpos[4:7]
-        q[6] = qpos[3]
-        q[7:] = qpos[self.mj_qpos_index]
-        return q
+        """MuJoCo qpos (xyz, quat wxyz, joints) → pinocchio q (xyz, quat xyzw, joints): one gather."""
+        return qpos[self._pin_q_gather]
 
     def pin_v_from_mj(self, qvel: np.ndarray, qpos: np.ndarray) -> np.ndarray:
         """MuJoCo qvel (free joint: world linear, body angular) → pinocchio v (base-frame linear and angular)."""
-        v = np.zeros(self.pin_model.nv)
-        rot = np.zeros(9)
+        v = qvel[self._pin_v_gather]  # angular and joint rates as they are
+        rot = np.empty(9)
         mujoco.mju_quat2Mat(rot, qpos[3:7])
-        v[0:3] = rot.reshape(3, 3).T @ qvel[0:3]
-        v[3:6] = qvel[3:6]
-        v[6:] = qvel[self.mj_dof_index]
+        # Rᵀ v on floats: what ``rot.reshape(3, 3).T @ qvel[0:3]`` computes (a sequential dot per row of
+        # Rᵀ; tests/control/test_stack_speed_references.py asserts it bit for bit), without matmul's dispatch.
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = rot.tolist()
+        vx, vy, vz = v[0:3].tolist()
+        v[0:3] = (r0 * vx + r3 * vy + r6 * vz, r1 * vx + r4 * vy + r7 * vz, r2 * vx + r5 * vy + r8 * vz)
         return v
+
+    @cached_property
+    def _pin_q_gather(self) -> np.ndarray:
+        """qpos addresses of pinocchio's q entries: xyz, the quaternion's x y z then w, the joints."""
+        return np.concatenate([[0, 1, 2, 4, 5, 6, 3], self.mj_qpos_index]).astype(np.intp)
+
+    @cached_property
+    def _pin_v_gather(self) -> np.ndarray:
+        """qvel addresses of pinocchio's v entries (the linear part is rotated afterwards)."""
+        return np.concatenate([np.arange(6), self.mj_dof_index]).astype(np.intp)
 
     def mj_standing_qpos(self) -> np.ndarray:
         return self.mj_qpos_from_pin(self.q_standing)
