@@ -224,9 +224,12 @@ class WalkingController:
         f = self.observer.force_n
         if not f.any():
             return None
-        force = np.array([f[0], f[1], 0.0])
-        arm = est.q[:3] - self._com_now[0]
-        return np.concatenate([force, np.cross(arm, force)])
+        fx, fy = f.tolist()
+        qx, qy, qz = est.q[:3].tolist()
+        cx, cy, cz = self._com_now[0].tolist()
+        ax, ay, az = qx - cx, qy - cy, qz - cz
+        # [f, arm × f] with f = (fx, fy, 0): np.cross's products and differences, term by term
+        return np.array([fx, fy, 0.0, ay * 0.0 - az * fy, az * fx - ax * 0.0, ax * fy - ay * fx])
 
     def _plan_tick(self, est: RobotState) -> None:
         t0 = time.perf_counter()
@@ -277,21 +280,28 @@ class WalkingController:
         z_com = self._com_z
         # A steady push f shifts the LIP's equilibrium by f/(m ω²): plan in a frame whose supports
         # are shifted by −f/(m ω²) (the CoP the plan returns is then the robot's minus that shift).
+        # The 2-vector arithmetic below on floats (x, y): the same operations as the array expressions.
         omega2 = GRAVITY_MPS2 / max(z_com, 0.2)
-        shift = -self.observer.force_n / (self.robot.mass_kg * omega2)
-        if shift.any():
+        stiffness = self.robot.mass_kg * omega2
+        fx, fy = self.observer.force_n.tolist()
+        sx, sy = -fx / stiffness, -fy / stiffness  # −f / (m ω²)
+        shift = np.array([sx, sy])
+        if sx != 0.0 or sy != 0.0:  # shift.any()
             supports = [SupportInterval(sp.t_start_s, sp.t_end_s, sp.polygon + shift) for sp in supports]
-        shift_change = shift - self._mpc_shift
+        old_x, old_y = self._mpc_shift.tolist()
         self._mpc_shift = shift
         if self.plan is None:
             com0, vel0, cop0 = self._init_com
         else:
             # Continue the last plan (continuity of the reference), pulled a little toward the
             # estimate so the plan never drifts away from the robot.
-            com0, vel0, _ = self.plan.com_at(ref.t_s)
-            com0 = com0 + self.params.mpc_state_pull * (com - com0)
-            vel0 = vel0 + self.params.mpc_state_pull * (com_vel - vel0)
-            cop0 = self.plan.cop_at(ref.t_s) + shift_change
+            pull = self.params.mpc_state_pull
+            (px, py), (wx, wy), _ = (a.tolist() for a in self.plan.com_at(ref.t_s))
+            (cx, cy), (vx, vy) = com.tolist(), com_vel.tolist()
+            com0 = np.array([px + pull * (cx - px), py + pull * (cy - py)])
+            vel0 = np.array([wx + pull * (vx - wx), wy + pull * (vy - wy)])
+            qx, qy = self.plan.cop_at(ref.t_s).tolist()
+            cop0 = np.array([qx + (sx - old_x), qy + (sy - old_y)])
         # The only infeasible part of the QP is an initial CoP outside today's support (time
         # scaling and touchdowns move contact switches relative to the last plan): clip it in.
         cop0 = _clip_to_polygon(cop0, supports[0].polygon)

@@ -250,3 +250,35 @@ def test_wbc_reference_equals_the_former_one_on_a_turning_walk() -> None:
                 checked += 1
     assert checked == 800 and not sim.fallen
     assert np.abs(controller.ref.pelvis_ang_vel).max() > 0.1  # turning: the pelvis rotation is advanced too
+
+
+def external_wrench_reference(controller, est):  # noqa: ANN001, ANN201
+    """WalkingController._external_wrench before the speed-up (np.cross)."""
+    f = controller.observer.force_n
+    if not f.any():
+        return None
+    force = np.array([f[0], f[1], 0.0])
+    arm = est.q[:3] - controller._com_now[0]
+    return np.concatenate([force, np.cross(arm, force)])
+
+
+def test_external_wrench_equals_the_cross_product_under_a_push() -> None:
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.sim import Simulation
+
+    robot = load_robot("g1")
+    controller = WalkingController(robot, load_style(styles_dir("g1") / "neutral.json"))
+    sim = Simulation(robot, controller)
+    pushed = 0
+    for k in range(450):
+        if k == 150:
+            sim.push(np.array([40.0, 60.0, 0.0]), 0.1)
+        sim.step()
+        got, want = controller._external_wrench(controller.estimate), external_wrench_reference(controller, controller.estimate)
+        if want is None:
+            assert got is None
+        else:
+            np.testing.assert_array_equal(got, want)
+            pushed += 1
+    assert pushed > 20 and not sim.fallen  # the observer saw the push for a while
