@@ -499,8 +499,14 @@ def test_solver_failure_uses_fallback(monkeypatch) -> None:
     def broken(*args, **kwargs):
         raise RuntimeError("solver exploded")
 
-    for failure in (broken, lambda *a, **k: ([], np.zeros(0), 3, active_set._AS_INFEASIBLE)):
-        monkeypatch.setattr(com_mpc, "_dual_active_set", failure)
+    def infeasible_window(*args, **kwargs):  # the one-call solve (solve_window) ending infeasible
+        empty = np.zeros((0, 2))
+        return active_set._AS_INFEASIBLE, 3, np.zeros(0, np.int64), np.nan, empty, empty, empty, np.zeros(4), np.nan, False
+
+    for failure, window_failure in ((broken, broken),
+                                    (lambda *a, **k: ([], np.zeros(0), 3, active_set._AS_INFEASIBLE), infeasible_window)):
+        monkeypatch.setattr(com_mpc, "_dual_active_set", failure)  # the step-by-step path's solver
+        monkeypatch.setattr(com_mpc, "solve_window", window_failure)  # and the one-call solve's
         sol = ComMpc().solve(0.2, *PUSHED_STATE, COM_HEIGHT_M, window(supports, 0.2))
         assert sol.status == "solver_failed_centroid_fallback"
         assert not sol.ok

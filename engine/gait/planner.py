@@ -173,9 +173,10 @@ class GaitPlanner:
         self.command_goal: np.ndarray | None = None
         self.command_rate_limits: np.ndarray | None = None
         self._path_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._path_rows: tuple[list, list, list] | None = None  # the table as lists of floats (rows read one by one)
+        self._path_rows: tuple[np.ndarray, np.ndarray] | None = None  # (poses, vels) of the table: rows read one by one
         self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
-        self._preview_constants: tuple[BlendedGait, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._preview_constants: tuple[BlendedGait, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._region_array: tuple[SafeRegion, np.ndarray] | None = None  # the preview's (side, front, cross, max yaw)
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -357,12 +358,12 @@ class GaitPlanner:
             return predict_xy_yaw(float(path.x), float(path.y), float(path.yaw), self.command, dt_s)
         if self._path_rows is None:
             self._path_table = self._build_path_table()
-            times, poses, vels = self._path_table
-            self._path_rows = (times.tolist(), poses.tolist(), vels.tolist())
-        times_l, poses_l, vels_l = self._path_rows
-        k = min(int(dt_s / PATH_TABLE_STEP_S), len(times_l) - 1)
-        x, y, yaw = poses_l[k]
-        return predict_xy_yaw(x, y, yaw, vels_l[k], dt_s - times_l[k])
+            _, poses, vels = self._path_table
+            self._path_rows = (poses, vels)
+        poses, vels = self._path_rows
+        k = min(int(dt_s / PATH_TABLE_STEP_S), len(_PATH_TABLE_TIMES_LIST) - 1)
+        x, y, yaw = poses[k].tolist()  # the row as floats (a tick reads two or three of the 61)
+        return predict_xy_yaw(x, y, yaw, vels[k].tolist(), dt_s - _PATH_TABLE_TIMES_LIST[k])
 
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
@@ -550,7 +551,7 @@ class GaitPlanner:
         phi = self.phi
         swinging = [self.in_swing(s, phi) for s in SIDES]
         start = [self.target[s] if swing else self.latched[s] for s, swing in zip(SIDES, swinging)]
-        stances, touchdown_edges, liftoff_edges = self._blend_constants()
+        stances, touchdown_edges, liftoff_edges, events = self._blend_constants()
         if self.command_goal is None or self.command_rate_limits is None:  # the command holds: one piece
             path = self.path
             table = (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
@@ -560,11 +561,13 @@ class GaitPlanner:
             assert self._path_table is not None
             table = self._path_table
         region = self.region
+        if self._region_array is None or self._region_array[0] is not region:
+            self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
         n, t_start, t_end, down, hold_index, holds, polygons, counts = preview_intervals(
             float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
-            np.array(blend.events_s), np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
+            events, np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
             self._edges_now(), np.array([self.landed[s] for s in SIDES]), touchdown_edges, liftoff_edges, stances,
-            *table, PATH_TABLE_STEP_S, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]),
+            *table, PATH_TABLE_STEP_S, self._region_array[1],
             self.sole_length_m - 2.0 * self.preview_margin_m, self.sole_width_m - 2.0 * self.preview_margin_m,
             self.preview_toe_trim_m, EDGE_SUPPORT_DEPTH_M, 2.0)
         footholds = start + [Foothold(*row) for row in holds[2:].tolist()]
@@ -589,17 +592,17 @@ class GaitPlanner:
             codes.append(EDGE_CODES[_pitched_edge(min(pitch, 0.0), max(pitch, 0.0))])
         return np.array(codes)
 
-    def _blend_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The current blend's stance offsets (2, 3) and the edge codes of its touchdown and liftoff pitches
-        (2,) per foot, kept while the blend is."""
+    def _blend_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The current blend's stance offsets (2, 3), the edge codes of its touchdown and liftoff pitches
+        (2,) per foot and its event times (4,), kept while the blend is."""
         cached = self._preview_constants
         if cached is None or cached[0] is not self.blend:
             pitch = self.blend.boundary_pitch
             cached = self._preview_constants = (
                 self.blend, np.array([self._stance_xy_yaw(s) for s in SIDES]),
                 np.array([EDGE_CODES[_pitched_edge(*pitch[s][1])] for s in SIDES]),
-                np.array([EDGE_CODES[_pitched_edge(*pitch[s][0])] for s in SIDES]))
-        return cached[1], cached[2], cached[3]
+                np.array([EDGE_CODES[_pitched_edge(*pitch[s][0])] for s in SIDES]), np.array(self.blend.events_s))
+        return cached[1], cached[2], cached[3], cached[4]
 
 
 #: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
@@ -607,6 +610,7 @@ class GaitPlanner:
 _RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
 _PATH_TABLE_TIMES = np.arange(int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1) * PATH_TABLE_STEP_S
 _PATH_TABLE_TIMES.flags.writeable = False
+_PATH_TABLE_TIMES_LIST = _PATH_TABLE_TIMES.tolist()
 _ONE_PIECE_TIMES = np.zeros(1)  # the preview's path table while the command holds
 assert tuple(PREVIEW_EVENT_PHASES) == (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
 

@@ -253,3 +253,36 @@ def test_scalar_cop_at_equals_numpy_interp() -> None:
             got, want = sol.cop_at(t), sol._cop_at_array(t)
             assert got.shape == want.shape == (2,)
             np.testing.assert_array_equal(got, want)
+
+
+def test_one_call_solve_equals_the_step_by_step_solve(monkeypatch) -> None:  # noqa: ANN001
+    """ComMpc._solve_compiled (segments, condensation, active set and plan in one compiled call) against the
+    step-by-step path (the same kernels called one by one), over sequences of solves sharing their warm starts:
+    the same statuses, plans (bit for bit), iteration counts and remembered active rows."""
+    from engine.control.mpc.controller import ComMpc as Mpc
+
+    calls = _calls()
+    fast, reference = Mpc(), Mpc()
+    fused_solves = 0
+    original = Mpc._solve_compiled
+
+    def counting(self, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        nonlocal fused_solves
+        out = original(self, *args, **kwargs)
+        fused_solves += out is not None
+        return out
+
+    for args in calls:
+        monkeypatch.setattr(Mpc, "_solve_compiled", counting)
+        a = fast.solve(*args)
+        monkeypatch.setattr(Mpc, "_solve_compiled", lambda *_, **__: None)
+        b = reference.solve(*args)
+        assert a.status == b.status and a.message == b.message and a.osqp_iterations == b.osqp_iterations
+        for name in ("waypoint_times_s", "waypoints_xy_m", "waypoint_com_xy_m", "waypoint_com_vel_xy_mps",
+                     "region_centroids_xy_m", "qp_final_state"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert len(fast._warm_history) == len(reference._warm_history)
+        for (ka, na), (kb, nb) in zip(fast._warm_history, reference._warm_history):
+            np.testing.assert_array_equal(ka, kb)
+            np.testing.assert_array_equal(na, nb)
+    assert fused_solves > 0.9 * len(calls)

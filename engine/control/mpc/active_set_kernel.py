@@ -7,6 +7,10 @@
 here and LAPACK's there: the multipliers are equal to rounding, the active sets the same
 (``tests/control/test_stack_speed_references.py``). It has no wall-time limit (a solve with one runs the
 numpy code).
+
+:func:`solve_window` runs one call's whole QP in one compiled call: the LIP segments, the condensation, the free
+slacks, this solver, the waypoints and the plan (the kernels the controller called one by one, in its order: the
+same numbers), without a dispatch and its argument boxing per step.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
-from engine.control.mpc.kernels import match_rows
+from engine.control.mpc.kernels import condense, lip_segments, match_rows, plan_from_waypoints, plan_is_finite
 
 #: Active-set outcomes (as in :mod:`engine.control.mpc.active_set`).
 AS_OPTIMAL, AS_CAPPED, AS_INFEASIBLE = 0, 1, 2
@@ -335,3 +339,51 @@ def free_slacks(p_free, normals, row_var, rhs):  # noqa: ANN001, ANN201
     for i in range(m):
         s[i] = rhs[i] - (normals[i, 0] * p_free[row_var[i], 0] + normals[i, 1] * p_free[row_var[i], 1])
     return s
+
+
+@njit(cache=True, nogil=True)
+def solve_window(times, omega, w_centroid, w_velocity, min_velocity_dt_s, stability_weight, centroids,  # noqa: ANN001, ANN201, PLR0913
+                 final_centroid, com, vel, origin, normals, offsets, row_wp, row_key, keys_a, normals_a, keys_b,
+                 normals_b, n_warm, warm_time_tol, warm_cos_min, tol, max_iter, block_rounds):
+    """``ComMpc._solve``'s steps from the problem's rows to the plan, compiled in one call: ``lip_segments``,
+    ``condense`` (QP frame at ``origin``, the DCM ``com + vel / omega - origin``), ``free_slacks``, then (some
+    slack below ``-tol``) :func:`dual_active_set` and :func:`waypoints_from_multipliers`, and for an optimum
+    ``plan_from_waypoints`` and ``plan_is_finite``.
+
+    Returns ``(outcome, iterations, active rows (k,), violation, wps_world (N+1, 2), com (N+1, 2),
+    com_vel (N+1, 2), final_state (4,), total, finite)``; the plan's arrays are empty unless the outcome is
+    optimal (the caller then takes its step-by-step path, which computes the same)."""
+    h, a, b, grow = lip_segments(times, omega)
+    zeta0 = np.empty(2)
+    for ax in range(2):
+        zeta0[ax] = (com[ax] + vel[ax] / omega) - origin[ax]
+    _, _, _, _, _, _, _, p_free, hess_inv, rhs = condense(
+        a, b, grow, h, w_centroid, w_velocity, min_velocity_dt_s, stability_weight, centroids, final_centroid, origin,
+        zeta0, normals, offsets)
+    m = rhs.shape[0]
+    row_var = np.empty(m, dtype=np.int64)
+    for i in range(m):
+        row_var[i] = row_wp[i] - 1
+    s = free_slacks(p_free, normals, row_var, rhs)
+    s_min = np.inf  # s.min() (NaN if one is)
+    for i in range(m):
+        if s[i] != s[i]:
+            s_min = np.nan
+            break
+        s_min = min(s_min, s[i])
+    empty2 = np.empty((0, 2))
+    if m == 0 or s_min >= -tol:
+        rows = np.empty(0, dtype=np.int64)
+        iterations, outcome = 0, AS_OPTIMAL
+        wps = p_free
+        violation = max(-min(s_min, 0.0), 0.0)  # max(-s.min(initial=0.0), 0.0)
+    else:
+        rows, lam, iterations, outcome = dual_active_set(
+            hess_inv, normals, row_var, s, row_key, keys_a, normals_a, keys_b, normals_b, n_warm, warm_time_tol,
+            warm_cos_min, tol, max_iter, block_rounds)
+        if outcome != AS_OPTIMAL:
+            return outcome, iterations, rows, np.nan, empty2, empty2, empty2, np.empty(4), np.nan, False
+        wps, violation = waypoints_from_multipliers(p_free, hess_inv, normals, row_var, rhs, rows, lam)
+    wps_world, pos_world, vel_wp, final, total = plan_from_waypoints(omega, a, b, grow, wps, com, vel, origin)
+    finite = plan_is_finite(times, wps_world, pos_world, vel_wp, final, 1.0)
+    return outcome, iterations, rows, violation, wps_world, pos_world, vel_wp, final, total, finite

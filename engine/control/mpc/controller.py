@@ -15,8 +15,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from engine.constants import GRAVITY_MPS2
 from engine.control import qp_backends
-from engine.control.mpc.active_set import _AS_CAPPED, _AS_INFEASIBLE, _AS_OPTIMAL, _dual_active_set, _inverse
-from engine.control.mpc.active_set_kernel import free_slacks, waypoints_from_multipliers
+from engine.control.mpc.active_set import (
+    _AS_CAPPED,
+    _AS_INFEASIBLE,
+    _AS_OPTIMAL,
+    _NO_KEYS,
+    _NO_NORMALS,
+    _dual_active_set,
+    _inverse,
+)
+from engine.control.mpc.active_set_kernel import free_slacks, solve_window, waypoints_from_multipliers
 from engine.control.mpc.kernels import (
     condense,
     match_rows,
@@ -199,7 +207,7 @@ class ComMpc:
                 solution = self._fallback(*args, reason="solver_failed", message=f"exception: {exc!r}", t_start=t_start)
             except Exception:  # noqa: BLE001
                 solution = None
-        if solution is not None and _is_finite(solution):
+        if solution is not None and (solution.__dict__.get("_checked_finite", False) or _is_finite(solution)):
             return solution
         # Last resort (e.g. a diverged, overflowing state): hold the CoP, finite by construction.
         t_now, com, vel, cop, height, _ = _sanitize_state(*args[:5])
@@ -229,7 +237,12 @@ class ComMpc:
         if problem is None:
             return self._fallback(*args, reason="invalid_input", message=error, t_start=t_start)
 
-        seg = _Segments.build(problem.times_s, math.sqrt(GRAVITY_MPS2 / height))
+        omega = math.sqrt(GRAVITY_MPS2 / height)
+        if self.solver == "active_set" and math.isinf(self.time_limit_s) and len(self._warm_history) <= 2:
+            solution = self._solve_compiled(problem, omega, com, vel, cop, height, t_start)
+            if solution is not None:
+                return solution
+        seg = _Segments.build(problem.times_s, omega)
         origin = cop  # QP frame: centred on the current CoP, so p_0 = 0
         qp = self._condense(problem, seg, origin, com + vel / seg.omega - origin)
         t_qp = time.perf_counter()
@@ -286,6 +299,52 @@ class ComMpc:
         )
         if not math.isfinite(total):
             return self._fallback(*args, reason="solver_failed", message="non-finite CoM", t_start=t_start)
+        self._last_good = solution
+        return solution
+
+    def _solve_compiled(self, problem: _Problem, omega: float, com: FloatArray, vel: FloatArray, cop: FloatArray,
+                        height: float, t_start: float) -> ComMpcSolution | None:
+        """The default solve (active set, no wall-time limit) from the problem to the plan in one compiled call
+        (:func:`engine.control.mpc.active_set_kernel.solve_window`: the steps of :meth:`_solve`, the same numbers).
+        None unless it ends in a clean, finite optimum within the rows' tolerance: :meth:`_solve` then takes its
+        step-by-step path (which computes the same and handles the rest)."""
+        w = self.weights
+        t_qp = time.perf_counter()
+        history = self._warm_history
+        (keys_a, nrm_a), (keys_b, nrm_b) = (list(history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
+        times = problem.times_s
+        outcome, iterations, rows, violation, wps_world, pos_world, vel_wp, final_state, total, finite = solve_window(
+            times, omega, float(w.cop_centroid), float(w.cop_velocity), self.min_velocity_dt_s,
+            self._stability_weight(omega, float(times[-1] - times[0])), problem.centroids, problem.final_centroid,
+            com, vel, cop, problem.normals, problem.offsets, problem.row_wp, problem.row_key, keys_a, nrm_a, keys_b,
+            nrm_b, len(history), _WARM_TIME_TOL_S, _WARM_NORMAL_COS, _AS_TOL_M, self.max_iter, 4)
+        qp_time = time.perf_counter() - t_qp
+        if outcome != _AS_OPTIMAL or not violation <= CONSTRAINT_TOL_M or not finite:
+            return None
+        self._store_warm(problem, rows)
+        if iterations == 0:  # the free optimum holds every row: the active set did not run
+            message = "active set: unconstrained optimum"
+        else:
+            message = f"active set: optimal, {len(rows)} active rows"
+        status = "solved"
+        if problem.empty_intersection:
+            status = "solved_empty_intersection"
+            message += "; empty support intersection: end waypoint constrained to the closing interval's polygon"
+        solution = ComMpcSolution(
+            waypoint_times_s=times,
+            waypoints_xy_m=wps_world,
+            waypoint_com_xy_m=pos_world,
+            waypoint_com_vel_xy_mps=vel_wp,
+            com_height_m=height,
+            status=status,
+            solve_time_s=time.perf_counter() - t_start,
+            message=message,
+            osqp_iterations=int(iterations),
+            osqp_time_s=qp_time,
+            region_centroids_xy_m=problem.centroids,
+            qp_final_state=final_state,
+        )
+        object.__setattr__(solution, "_checked_finite", True)  # solve() need not check it again
         self._last_good = solution
         return solution
 

@@ -185,19 +185,19 @@ class ComMpcSolution:
             return pos[0], vel[0], acc[0]
         return pos, vel, acc
 
-    def _lists(self) -> tuple[list, list, list, list]:
-        """The arrays as Python floats, once per solution (the same numbers)."""
+    def _lists(self) -> tuple[list, list, list, list, float]:
+        """The arrays as Python floats and ω, once per solution (the same numbers)."""
         lists = self.__dict__.get("_float_lists")
         if lists is None:
             lists = (self.waypoint_times_s.tolist(), self.waypoints_xy_m.tolist(),
-                     self.waypoint_com_xy_m.tolist(), self.waypoint_com_vel_xy_mps.tolist())
+                     self.waypoint_com_xy_m.tolist(), self.waypoint_com_vel_xy_mps.tolist(), self.omega_rps)
             object.__setattr__(self, "_float_lists", lists)
         return lists
 
     def _cop_at_scalar(self, t: float) -> FloatArray:
         """:meth:`cop_at` for one (non-NaN) time, on floats: numpy's ``interp`` arithmetic (its clamping outside
         the waypoints, exact waypoint values at their times, its NaN fallbacks), the same numbers."""
-        times, wps, _, _ = self._lists()
+        times, wps, _, _, _ = self._lists()
         n = len(times)
         if t > times[-1]:
             return np.array(wps[-1])
@@ -220,7 +220,7 @@ class ComMpcSolution:
 
     def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""
-        times, wps, coms, vels = self._lists()
+        times, wps, coms, vels, omega = self._lists()
         n_seg = len(times) - 1
         t_first, t_last = times[0], times[-1]
         j = min(max(bisect.bisect_right(times, t) - 1, 0), n_seg - 1)
@@ -235,7 +235,6 @@ class ComMpcSolution:
                 sx = (wps[j + 1][0] - wps[j][0]) / h
                 sy = (wps[j + 1][1] - wps[j][1]) / h
         s = t - times[anchor]
-        omega = self.omega_rps
         ch, sh = math.cosh(omega * s), math.sinh(omega * s)
         px, py = wps[anchor]
         cx, cy = coms[anchor]
@@ -243,10 +242,10 @@ class ComMpcSolution:
         ex, ey = cx - px, cy - py
         dex, dey = vx - sx, vy - sy
         errx, erry = ex * ch + dex * sh / omega, ey * ch + dey * sh / omega
-        pos = np.array([px + sx * s + errx, py + sy * s + erry])
-        vel = np.array([sx + ex * omega * sh + dex * ch, sy + ey * omega * sh + dey * ch])
-        acc = np.array([omega * omega * errx, omega * omega * erry])
-        return pos, vel, acc
+        out = np.array([[px + sx * s + errx, py + sy * s + erry],  # one array, its rows returned (disjoint views)
+                        [sx + ex * omega * sh + dex * ch, sy + ey * omega * sh + dey * ch],
+                        [omega * omega * errx, omega * omega * erry]])
+        return out[0], out[1], out[2]
 
     def com_path(self, dt_s: float = 0.02) -> tuple[FloatArray, FloatArray]:
         """Sample the planned CoM for drawing: ``(times_s (T,), com_xy_m (T, 2))``."""
