@@ -2,7 +2,8 @@
 #   make studio   install if needed, then serve http://127.0.0.1:8080 with the default robot
 #   make test     install if needed (and Debian's chromium for the browser tests), run every test
 #   make typecheck  mypy over engine/ and studio/ (part of make test)
-#   make test-fast  the development tier: unit, property and fuzz tests (no `slow`, no `e2e` markers)
+#   make test-fast  the development tier (≈ 3 min on an idle 2-core machine): unit, property and fuzz tests,
+#                   without the `slow` (long runs: walks, training, Ray, whole CLI runs) and `e2e` (browser) tiers
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
@@ -31,6 +32,7 @@ studio: setup
 chromium:
 	@command -v chromium >/dev/null 2>&1 || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq chromium; }
 
+# every test: the fast tier, `slow` and `e2e`
 test: setup chromium typecheck
 	$(PY) -m pytest -q $(PYTEST_ARGS)
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from tests.conftest import REPO, run_studio
 
 
@@ -71,6 +73,7 @@ def test_serve_on_a_busy_port_fails_naming_the_port():
     assert len(lines) == 1 and f"127.0.0.1:{port}" in lines[0] and "not free" in lines[0], out.stderr
 
 
+@pytest.mark.slow  # two closed-loop G1 walks in `studio walk` processes
 def test_walk_json_records_the_clamped_command():
     import json
 

@@ -174,14 +174,15 @@ def test_tiny_library_runs_on_ray_and_resumes(tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
+    # each case is a `studio library` process: four in the slow tier (grids in process: the tests above)
     (["--grid", "vx=0:0.5:0"], "--grid: vx: expected at least 1 point"),
-    (["--grid", "vx=0.5:0:3"], "reversed bounds"),
+    pytest.param(["--grid", "vx=0.5:0:3"], "reversed bounds", marks=pytest.mark.slow),
     (["--grid", "vx=0", "--workers", "0"], "--workers: expected at least 1"),
-    (["--grid", "vx=0", "--duration", "-1"], "--duration"),
+    pytest.param(["--grid", "vx=0", "--duration", "-1"], "--duration", marks=pytest.mark.slow),
     (["--grid", "vx=0", "--style", "nope"], "unknown style 'nope'"),
     (["--grid", "vx=0", "--export", "bvh"], "--export: bvh: expected formats among"),
-    (["--grid", "vx=0", "--export", "amp-json", "--fps", "0"], "--fps: expected 0 < fps"),
-    (["--grid", "vx=0:0.5:0,vy=0"], "--grid: vx: expected at least 1 point"),
+    pytest.param(["--grid", "vx=0", "--export", "amp-json", "--fps", "0"], "--fps: expected 0 < fps", marks=pytest.mark.slow),
+    pytest.param(["--grid", "vx=0:0.5:0,vy=0"], "--grid: vx: expected at least 1 point", marks=pytest.mark.slow),
 ])
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, args, message):
     out = tmp_path / "lib"

@@ -10,9 +10,11 @@ from engine.robot.model import load_robot
 from engine.sim import Simulation
 
 SIMULATED = [n for n in robot_names() if load_robot_config(n).simulated]
+# 10 simulated seconds each: G1 stands in the fast tier, the other robots in the slow one (`make test`)
+STANDING = [pytest.param(n, marks=() if n == "g1" else pytest.mark.slow) for n in SIMULATED]
 
 
-@pytest.mark.parametrize("name", SIMULATED)
+@pytest.mark.parametrize("name", STANDING)
 def test_stands_ten_seconds(name):
     sim = Simulation(load_robot(name))
     z0 = float(sim.data.qpos[2])

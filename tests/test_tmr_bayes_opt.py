@@ -40,6 +40,7 @@ def test_finds_the_optimum_of_a_known_1d_function_within_budget(parallel: int) -
     assert res.best_payload[0] == pytest.approx(res.best_log2_alpha[0])
 
 
+@pytest.mark.slow  # a 20-evaluation 2-D search; progress reports: test_progress_reports_count_the_evaluations
 def test_two_segments_and_progress_reports() -> None:
     seen = []
     res = _run(lambda x: float(-np.sum((x - np.array([-0.5, 0.4])) ** 2)), 2, 1.0,
@@ -48,6 +49,30 @@ def test_two_segments_and_progress_reports() -> None:
     assert [p.evaluation for p in seen] == list(range(1, len(seen) + 1))
     assert all(p.budget == 20 for p in seen)
     assert seen[-1].best_score == pytest.approx(res.best_score)
+    assert np.all(np.abs(np.array([p.current_log2_alpha for p in seen])) <= 1.0)
+
+
+def test_progress_reports_count_the_evaluations() -> None:
+    """Every evaluation reports k of N, the best score so far and the point just evaluated (a 4-evaluation 2-D
+    search: the fast tier's check of what test_two_segments_and_progress_reports checks on a 20-evaluation one)."""
+    seen = []
+    evaluated = []
+
+    def f(x: np.ndarray) -> float:
+        evaluated.append(x.copy())
+        return score(x)
+
+    def score(x: np.ndarray) -> float:
+        return float(-np.sum((x - np.array([-0.5, 0.4])) ** 2))
+
+    res = _run(f, 2, 1.0, BOSettings(budget=4, init_points=3, seed=0), progress=seen.append)  # 3 designed, 1 suggested
+    assert [p.evaluation for p in seen] == [1, 2, 3, 4] and res.evaluations == 4
+    assert all(p.budget == 4 for p in seen)
+    for k, p in enumerate(seen):
+        np.testing.assert_array_equal(p.current_log2_alpha, evaluated[k])
+        assert p.best_score == pytest.approx(max(score(x) for x in evaluated[:k + 1]))
+    assert seen[-1].best_score == pytest.approx(res.best_score)
+    np.testing.assert_array_equal(seen[-1].best_log2_alpha, res.best_log2_alpha)
     assert np.all(np.abs(np.array([p.current_log2_alpha for p in seen])) <= 1.0)
 
 
@@ -90,6 +115,7 @@ def test_finds_an_optimum_on_the_bound_that_interior_points_miss() -> None:
     assert res.best_log2_alpha[0] <= -0.95 and res.best_score > -0.1
 
 
+@pytest.mark.slow  # a 30-evaluation search
 def test_a_suggestion_already_evaluated_is_not_evaluated_again() -> None:
     """A flat score: EI has nothing to go on and returns to known points; each α is evaluated once at most and
     the search converges before the budget."""

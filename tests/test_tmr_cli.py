@@ -30,9 +30,10 @@ def clips(tmp_path_factory):  # noqa: ANN201
 
 @pytest.mark.parametrize("extra, expected", [
     (["--alpha-bound", "2.5"], "--alpha-bound: expected a log2 α bound in (0, 2], got 2.5"),
-    (["--alpha-bound", "-1"], "--alpha-bound: expected a log2 α bound in (0, 2], got -1"),
-    (["--segments", "0"], "--segments: expected S ≥ 1, got 0"),
-    (["--address", "127.0.0.1:9"], "--address 127.0.0.1:9: no Ray head answers"),
+    # each case is a `studio tmr` process: three in the slow tier (the Ray one starts a Ray client)
+    pytest.param(["--alpha-bound", "-1"], "--alpha-bound: expected a log2 α bound in (0, 2], got -1", marks=pytest.mark.slow),
+    pytest.param(["--segments", "0"], "--segments: expected S ≥ 1, got 0", marks=pytest.mark.slow),
+    pytest.param(["--address", "127.0.0.1:9"], "--address 127.0.0.1:9: no Ray head answers", marks=pytest.mark.slow),
     (["--robot", "g1"], "--robot: expected a quadruped"),
     (["--robot", "a1"], "stand.npz: robot: expected a motion of a1"),
 ])
@@ -56,6 +57,7 @@ def test_bad_clips_exit_2_naming_the_file(clips, tmp_path, name, extra, expected
     assert expected in out.stderr and not (tmp_path / "o.npz").exists()
 
 
+@pytest.mark.slow  # a whole TMR run in a `studio tmr` process (in process: tests/test_tmr_pipeline.py)
 def test_tmr_json_summary_and_output(clips, tmp_path) -> None:  # noqa: ANN001
     out_file = tmp_path / "stand_tmr.npz"
     out = run_studio("tmr", "--motion", str(clips / "stand.npz"), "--robot", "go1", "--budget", "1", "--out",
@@ -103,6 +105,7 @@ def test_batch_skips_finished_jobs_by_content_hash(clips, tmp_path) -> None:  # 
     del t0
 
 
+@pytest.mark.slow  # two `studio retarget-batch` runs (TMR jobs)
 def test_batch_runs_then_resumes_in_process(clips, tmp_path) -> None:  # noqa: ANN001
     args = [str(clips / "stand.npz"), "--robots", "go1", "--budget", "1", "--jobs", "1", "--out", str(tmp_path), "--json"]
     first = run_studio("retarget-batch", *args, timeout=600)
@@ -126,6 +129,7 @@ def test_batch_on_ray_runs_then_resumes(clips, tmp_path) -> None:  # noqa: ANN00
     assert [r["status"] for r in json.loads(second.stdout)["jobs"]] == ["skipped (done)"] * 2
 
 
+@pytest.mark.slow  # SMR then TMR in `studio retarget-batch` processes
 def test_batch_takes_source_clips_through_smr_then_tmr(tmp_path) -> None:  # noqa: ANN001
     from engine.retarget.motion import RobotMotion
     from engine.retarget.synthetic import synthetic_trot

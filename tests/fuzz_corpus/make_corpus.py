@@ -18,6 +18,7 @@ Import. The valid files the mutations start from are :func:`valid_keypoint_npz`,
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import re
@@ -798,9 +799,11 @@ READERS = {"style": _style_cases, "robot_toml": _toml_cases, "keyframes": _keyfr
            "dog_bvh": _dog_bvh_cases}
 
 
+@functools.lru_cache(maxsize=2)
 def zip_bomb_npz(data_bytes: int = 300 * 1024 ** 2) -> bytes:
     """A valid-looking npz whose one array inflates to ``data_bytes`` of zeros (built in 1 MiB chunks: nothing
-    of that size is ever allocated here); its header declares the matching float64 shape."""
+    of that size is ever allocated here); its header declares the matching float64 shape. Built once per process
+    (compressing the 300 MB takes a second or two; the result is immutable bytes, 300 KB)."""
     header = npy_header((data_bytes // 8,))
     comp = zlib.compressobj(9, zlib.DEFLATED, -15)
     parts = [comp.compress(header)]

@@ -12,7 +12,10 @@ from engine.gait.style import StyleContext, load_style, validate_style
 from engine.robot.model import load_robot
 from tests.conftest import REPO
 
-SHIPPED = [("g1", "neutral"), ("g1", "casual"), ("g1", "sneak"), ("g1", "injured"), ("talos", "neutral")]
+# each check plans the style's samples (≈ 2 s): the neutral styles in the fast tier, the other shipped ones in the slow one
+SHIPPED = [("g1", "neutral"), pytest.param("g1", "casual", marks=pytest.mark.slow),
+           pytest.param("g1", "sneak", marks=pytest.mark.slow), pytest.param("g1", "injured", marks=pytest.mark.slow),
+           ("talos", "neutral")]
 
 
 @pytest.mark.parametrize(("robot", "name"), SHIPPED, ids=lambda x: x)

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from engine.gait.command_schedule import CommandError, parse_command
 from engine.gait.style import load_style
 from tests.conftest import REPO, run_studio
 
@@ -83,11 +84,12 @@ def _broken(tmp_path, mutate) -> str:
 
 @pytest.mark.parametrize(("mutate", "field"), [
     (lambda d: d["samples"]["in_place"]["intervals"].__setitem__("right_swing_s", [0.1, 0.3]), "samples.in_place.intervals"),
-    (lambda d: d["samples"]["in_place"]["curves"].__setitem__("joints.left_elbw_joint", {"knots": [[0, 0.5]]}),
-     "samples.in_place.curves.joints.left_elbw_joint"),
-    (lambda d: d["samples"]["forward_fast"]["attributes"].__setitem__("stance_width_m", float("nan")),
-     "samples.forward_fast.attributes.stance_width_m"),
-    (lambda d: d["samples"].pop("right_strafe"), "samples.right_strafe"),
+    # each case is a `studio plan` process: three more in the slow tier (the fields themselves: tests/gait/test_style.py)
+    pytest.param(lambda d: d["samples"]["in_place"]["curves"].__setitem__("joints.left_elbw_joint", {"knots": [[0, 0.5]]}),
+                 "samples.in_place.curves.joints.left_elbw_joint", marks=pytest.mark.slow),
+    pytest.param(lambda d: d["samples"]["forward_fast"]["attributes"].__setitem__("stance_width_m", float("nan")),
+                 "samples.forward_fast.attributes.stance_width_m", marks=pytest.mark.slow),
+    pytest.param(lambda d: d["samples"].pop("right_strafe"), "samples.right_strafe", marks=pytest.mark.slow),
     (lambda d: d.__setitem__("robot", "talos"), "robot"),
 ])
 def test_malformed_style_exits_2_naming_the_field(tmp_path, mutate, field):
@@ -99,6 +101,7 @@ def test_malformed_style_exits_2_naming_the_field(tmp_path, mutate, field):
     assert not (tmp_path / "x.npz").exists()
 
 
+@pytest.mark.slow  # seven `studio plan` processes; the spec parsing itself: test_command_specs_parse below
 def test_command_specs(tmp_path):
     frames = tmp_path / "keys.json"
     frames.write_text(json.dumps({"keyframes": [[0, 0, 0, 0], [1, 0.2, 0, 0], [2, 0.2, 0, 0.4]]}))
@@ -119,3 +122,19 @@ def test_command_specs(tmp_path):
     assert out.returncode == 2 and "expected a biped" in out.stderr
     out = run_studio("plan", "--style", "nosuch", "--duration", "1", "--out", str(tmp_path / "q.npz"))
     assert out.returncode == 2 and "unknown style 'nosuch' for g1; styles: casual, injured, neutral, sneak" in out.stderr
+
+
+def test_command_specs_parse(tmp_path):
+    """The --command specs of test_command_specs (slow: it runs `studio plan`), parsed in process: a keyframe
+    file is interpolated and held after its last frame, vx,vy,wz is constant, bad specs name what they expect."""
+    velocities = load_style(REPO / "styles/g1/neutral.json").velocities
+    frames = tmp_path / "keys.json"
+    frames.write_text(json.dumps({"keyframes": [[0, 0, 0, 0], [1, 0.2, 0, 0], [2, 0.2, 0, 0.4]]}))
+    schedule = parse_command(str(frames), velocities)
+    assert schedule(0.5) == pytest.approx([0.1, 0.0, 0.0]) and schedule(1.5) == pytest.approx([0.2, 0.0, 0.2])
+    assert schedule(3.0) == pytest.approx([0.2, 0.0, 0.4]) and schedule.end_s == 2.0
+    constant = parse_command("0.1,0,0", velocities)
+    assert constant(0.0) == pytest.approx([0.1, 0, 0]) and constant(5.0) == pytest.approx([0.1, 0, 0])
+    for spec, message in (("fly", "neither vx,vy,wz, a preset"), ("1,2", "expected three finite numbers")):
+        with pytest.raises(CommandError, match=message):
+            parse_command(spec, velocities, cwd=tmp_path)

@@ -69,6 +69,7 @@ def test_quick_training_beats_an_untrained_model(quick_weights):
     assert errors["trained"] < 0.8 * errors["untrained"], errors
 
 
+@pytest.mark.slow  # a whole clip retargeted in a `studio puppet` process
 def test_puppet_writes_a_collision_free_motion(shipped_g1, tmp_path):
     out = tmp_path / "wave.npz"
     res = run_studio("puppet", "--robot", "g1", "--bvh", str(_clip("141_16.bvh")), "--out", str(out),

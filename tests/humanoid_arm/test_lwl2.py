@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -26,6 +27,7 @@ def test_la_dpp_spreads_a_crammed_set():
     assert len(set(idx2.tolist())) == 50 and idx2.max() < len(data)
 
 
+@pytest.mark.slow  # two 400-iteration WAE trainings (an experiment, §V-A)
 def test_la_dpp_imbalance_experiment_reconstructs_the_domain_better():
     """§V-A / Fig. 2: a 2-D uniform domain with half its points crammed into a small square. A WAE trained
     on random mini-batches spends its capacity on the square; with LA-DPP batches it reconstructs the

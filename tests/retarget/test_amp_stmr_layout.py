@@ -31,6 +31,7 @@ def stmr_file(tmp_path_factory):  # noqa: ANN201
     return path
 
 
+@pytest.mark.slow  # `studio export` processes; the layout in process: tests/retarget/test_motion_and_export.py
 @pytest.mark.parametrize("order, legs", [("isaac", ("FL", "FR", "RL", "RR")), ("pybullet", ("FR", "FL", "RR", "RL"))])
 def test_stmr_result_in_the_amp_loaders_61_value_layout(stmr_file, tmp_path, order, legs) -> None:  # noqa: ANN001
     from engine.retarget.motion import RobotMotion
@@ -75,6 +76,7 @@ def test_stmr_result_in_the_amp_loaders_61_value_layout(stmr_file, tmp_path, ord
     np.testing.assert_allclose(f[k, TVEL], (f[k + 1, TOES] - f[k, TOES]) / dt, atol=1e-3)
 
 
+@pytest.mark.slow  # its fixture is a TMR run
 def test_leg_order_needs_amp_full(stmr_file, tmp_path) -> None:  # noqa: ANN001
     res = run_studio("export", str(stmr_file), "--format", "amp-json", "--amp-leg-order", "isaac",
                      "--out", str(tmp_path / "x.json"), timeout=120)

@@ -37,6 +37,7 @@ def assert_one_line_error(code, err, *needles):
         assert n in lines[0], lines[0]
 
 
+@pytest.mark.slow  # import, retarget and export: three `studio` processes doing a whole run
 def test_import_retarget_export_happy_path(tmp_path):
     src = synthetic_trot("a1", frames=30)
     src.save(tmp_path / "src.npz")

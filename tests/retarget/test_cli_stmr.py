@@ -21,6 +21,7 @@ def source(tmp_path_factory):  # noqa: ANN201
     return folder / "trot.npz"
 
 
+@pytest.mark.slow  # a whole STMR retarget in a `studio retarget` process
 def test_stmr_json_has_smr_and_tmr_figures_and_writes_the_dynamic_motion(source, tmp_path) -> None:  # noqa: ANN001
     from engine.retarget.motion import RobotMotion
 
@@ -50,10 +51,11 @@ def test_stmr_json_has_smr_and_tmr_figures_and_writes_the_dynamic_motion(source,
 
 @pytest.mark.parametrize("extra, expected", [
     (["--alpha-bound", "2.5"], "--alpha-bound: expected a log2 α bound in (0, 2], got 2.5"),
-    (["--segments", "0"], "--segments: expected S ≥ 1, got 0"),
+    # each case is a `studio retarget` process: three in the slow tier (the Ray one starts a Ray client)
+    pytest.param(["--segments", "0"], "--segments: expected S ≥ 1, got 0", marks=pytest.mark.slow),
     (["--segments", "13"], "trot.npz: keypoints: expected a clip of at least two frames per segment"),
-    (["--address", "127.0.0.1:9"], "--address 127.0.0.1:9: no Ray head answers"),
-    (["--budget", "0"], "--budget: expected 1..1000 evaluations, got 0"),
+    pytest.param(["--address", "127.0.0.1:9"], "--address 127.0.0.1:9: no Ray head answers", marks=pytest.mark.slow),
+    pytest.param(["--budget", "0"], "--budget: expected 1..1000 evaluations, got 0", marks=pytest.mark.slow),
 ])
 def test_bad_stmr_options_exit_2_with_one_line(source, tmp_path, extra, expected) -> None:  # noqa: ANN001
     out_file = tmp_path / "o.npz"

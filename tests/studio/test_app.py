@@ -72,6 +72,7 @@ def test_a_broken_style_file_is_refused_with_one_line_and_nothing_is_lost(studio
     assert "\n" not in text and studio.session.style is before
 
 
+@pytest.mark.slow  # kills the engine process and waits for the new one (engine level: tests/test_engine.py)
 def test_edits_survive_an_engine_crash(studio):
     from dataclasses import replace
 
