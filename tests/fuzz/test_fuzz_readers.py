@@ -15,7 +15,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from engine.gait.command_schedule import CommandError, parse_command
@@ -254,6 +254,7 @@ def stubbed(monkeypatch, tmp_path):
 @FUZZ
 @given(sub=st.sampled_from(["plan", "walk", "check", "robots", "serve", "bench", "nosuch"]),
        args=st.lists(st.one_of(_flags, _tokens), max_size=8))
+@example(sub="check", args=["--", "--robot", "--robot"])  # two file arguments after "--": two lines, one each
 def test_cli_arguments(stubbed, capsys, sub, args):
     if sub == "bench":
         args = [a for a in args if not a.startswith("-")][:1] or ["nosuch"]  # never run a real benchmark
@@ -267,7 +268,9 @@ def test_cli_arguments(stubbed, capsys, sub, args):
     errors = [line for line in err.splitlines() if "error" in line]
     if rc == 2:
         lines = err.strip().splitlines()
-        files = [a for a in args if not a.startswith("-")] if sub == "check" else []
+        # check: the file arguments (after "--" every argument is a file, even one that starts with "-")
+        cut = args.index("--") if "--" in args else len(args)
+        files = ([a for a in args[:cut] if not a.startswith("-")] + args[cut + 1:]) if sub == "check" else []
         assert errors and len(lines) <= max(1, len(files)), err  # check: one line per bad file
         assert all(line.startswith("studio") and not line.endswith(": ") for line in lines), err
     written = [p for p in Path.cwd().iterdir() if p.name.startswith(".")]  # atomic writer's temporaries
