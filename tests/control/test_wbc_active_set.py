@@ -101,11 +101,15 @@ def _compare(qp: CentroidalQp, warm: tuple[np.ndarray, np.ndarray, int],
     x_ref, _, flag, info = daqp.solve(h, f, a, up, lo, sense)
     assert flag == 1
     index, upper, count = warm
-    x = np.empty(n)
+    x, qdd, rho = np.empty(n), np.empty(nv), np.empty(qp.rho_up.size)
     outcome, _, n_out = solve_centroidal_qp(
         qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up, torque.qdd,
-        torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, count, 500, x)
+        torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, count, 500, x, qdd, rho)
     assert outcome == QP_OPTIMAL
+    expected_rho = np.zeros(qp.rho_up.size)
+    expected_rho[rho_idx] = np.clip(x[nv:], 0.0, qp.rho_up[rho_idx])
+    np.testing.assert_array_equal(qdd, x[:nv])
+    np.testing.assert_array_equal(rho, expected_rho)
     # the same active inequalities, on the same sides (DAQP: non-zero multipliers; λ > 0 on an upper bound)
     lam = np.asarray(info["lam"])
     ref_active = {(int(i), bool(lam[i] > 0.0)) for i in np.flatnonzero(lam != 0.0) if not n <= i < n + 6}

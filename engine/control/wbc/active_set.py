@@ -117,8 +117,10 @@ def _map_row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, out):  #
 
 @njit(cache=True, nogil=True)
 def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, tau_qdd, tau_rho, tau_bias, tau_lo,
-                        tau_up, rho_idx, ws_index, ws_upper, n_warm, max_iter, x):  # noqa: ANN001, ANN201, PLR0912, PLR0915
+                        tau_up, rho_idx, ws_index, ws_upper, n_warm, max_iter, x, qdd, rho):  # noqa: ANN001, ANN201, PLR0912, PLR0915
     """Solve the QP over x = [q̈; ρ[rho_idx]] into ``x`` (n = nv + len(rho_idx)); see the module docstring.
+    On success also q̈ into ``qdd`` (nv) and every corner's ρ into ``rho`` (32: 0 off contact, the others
+    clipped into their bounds, as :class:`engine.control.wbc.qp.DaqpQpSolver` returns them).
 
     Constraints are numbered as in DAQP's form (:func:`engine.control.wbc.kernels.fill_daqp`): the n simple
     bounds (the base's six are free), the six centroidal equalities, the torque rows. ``ws_index[:n_warm]``
@@ -355,6 +357,17 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
     # ---- the working set's inequalities for the next solve
     n_out = 0
     if outcome == QP_OPTIMAL:
+        total = 0.0
+        for j in range(n):
+            total += x[j]
+        if not math.isfinite(total):
+            return QP_NOT_CONVEX, it, 0
+        for j in range(nv):
+            qdd[j] = x[j]
+        for j in range(rho.shape[0]):
+            rho[j] = 0.0
+        for j in range(n_r):
+            rho[rho_idx[j]] = min(max(x[nv + j], 0.0), rho_up[rho_idx[j]])
         for p in range(k):
             i = w_idx[p]
             if n <= i < n + 6:

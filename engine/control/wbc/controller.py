@@ -13,9 +13,11 @@ coefficient ``μ``. Tasks (:mod:`engine.control.wbc.tasks`): both feet (6-D pose
 when flat on the ground), pelvis height and orientation, horizontal CoM (PD on the CoM MPC's
 reference plus its acceleration), upper-body joints, angular-momentum damping.
 
-Solvers for the same QP, selected by ``qp_backend``. The default is DAQP (:class:`DaqpQpSolver`,
-a dense dual active set in C on preallocated arrays: fastest and equal to rounding in
-``studio bench qp``). :class:`DenseQpSolver` is the hand-written exact alternative
+Solvers for the same QP, selected by ``qp_backend``. The default is :class:`ActiveSetQpSolver`
+(``"active_set"``): DAQP's dual active-set steps and tolerances, compiled, on the QP's block structure
+(:mod:`engine.control.wbc.active_set`; the same active set as DAQP, and closer to the exact optimum);
+it falls back to DAQP (:class:`DaqpQpSolver`, ``"daqp"``, a dense dual active set in C on preallocated
+arrays), then OSQP. :class:`DenseQpSolver` is the hand-written exact alternative
 (``"dense"``): q̈ is eliminated in closed form, leaving a ≤32-variable box QP in ρ solved by a
 warm-started primal active set. :class:`OsqpQpSolver` keeps a fixed sparsity pattern and only
 updates values each tick (``Px, Ax, q, l, u``, warm start); it is the fallback of both and the
@@ -68,7 +70,8 @@ FloatArray = NDArray[np.float64]
 class TaskSpaceInverseDynamics:
     """The paper's whole-body QP (Eqs. 15–25) for a biped with two rectangular soles.
 
-    ``qp_backend``: ``"daqp"`` (default: fastest in ``studio bench qp``), ``"dense"`` (the
+    ``qp_backend``: ``"active_set"`` (default: the compiled dual active set, DAQP then OSQP when it fails),
+    ``"daqp"``, ``"dense"`` (the
     hand-written exact active set), ``"osqp"`` (fixed sparsity pattern, warm started; the others'
     fallback) or ``"proxsuite"`` / ``"quadprog"`` (:mod:`engine.control.qp_backends`).
 

@@ -509,23 +509,23 @@ class ActiveSetQpSolver:
             size = n + 6 + self.n_tau
             warm = self._warm[rho_idx.size] = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.bool_), [0])
         index, upper, count = warm
-        x = np.empty(n)
+        x, qdd, rho = np.empty(n), np.empty(self.nv), np.empty(self.n_rho)
         outcome, iterations, n_out = solve_centroidal_qp(
             qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up, torque.qdd,
-            torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, count[0], self.max_iter, x)
+            torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, count[0], self.max_iter, x, qdd, rho)
         if outcome != QP_OPTIMAL and count[0] > 0:  # the warm working set did not work: once more, cold
             outcome, more, n_out = solve_centroidal_qp(
                 qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up,
-                torque.qdd, torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, 0, self.max_iter, x)
+                torque.qdd, torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, 0, self.max_iter, x,
+                qdd, rho)
             iterations += more
         count[0] = n_out
-        self.iterations = int(iterations)
-        self.status = f"active set outcome {outcome}"
-        if outcome != QP_OPTIMAL or not math.isfinite(float(x.sum())):
+        self.iterations = iterations
+        if outcome != QP_OPTIMAL:  # (a non-finite solution counts as not convex)
+            self.status = f"active set outcome {outcome}"
             return None
-        rho = np.zeros(self.n_rho)
-        rho[rho_idx] = np.minimum(np.maximum(x[self.nv:], 0.0), qp.rho_up[rho_idx])
-        return x[:self.nv].copy(), rho
+        self.status = "active set optimal"
+        return qdd, rho
 
 
 class _DaqpWorkspace:
