@@ -13,9 +13,11 @@ coefficient ``μ``. Tasks (:mod:`engine.control.wbc.tasks`): both feet (6-D pose
 when flat on the ground), pelvis height and orientation, horizontal CoM (PD on the CoM MPC's
 reference plus its acceleration), upper-body joints, angular-momentum damping.
 
-Solvers for the same QP, selected by ``qp_backend``. The default is DAQP (:class:`DaqpQpSolver`,
-a dense dual active set in C on preallocated arrays: fastest and equal to rounding in
-``studio bench qp``). :class:`DenseQpSolver` is the hand-written exact alternative
+Solvers for the same QP, selected by ``qp_backend``. The default is :class:`ActiveSetQpSolver`
+(``"active_set"``): DAQP's dual active-set steps and tolerances, compiled, on the QP's block structure
+(:mod:`engine.control.wbc.active_set`; the same active set as DAQP, and closer to the exact optimum);
+it falls back to DAQP (:class:`DaqpQpSolver`, ``"daqp"``, a dense dual active set in C on preallocated
+arrays), then OSQP. :class:`DenseQpSolver` is the hand-written exact alternative
 (``"dense"``): q̈ is eliminated in closed form, leaving a ≤32-variable box QP in ρ solved by a
 warm-started primal active set. :class:`OsqpQpSolver` keeps a fixed sparsity pattern and only
 updates values each tick (``Px, Ax, q, l, u``, warm start); it is the fallback of both and the
@@ -51,7 +53,7 @@ from engine.control.wbc.tasks import (
     PelvisTask,
 )
 from engine.robot.model import RobotModel
-from engine.control.wbc.qp import CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
+from engine.control.wbc.qp import ActiveSetQpSolver, CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
 from engine.control.wbc import kernels as _kernels
@@ -68,7 +70,8 @@ FloatArray = NDArray[np.float64]
 class TaskSpaceInverseDynamics:
     """The paper's whole-body QP (Eqs. 15–25) for a biped with two rectangular soles.
 
-    ``qp_backend``: ``"daqp"`` (default: fastest in ``studio bench qp``), ``"dense"`` (the
+    ``qp_backend``: ``"active_set"`` (default: the compiled dual active set, DAQP then OSQP when it fails),
+    ``"daqp"``, ``"dense"`` (the
     hand-written exact active set), ``"osqp"`` (fixed sparsity pattern, warm started; the others'
     fallback) or ``"proxsuite"`` / ``"quadprog"`` (:mod:`engine.control.qp_backends`).
 
@@ -81,10 +84,10 @@ class TaskSpaceInverseDynamics:
 
     def __init__(self, robot: RobotModel, gains: WbcGains | None = None,
                  upper_body_joints: Sequence[str] | None = None, dt_s: float = CONTROL_PERIOD_S,
-                 qp_backend: str = "daqp", kernels: str = "numba"):
+                 qp_backend: str = "active_set", kernels: str = "numba"):
         if set(robot.config.soles) != set(SIDES):
             raise ValueError(f"{robot.name}: the inverse dynamics needs left and right soles")
-        choices = ("dense", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
+        choices = ("active_set", "dense", "osqp", *(b for b in qp_backends.BACKENDS if b != "osqp"))
         if qp_backend not in choices:
             raise ValueError(f"qp_backend: expected one of {', '.join(choices)}, got {qp_backend!r}")
         if kernels not in KERNELS:
@@ -175,6 +178,7 @@ class TaskSpaceInverseDynamics:
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
         self.osqp_solver = OsqpQpSolver(self.nv, self.n_rho)
         self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints, compiled=kernels == "numba")
+        self.active_set_solver = ActiveSetQpSolver(self.nv, self.n_rho, self.n_joints)
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
         self.last_tau = np.zeros(self.n_joints)
@@ -241,7 +245,7 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
         cmd = self._setpoints(state, qdd, tau)
         self.last_tau = tau
-        status = "solved" if backend in ("dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
+        status = "solved" if backend in ("active_set", "dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
         self.diagnostics = WbcDiagnostics(
             status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
             pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
@@ -253,7 +257,14 @@ class TaskSpaceInverseDynamics:
         None, the backend that solved it, its iterations and its status message."""
         solution: tuple[FloatArray, FloatArray] | None = None
         backend, iterations, message = self.qp_backend, 0, ""
-        if self.qp_backend == "daqp":
+        if self.qp_backend == "active_set":
+            solution = self.active_set_solver.solve(qp)
+            iterations, message = self.active_set_solver.iterations, self.active_set_solver.status
+            if solution is None:  # a singular working set or the iteration cap: DAQP, then OSQP
+                backend = "daqp"
+                solution = self.daqp_solver.solve(qp)
+                iterations, message = iterations + self.daqp_solver.iterations, self.daqp_solver.status
+        elif self.qp_backend == "daqp":
             solution = self.daqp_solver.solve(qp)
             iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
         elif self.qp_backend == "dense":
@@ -312,7 +323,7 @@ class TaskSpaceInverseDynamics:
             self.q_des, self.qd_des = q_des, qd_des
             cmd = JointCommand(q_des.copy(), qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
         self.last_tau = tau
-        status = "solved" if backend in ("dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
+        status = "solved" if backend in ("active_set", "dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
         self.diagnostics = WbcDiagnostics(
             status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
             pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
 
 from engine.control.qp_backends import QpProblem
+from engine.control.wbc.active_set import QP_OPTIMAL, solve_centroidal_qp
 from engine.control.wbc.kernels import fill_daqp
 
 FloatArray = NDArray[np.float64]
@@ -475,6 +476,56 @@ class DaqpQpSolver:
             ws.set_up = False  # start the next solve of this size cold
             return None
         return np.asarray(x)
+
+
+class ActiveSetQpSolver:
+    """:class:`CentroidalQp` by the compiled, structure-aware dual active set of
+    :mod:`engine.control.wbc.active_set` (DAQP's steps and tolerances without its per-tick refactorisation of
+    the whole Hessian), over the ρ of the corners in contact only, warm-started from the previous solve's
+    working set of the same size. Returns None when it does not settle (a singular working set, the
+    iteration cap): the caller then runs DAQP."""
+
+    def __init__(self, nv: int, n_rho: int, n_tau: int, max_iter: int = 500):
+        self.nv, self.n_rho, self.n_tau = nv, n_rho, n_tau
+        self.max_iter = max_iter
+        self._rho_idx_cache: tuple[bytes, NDArray[np.int64]] = (b"", np.arange(n_rho))
+        # one warm working set per number of ρ in the QP: (constraint indices, upper side, count)
+        self._warm: dict[int, tuple[NDArray[np.int64], NDArray[np.bool_], list[int]]] = {}
+        self.status = ""
+        self.iterations = 0
+
+    def solve(self, qp: CentroidalQp) -> tuple[FloatArray, FloatArray] | None:
+        torque = qp.torque_rows()
+        if torque is None:
+            self.status = "active set: the QP has no torque rows"
+            return None
+        key = (qp.rho_up > 0.0).tobytes()
+        if key != self._rho_idx_cache[0]:
+            self._rho_idx_cache = (key, np.flatnonzero(qp.rho_up > 0.0).astype(np.int64))
+        rho_idx = self._rho_idx_cache[1]
+        n = self.nv + rho_idx.size
+        warm = self._warm.get(rho_idx.size)
+        if warm is None:
+            size = n + 6 + self.n_tau
+            warm = self._warm[rho_idx.size] = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.bool_), [0])
+        index, upper, count = warm
+        x, qdd, rho = np.empty(n), np.empty(self.nv), np.empty(self.n_rho)
+        outcome, iterations, n_out = solve_centroidal_qp(
+            qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up, torque.qdd,
+            torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, count[0], self.max_iter, x, qdd, rho)
+        if outcome != QP_OPTIMAL and count[0] > 0:  # the warm working set did not work: once more, cold
+            outcome, more, n_out = solve_centroidal_qp(
+                qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up,
+                torque.qdd, torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, 0, self.max_iter, x,
+                qdd, rho)
+            iterations += more
+        count[0] = n_out
+        self.iterations = iterations
+        if outcome != QP_OPTIMAL:  # (a non-finite solution counts as not convex)
+            self.status = f"active set outcome {outcome}"
+            return None
+        self.status = "active set optimal"
+        return qdd, rho
 
 
 class _DaqpWorkspace:

@@ -145,7 +145,7 @@ class WbcDiagnostics:
 
     status: str  # "solved", "solved_inaccurate" or "fallback_<reason>"
     message: str = ""
-    backend: str = ""  # "dense", "osqp" or "placo"
+    backend: str = ""  # "active_set", "daqp", "dense", "osqp" or "placo"
     qdd: FloatArray | None = None  # (nv,)
     rho: FloatArray | None = None  # (32,) friction-basis weights
     tau_nm: FloatArray | None = None  # (n_joints,) Eq. 15
