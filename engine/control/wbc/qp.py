@@ -495,8 +495,9 @@ class ActiveSetQpSolver:
         self.iterations = 0
 
     def solve(self, qp: CentroidalQp) -> tuple[FloatArray, FloatArray] | None:
-        torque = qp.torque_rows()
-        if torque is None:
+        # the tau_* fields read directly (no TorqueRows per tick); they are set together
+        tau_qdd, tau_rho, tau_bias, tau_lo, tau_up = qp.tau_qdd, qp.tau_rho, qp.tau_bias, qp.tau_lo, qp.tau_up
+        if tau_qdd is None or tau_rho is None or tau_bias is None or tau_lo is None or tau_up is None:
             self.status = "active set: the QP has no torque rows"
             return None
         key = (qp.rho_up > 0.0).tobytes()
@@ -511,13 +512,12 @@ class ActiveSetQpSolver:
         index, upper, count = warm
         x, qdd, rho = np.empty(n), np.empty(self.nv), np.empty(self.n_rho)
         outcome, iterations, n_out = solve_centroidal_qp(
-            qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up, torque.qdd,
-            torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, count[0], self.max_iter, x, qdd, rho)
+            qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up, tau_qdd,
+            tau_rho, tau_bias, tau_lo, tau_up, rho_idx, index, upper, count[0], self.max_iter, x, qdd, rho)
         if outcome != QP_OPTIMAL and count[0] > 0:  # the warm working set did not work: once more, cold
             outcome, more, n_out = solve_centroidal_qp(
                 qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up,
-                torque.qdd, torque.rho, torque.bias, torque.lo, torque.up, rho_idx, index, upper, 0, self.max_iter, x,
-                qdd, rho)
+                tau_qdd, tau_rho, tau_bias, tau_lo, tau_up, rho_idx, index, upper, 0, self.max_iter, x, qdd, rho)
             iterations += more
         count[0] = n_out
         self.iterations = iterations
