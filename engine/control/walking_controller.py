@@ -252,7 +252,8 @@ class WalkingController:
         command = np.array([filtered[0] + adjust_x, filtered[1] + adjust_y, filtered[2]])
         goal = np.array([target[0] + adjust_x, target[1] + adjust_y, target[2]])
         contact_before = self.ref.contact.copy() if self.ref is not None else np.ones(2, dtype=bool)
-        fb = self._reachable_steps(fb)
+        # The plan's CoM now and the CoM state just read serve _reachable_steps too (nothing moved them since).
+        fb = self._reachable_steps(fb, (ref_pos, ref_vel, com, com_vel) if self.plan is not None else None)
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
             time_scaling=fb.kappa, step_adjustment_xy_m=fb.step_adjust_m, command_goal=goal,
             command_rate_limits=self._command_accel_limits))
@@ -330,7 +331,8 @@ class WalkingController:
         self._last_com, self._last_fb = com, fb
         self._telemetry_stale = True
 
-    def _reachable_steps(self, fb: FeedbackOutput) -> FeedbackOutput:
+    def _reachable_steps(self, fb: FeedbackOutput,
+                         now: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None) -> FeedbackOutput:
         """Keep the swing foot's target where the CoM can still be balanced over it.
 
         With the divergent component of motion ξ = x + ẋ/ω that the CoM plan predicts at
@@ -339,6 +341,8 @@ class WalkingController:
         more than the CoP reaches forward (to the toe the ankles can hold) cannot stop it;
         sideways, a foot whose outer edge lies inside ξ cannot bring it back toward the other
         foot. The target is kept within those bounds; the difference joins the step adjustment.
+        ``now``: the plan's CoM position and velocity at ``planner.t_s`` and the CoM state of this tick
+        (position, velocity), when the caller has them already (else computed here).
         """
         # On floats (x, y): the same IEEE operations as the 2-vector numpy expressions it replaced (a 2-vector dot
         # is x0·y0 + x1·y1, unfused); tests/control/test_stack_speed_references.py keeps that version.
@@ -352,8 +356,11 @@ class WalkingController:
         c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)  # forward (c, s_), left (−s_, c)
         # Where the robot is off the plan, its ξ runs away from the plan's as e^{ωt} under the
         # same CoP (the whole-body controller's corrections slow that: the growth is capped).
-        pos_now, vel_now, _ = plan.com_at(planner.t_s)
-        com, com_vel = self._com_state()
+        if now is None:
+            pos_now, vel_now, _ = plan.com_at(planner.t_s)
+            com, com_vel = self._com_state()
+        else:
+            pos_now, vel_now, com, com_vel = now
         (cx, cy), (vx, vy) = com.tolist(), com_vel.tolist()
         (px, py), (wx, wy) = pos_now.tolist(), vel_now.tolist()
         ex, ey = (cx + vx / omega) - (px + wx / omega), (cy + vy / omega) - (py + wy / omega)

@@ -48,8 +48,13 @@ class Foothold:
 
 def stance_offset(side: str, width_m: float, splay_rad: float, x_bias_m: float) -> np.ndarray:
     """p_stance of Eq. 4 (Fig. 7): the foot's planar pose in the path frame at zero velocity."""
+    return np.array(stance_offset_xy_yaw(side, width_m, splay_rad, x_bias_m))
+
+
+def stance_offset_xy_yaw(side: str, width_m: float, splay_rad: float, x_bias_m: float) -> tuple[float, float, float]:
+    """:func:`stance_offset` as floats (x, y, yaw)."""
     sign = 1.0 if side == "left" else -1.0
-    return np.array([sign * 0.5 * x_bias_m, sign * 0.5 * width_m, sign * 0.5 * splay_rad])
+    return sign * 0.5 * x_bias_m, sign * 0.5 * width_m, sign * 0.5 * splay_rad
 
 
 def foothold_from_path(path_pose: np.ndarray | Sequence[float], stance: np.ndarray | Sequence[float]) -> Foothold:

@@ -51,6 +51,21 @@ def _pchip_slope(d_prev: float, d_next: float, h_prev: float, h_next: float) -> 
     return (w1 + w2) / (w1 / d_prev + w2 / d_next)
 
 
+#: Phase steps between the waypoints, their squares and :func:`_pchip_slope`'s weights (w1 + w2, w1, w2) of the
+#: slope at each waypoint 0..3 (its neighbouring steps; cyclic at waypoint 0): constants of every phase map.
+_STEPS: tuple[float, ...] = tuple(PHASE_WAYPOINTS[i + 1] - PHASE_WAYPOINTS[i] for i in range(4))
+_STEP_SQUARES: tuple[float, ...] = tuple(h * h for h in _STEPS)
+
+
+def _slope_weights(h_prev: float, h_next: float) -> tuple[float, float, float]:
+    w1 = 2.0 * h_next + h_prev
+    w2 = h_next + 2.0 * h_prev
+    return w1 + w2, w1, w2
+
+
+_SLOPE_WEIGHTS: tuple[tuple[float, float, float], ...] = tuple(_slope_weights(_STEPS[i - 1], _STEPS[i]) for i in range(4))
+
+
 class PhaseMap:
     """Monotone cubic phase map of one two-step walk cycle.
 
@@ -75,7 +90,7 @@ class PhaseMap:
 
     def __init__(self, t_ltd_s: float, t_rlo_s: float, t_rtd_s: float, cycle_s: float) -> None:
         ev = (float(t_ltd_s), float(t_rlo_s), float(t_rtd_s), float(cycle_s))
-        if not all(math.isfinite(x) for x in ev):
+        if not (math.isfinite(ev[0]) and math.isfinite(ev[1]) and math.isfinite(ev[2]) and math.isfinite(ev[3])):
             raise ValueError(f"event times must be finite, got {ev!r}")
         if not (0.0 < ev[0] < ev[1] < ev[2] < ev[3]):
             raise ValueError(
@@ -86,12 +101,12 @@ class PhaseMap:
         self._cycle_s = ev[3]
         phi = list(PHASE_WAYPOINTS)
         times = [0.0, ev[0], ev[1], ev[2], ev[3]]
-        hs = [phi[i + 1] - phi[i] for i in range(4)]
+        hs = _STEPS
         ds = [(times[i + 1] - times[i]) / hs[i] for i in range(4)]
-        slopes = [0.0] * 5
-        for i in range(1, 4):
-            slopes[i] = _pchip_slope(ds[i - 1], ds[i], hs[i - 1], hs[i])
-        slopes[0] = slopes[4] = _pchip_slope(ds[3], ds[0], hs[3], hs[0])  # cyclic ends
+        # _pchip_slope(ds[i − 1], ds[i], hs[i − 1], hs[i]) with its weights precomputed (the phase steps are
+        # constants); ds[−1] is ds[3]: the cyclic ends
+        slopes = [w_sum / (w1 / ds[i - 1] + w2 / ds[i]) for i, (w_sum, w1, w2) in enumerate(_SLOPE_WEIGHTS)]
+        slopes.append(slopes[0])
         self._phi = phi
         self._times = times
         self._slopes = slopes
@@ -99,7 +114,7 @@ class PhaseMap:
         for i in range(4):
             h, d, m0, m1 = hs[i], ds[i], slopes[i], slopes[i + 1]
             c2 = (3.0 * d - 2.0 * m0 - m1) / h
-            c3 = (m0 + m1 - 2.0 * d) / (h * h)
+            c3 = (m0 + m1 - 2.0 * d) / _STEP_SQUARES[i]
             seg.append((phi[i], times[i], m0, c2, c3, h, times[i + 1]))
         self._seg = seg
         self._t_list = times[:4]

@@ -30,6 +30,7 @@ from engine.gait.footsteps import (
     foothold_from_path,
     project_to_safe_region,
     stance_offset,
+    stance_offset_xy_yaw,
 )
 from engine.gait.heel_toe import foot_rig, stance_pitch
 from engine.gait.path_frame import PathFrame, predict_xy_yaw
@@ -262,7 +263,10 @@ class GaitPlanner:
         """:meth:`stance` of the current blend as floats, kept while the blend is."""
         cached = self._stances
         if cached is None or cached[0] is not self.blend:
-            cached = self._stances = (self.blend, {s: tuple(self.stance(s).tolist()) for s in SIDES})
+            b = self.blend
+            width, splay, x_bias = (b.attribute("stance_width_m"), b.attribute("stance_splay_rad"),
+                                    b.attribute("stance_x_bias_m"))
+            cached = self._stances = (b, {s: stance_offset_xy_yaw(s, width, splay, x_bias) for s in SIDES})
         return cached[1][side]
 
     @staticmethod
