@@ -439,13 +439,15 @@ class WalkingController:
         return cop + (chi - cop) * math.exp(omega * t_td)
 
     def _feet_feedforward(self, ref: GaitReference) -> None:
-        """Swing-foot acceleration feed-forward from consecutive reference rates."""
+        """Swing-foot acceleration feed-forward from consecutive reference rates, limited per axis to
+        ``swing_feedforward_limit_mps2`` (a moved swing target must not become an acceleration spike)."""
         prev = self.ref
         if prev is None:
             self._foot_acc = np.zeros((2, 3))
             self._foot_ang_acc = np.zeros((2, 3))
             return
-        self._foot_acc = (ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S
+        limit = self.params.swing_feedforward_limit_mps2
+        self._foot_acc = np.clip((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit, limit)
         self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
         for i, in_contact in enumerate(ref.contact.tolist()):
             if in_contact:

@@ -68,6 +68,14 @@ class WalkingParameters:
     # Restart the MPC when ξ leaves the double support polygon (off: a 50 N side push while
     # walking at 0.15 m/s fell with it, recorded).
     restart_when_thrown: bool = False
+    # Per axis, the swing feet's feed-forward acceleration (the difference of consecutive reference rates)
+    # is limited to this. A step adjustment moves a swing target mid-swing, and the twice-differenced jump
+    # (a few mm over 8 ms planner ticks) gave accelerations of 100+ m/s² whose reaction moved the CoM velocity,
+    # hence the next adjustment: G1 casual stopping in the sweep ran into a period-2 limit cycle, ±230 N
+    # sideways at the stance foot, 2.17 mm stance slip. The nominal swings' own accelerations (≤ 35 m/s²
+    # on G1) stay below it, and so do a capture step's after a push (40 made a 1.5 N/kg push from the left
+    # on standing G1 carry it 0.74 m instead of 0.25 m). README "Swing feed-forward limit".
+    swing_feedforward_limit_mps2: float = 80.0
     # A descending swing foot this low may touch down early, and its corners this close to the floor carry load.
     landing_height_m: float = 0.01
     touchdown_height_m: float = 0.001
