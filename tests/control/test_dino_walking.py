@@ -39,10 +39,13 @@ def test_dino_survives_the_papers_push_while_walking_slowly():
     during = (t > 4.0) & (t < 5.5)
     # Each mechanism leaves what it does in the same walk without the push (measured over 4–5.5 s:
     # κ 0.987–1.021, no step or velocity adjustment). Pushed, measured: κ up to 1.078 (down to 0.89
-    # after), step adjustment 4.1 cm, velocity adjustment 0.039 m/s.
+    # after), step adjustment 3.7 cm, velocity adjustment 0.0066 m/s. (0.039 m/s before the swing
+    # feed-forward limit, when the swing's acceleration spikes threw the CoM further: stance slip 4.1 mm
+    # in this walk then, 0.29 mm now.)
     assert rec["kappa"][during].max() > 1.05
     assert np.linalg.norm(rec["step_adjust"][during], axis=1).max() > 0.03
-    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.02
+    assert np.linalg.norm(rec["velocity_adjust"][during], axis=1).max() > 0.005
+    assert summary["max_stance_slip_mm"] < 1.0
 
 
 @pytest.mark.parametrize("fy_n", [25.0, -25.0], ids=["from-the-right", "from-the-left"])
