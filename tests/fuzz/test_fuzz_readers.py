@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -251,10 +252,16 @@ def stubbed(monkeypatch, tmp_path):
     return calls
 
 
+def _positional(arg: str) -> bool:
+    """Whether argparse takes ``arg`` for a positional argument (no option of the CLI looks like a number)."""
+    return arg == "-" or not arg.startswith("-") or re.fullmatch(r"-\d+$|-\d*\.\d+$", arg) is not None
+
+
 @FUZZ
 @given(sub=st.sampled_from(["plan", "walk", "check", "robots", "serve", "bench", "nosuch"]),
        args=st.lists(st.one_of(_flags, _tokens), max_size=8))
 @example(sub="check", args=["--", "--robot", "--robot"])  # two file arguments after "--": two lines, one each
+@example(sub="check", args=["g1", "-"])  # "-" is a file argument too
 def test_cli_arguments(stubbed, capsys, sub, args):
     if sub == "bench":
         args = [a for a in args if not a.startswith("-")][:1] or ["nosuch"]  # never run a real benchmark
@@ -268,9 +275,10 @@ def test_cli_arguments(stubbed, capsys, sub, args):
     errors = [line for line in err.splitlines() if "error" in line]
     if rc == 2:
         lines = err.strip().splitlines()
-        # check: the file arguments (after "--" every argument is a file, even one that starts with "-")
+        # check: the file arguments, as argparse sees them: "-", negative numbers and whatever does not start
+        # with "-", and after "--" every argument
         cut = args.index("--") if "--" in args else len(args)
-        files = ([a for a in args[:cut] if not a.startswith("-")] + args[cut + 1:]) if sub == "check" else []
+        files = ([a for a in args[:cut] if _positional(a)] + args[cut + 1:]) if sub == "check" else []
         assert errors and len(lines) <= max(1, len(files)), err  # check: one line per bad file
         assert all(line.startswith("studio") and not line.endswith(": ") for line in lines), err
     written = [p for p in Path.cwd().iterdir() if p.name.startswith(".")]  # atomic writer's temporaries
