@@ -80,6 +80,21 @@ def _backward(low, rhs, out, lo, hi):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True)
+def _gram_solve(chol, x, k):  # noqa: ANN001, ANN202
+    """x[:k] ← G⁻¹ x[:k] in place, G = L Lᵀ with L = chol[:k, :k] (forward, then backward substitution)."""
+    for i in range(k):
+        acc = x[i]
+        for p in range(i):
+            acc -= chol[i, p] * x[p]
+        x[i] = acc / chol[i, i]
+    for i in range(k - 1, -1, -1):
+        acc = x[i]
+        for p in range(i + 1, k):
+            acc -= chol[p, i] * x[p]
+        x[i] = acc / chol[i, i]
+
+
+@njit(cache=True, nogil=True)
 def _row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, out):  # noqa: ANN001, ANN202
     """Constraint ``i``'s row aᵢ over x: a unit vector (bounds, i < n), a centroidal row [A_h, −G] (the next
     six) or a torque row [M_j, T] (the rest). Returns the index of its first non-zero entry."""
@@ -233,15 +248,8 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
         if outcome == QP_SINGULAR:
             break
         for i in range(k):
-            acc = -d_hat[i]
-            for p in range(i):
-                acc -= chol[i, p] * lam_star[p]
-            lam_star[i] = acc / chol[i, i]
-        for i in range(k - 1, -1, -1):
-            acc = lam_star[i]
-            for p in range(i + 1, k):
-                acc -= chol[p, i] * lam_star[p]
-            lam_star[i] = acc / chol[i, i]
+            lam_star[i] = -d_hat[i]
+        _gram_solve(chol, lam_star, k)
         # ---- a multiplier of the wrong sign: step towards λ* until the first reaches zero, drop that row
         alpha, block = math.inf, -1
         for p in range(k):
@@ -317,15 +325,8 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
                     acc -= m_hat[p, j] * u[j]
                 lam_star[p] = acc  # the residual r
             for i in range(k):  # G δ = −r
-                acc = -lam_star[i]
-                for p in range(i):
-                    acc -= chol[i, p] * lam_star[p]
-                lam_star[i] = acc / chol[i, i]
-            for i in range(k - 1, -1, -1):
-                acc = lam_star[i]
-                for p in range(i + 1, k):
-                    acc -= chol[p, i] * lam_star[p]
-                lam_star[i] = acc / chol[i, i]
+                lam_star[i] = -lam_star[i]
+            _gram_solve(chol, lam_star, k)
             for p in range(k):
                 dp = lam_star[p]
                 for j in range(n):
