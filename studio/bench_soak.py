@@ -10,8 +10,8 @@ each edit is validated, autosaved and sent to the engine).
 
 Reported: RSS of the studio and of the engine at the end of warm-up and at the end (growth in %),
 WebSocket messages and bytes per second per client, frames per second each browser tab drew, frames per second the studio received from the
-engine and how many of them it drew (its stream rate, :mod:`studio.stream_rate`), sim-clock drift against the wall clock (Δsim/Δwall − 1 over the measured window, playback speed
-1), engine restarts, and every exception seen (logging records with a traceback, thread exceptions,
+engine and how many of them it drew (its stream rate, :mod:`studio.stream_rate`), sim-clock drift against the wall clock (time simulated ÷ Δwall − 1 over the measured window, playback speed
+1; a reset of the sim clock — a fall — is counted apart, see :func:`sim_clock`), falls, engine restarts, and every exception seen (logging records with a traceback, thread exceptions,
 error notices).
 """
 
@@ -26,6 +26,31 @@ import time
 import traceback
 from pathlib import Path
 from typing import Any
+
+
+def sim_clock(window: list[tuple[float, float]]) -> dict[str, float | int]:
+    """The sim clock against the wall clock over frames ``(wall s, sim s)`` in arrival order.
+
+    A reset (a fall, a mode switch) sets the sim clock back: the time simulated is the sum of the
+    forward steps, so a reset counts as a reset, not as lost time. ``drift`` = simulated ÷ wall − 1
+    (playback speed 1); ``longest_stall_s``: the longest wall time between two frames whose sim time
+    did not move forward (a paused or starved engine)."""
+    if len(window) < 2:
+        return {"drift": float("nan"), "simulated_s": 0.0, "wall_s": 0.0, "resets": 0, "longest_stall_s": 0.0}
+    simulated_s, resets, stall_s, longest_stall_s = 0.0, 0, 0.0, 0.0
+    for (w_a, s_a), (w_b, s_b) in zip(window, window[1:]):
+        if s_b < s_a - 1e-9:
+            resets += 1
+            stall_s = 0.0
+        elif s_b > s_a + 1e-9:
+            simulated_s += s_b - s_a
+            stall_s = 0.0
+        else:
+            stall_s += w_b - w_a
+            longest_stall_s = max(longest_stall_s, stall_s)
+    wall_s = window[-1][0] - window[0][0]
+    return {"drift": simulated_s / wall_s - 1.0 if wall_s > 0 else float("nan"), "simulated_s": simulated_s,
+            "wall_s": wall_s, "resets": resets, "longest_stall_s": longest_stall_s}
 
 
 def _rss_mb(pid: int | None) -> float:
@@ -529,6 +554,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 rss_timeline.append((now, _rss_mb(os.getpid()), _rss_mb(studio.link.pid)))
                 next_rss = now + 15.0
             time.sleep(0.1)
+        frame_end = len(frames)  # the measured window ends here (not after the tabs have closed)
         for b in browsers:  # each tab's last frame count
             b.finish.set()
         for b in browsers:
@@ -537,9 +563,11 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
         cpu1, engine_cpu1, cpu_t1 = _thread_cpu_s(), _process_cpu_s(studio.link.pid), time.monotonic()
         machine1 = _machine_busy_s()
         tabs_cpu1 = _tabs_cpu_s(tab_pids) if marked else {}
-        window = frames[frame_mark:] if marked else frames
+        window = frames[frame_mark:frame_end] if marked else frames[:frame_end]
         (w0, s0), (w1, s1) = window[0], window[-1]
-        drift = (s1 - s0) / (w1 - w0) - 1.0
+        clock = sim_clock(window)
+        drift, simulated_s = float(clock["drift"]), float(clock["simulated_s"])
+        fall_notices = sum(1 for level, t in studio.notices if " fell at t = " in t)
         reports = pool.report() if pool is not None else []
         rates = [tuple(r["rates"]) for r in reports]
         pool_cpu = _process_cpu_s(pool.pid) - pool_cpu0 if pool is not None and marked else 0.0
@@ -555,6 +583,8 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
             # the second half of the measured window alone: a leak keeps climbing there, a one-time step does not
             **_second_half_growth(rss_timeline + [(time.monotonic(), *rss1)], studio.link.pid == engine_pid0),
             "engine_frames_per_s": round((len(window) - 1) / (w1 - w0), 1), "sim_clock_drift_pct": round(100 * drift, 2),
+            "sim_clock_resets": clock["resets"], "longest_sim_stall_s": round(float(clock["longest_stall_s"]), 2),
+            "falls": fall_notices,
             "studio_drawn_frames_per_s": round((studio.frame_rate.admitted - drawn0) / (w1 - w0), 1) if marked else "-",
             "studio_stream_rate_hz": (f"{min(rates_hz):.0f}–{max(rates_hz):.0f}" if marked and rates_hz else "-"),
             "pushes": pushes, "edits": edits, "engine_restarts": studio.link.restarts - restarts0,
@@ -582,7 +612,7 @@ def bench_soak(minutes: float = 1.0, clients: int = 4, tabs: int = 2, robot: str
                 used = engine_cpu1 - engine_cpu0
                 rows.append({"section": "soak cpu", "what": "engine process", "cpu_ms_per_frame": round(1e3 * used / n_frames, 2),
                              "cpu_pct_of_core": round(100 * used / span_s, 1),  # and what real time needs:
-                             "core_s_per_sim_s": round(used / (s1 - s0), 2) if s1 > s0 else "-"})
+                             "core_s_per_sim_s": round(used / simulated_s, 2) if simulated_s > 0 else "-"})
             tabs_used = sum(tabs_cpu1.get(p, c0) - c0 for p, c0 in tabs_cpu0.items())
             if browsers:
                 rows.append({"section": "soak cpu", "what": f"browser tabs (thread nice ≥ {tab_nice_seen})",

@@ -56,3 +56,24 @@ def test_headless_clients_run_in_their_own_process():
         pool.stop()
         server.stop()
     assert pool.proc.returncode == 0
+
+
+def test_sim_clock_counts_a_reset_apart_from_the_time_simulated():
+    """A fall resets the sim clock to 0: the drift is what was simulated over the wall time, the reset is
+    counted apart (a first-and-last-frame difference read it as −90 % drift), and a stall is measured."""
+    from studio.bench_soak import sim_clock
+
+    real_time = [(0.1 * k, 30.0 + 0.1 * k) for k in range(101)]  # 10 s at real time
+    assert sim_clock(real_time)["resets"] == 0
+    assert sim_clock(real_time)["drift"] == pytest.approx(0.0, abs=1e-9)
+    fell = [(0.1 * k, 30.0 + 0.1 * k) for k in range(60)] + [(0.1 * k, 0.1 * (k - 60)) for k in range(60, 101)]
+    clock = sim_clock(fell)
+    assert clock["resets"] == 1
+    assert clock["simulated_s"] == pytest.approx(9.9)  # the step back to 0 is not counted as time
+    assert clock["drift"] == pytest.approx(-0.01, abs=1e-9)
+    stalled = real_time[:50] + [(5.0 + 0.1 * k, real_time[49][1]) for k in range(1, 21)] + [
+        (7.0 + 0.1 * k, real_time[49][1] + 0.1 * k) for k in range(1, 31)]
+    clock = sim_clock(stalled)
+    assert clock["longest_stall_s"] == pytest.approx(2.1)  # frames from 4.9 s to 7.0 s all show the same sim time
+    assert clock["resets"] == 0 and clock["drift"] == pytest.approx((4.9 + 3.0) / 10.0 - 1.0)
+    assert math.isnan(sim_clock(real_time[:1])["drift"])
