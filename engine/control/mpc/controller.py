@@ -237,7 +237,11 @@ class ComMpc:
         t_start: float,
     ) -> ComMpcSolution:
         if self.solver == "active_set" and math.isinf(self.time_limit_s):
-            solution = self._solve_window(t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports, t_start)
+            try:  # the one-call plan is only a shortcut: whatever it cannot do, the steps below do as before
+                solution = self._solve_window(t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports,
+                                              t_start)
+            except Exception:  # noqa: BLE001
+                solution = None
             if solution is not None:
                 return solution
         args = (t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports)
@@ -392,7 +396,7 @@ class ComMpc:
                         MAX_STABILITY_WEIGHT, self._max_intervals, self._max_halfplanes, MIN_POLYGON_AREA_M2,
                         _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S, keys_a, nrm_a, keys_b, nrm_b, len(history),
                         _WARM_TIME_TOL_S, _WARM_NORMAL_COS, _AS_TOL_M, self.max_iter, 4, CONSTRAINT_TOL_M)
-        qp_time = time.perf_counter() - t_qp
+        qp_time = time.perf_counter() - t_qp  # (the polygons' geometry and rows included: one compiled call)
         if status != WINDOW_PLANNED:
             return None
         self._warm_history = [(warm_keys, warm_normals)] + history[: _WARM_HISTORY - 1]
