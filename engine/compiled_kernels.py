@@ -39,7 +39,8 @@ def warm_up() -> None:
 
 def _warm_up_planner() -> None:
     """The gait planner's and the CoM MPC's kernels on the argument types they pass (``ComMpc.solve`` compiles the
-    one-call solve, :func:`engine.control.mpc.active_set_kernel.solve_window`, and what it calls)."""
+    one-call plan, :func:`engine.control.mpc.active_set_kernel.plan_window`, and what it calls, among them the one-call
+    solve :func:`~engine.control.mpc.active_set_kernel.solve_window`)."""
     from engine.robot.model import load_robot
     from engine.gait.footsteps import Foothold
     from engine.gait.planner import _command_ramp

@@ -507,6 +507,7 @@ def test_solver_failure_uses_fallback(monkeypatch) -> None:
                                     (lambda *a, **k: ([], np.zeros(0), 3, active_set._AS_INFEASIBLE), infeasible_window)):
         monkeypatch.setattr(com_mpc, "_dual_active_set", failure)  # the step-by-step path's solver
         monkeypatch.setattr(com_mpc, "solve_window", window_failure)  # and the one-call solve's
+        monkeypatch.setattr(com_mpc, "plan_window", lambda *a, **k: (1,) + (None,) * 9)  # the one-call plan: no plan
         sol = ComMpc().solve(0.2, *PUSHED_STATE, COM_HEIGHT_M, window(supports, 0.2))
         assert sol.status == "solver_failed_centroid_fallback"
         assert not sol.ok

@@ -11,6 +11,7 @@ import math
 import time
 
 import numpy as np
+import pytest
 
 from engine.bench.mpc_problems import closed_loop_like_problems, example_walking_supports
 from engine.constants import GRAVITY_MPS2
@@ -263,6 +264,7 @@ def test_one_call_solve_equals_the_step_by_step_solve(monkeypatch) -> None:  # n
 
     calls = _calls()
     fast, reference = Mpc(), Mpc()
+    fast._solve_window = reference._solve_window = lambda *_, **__: None  # the one-call plan: tested below
     fused_solves = 0
     original = Mpc._solve_compiled
 
@@ -286,3 +288,164 @@ def test_one_call_solve_equals_the_step_by_step_solve(monkeypatch) -> None:  # n
             np.testing.assert_array_equal(ka, kb)
             np.testing.assert_array_equal(na, nb)
     assert fused_solves > 0.9 * len(calls)
+
+
+def _assert_same_solves(a, b, mpc_a, mpc_b) -> None:  # noqa: ANN001
+    """The same solution (statuses, messages, iterations, every array bit for bit) and remembered active rows."""
+    assert (a.status, a.message, a.osqp_iterations, a.com_height_m) == (b.status, b.message, b.osqp_iterations,
+                                                                        b.com_height_m)
+    for name in ("waypoint_times_s", "waypoints_xy_m", "waypoint_com_xy_m", "waypoint_com_vel_xy_mps",
+                 "region_centroids_xy_m", "qp_final_state"):
+        got, want = getattr(a, name), getattr(b, name)
+        assert got.shape == want.shape and got.dtype == want.dtype, name
+        np.testing.assert_array_equal(got, want, err_msg=name)
+    assert len(mpc_a._warm_history) == len(mpc_b._warm_history)
+    for (ka, na), (kb, nb) in zip(mpc_a._warm_history, mpc_b._warm_history):
+        np.testing.assert_array_equal(ka, kb)
+        np.testing.assert_array_equal(na, nb)
+    assert mpc_a.padded_shape == mpc_b.padded_shape and mpc_a.setup_count == mpc_b.setup_count
+
+
+def _step_by_step_mpc(**kwargs):  # noqa: ANN003, ANN202
+    """A ComMpc whose one-call plan (plan_window) is switched off: main's path before it (the reference)."""
+    mpc = ComMpc(**kwargs)
+    mpc._solve_window = lambda *_, **__: None
+    return mpc
+
+
+def test_numpy_complex_abs_in_the_kernel() -> None:
+    """plan_window's edge lengths are numpy's abs of the edges (its SIMD formula, not libm's hypot): the same
+    numbers on walking-scale, tiny, huge, axis-aligned and zero edges."""
+    from engine.control.mpc.active_set_kernel import edge_length
+
+    rng = np.random.default_rng(53)
+    parts = [rng.normal(0.0, scale, (20000, 2)) for scale in (1e-6, 1e-3, 0.1, 1.0, 1e3, 1e150)]
+    special = np.array([[0.0, 0.0], [0.0, 0.3], [-0.3, 0.0], [1e308, 1e308], [-1e308, 1e-300], [3.0, 4.0]])
+    d = np.concatenate([*parts, special])
+    want = np.abs(d.view(np.complex128)[:, 0])
+    got = np.array([edge_length(x, y) for x, y in d.tolist()])
+    np.testing.assert_array_equal(got, want)
+
+
+def test_one_call_plan_equals_the_step_by_step_solve_on_the_bench_problems() -> None:
+    """ComMpc.solve with plan_window (supports to plan in one compiled call) against the same solves without it,
+    in sequence (warm starts shared): bit for bit, and plan_window plans almost all of them."""
+    from engine.control.mpc import active_set_kernel
+    import engine.control.mpc.controller as controller
+
+    planned = 0
+    original = controller.plan_window
+
+    def counting(*args):  # noqa: ANN002, ANN202
+        nonlocal planned
+        out = original(*args)
+        planned += out[0] == active_set_kernel.WINDOW_PLANNED
+        return out
+
+    calls = _calls()
+    fast, reference = ComMpc(), _step_by_step_mpc()
+    controller.plan_window = counting
+    try:
+        for args in calls:
+            _assert_same_solves(fast.solve(*args), reference.solve(*args), fast, reference)
+    finally:
+        controller.plan_window = original
+    assert planned > 0.9 * len(calls)
+
+
+def test_one_call_plan_on_odd_inputs_gives_the_same_fallbacks() -> None:
+    """Inputs the one-call plan leaves to the step-by-step path (non-finite or invalid state, lists, integer or
+    degenerate or non-convex polygons, supports not covering the window, malformed supports, a workspace to grow,
+    a general intersection of supports) give what they gave before: the same statuses and numbers."""
+    supports = example_walking_supports(n_steps=4, step_length_m=0.2, yaw_rad=0.3)
+    com, vel, cop = np.array([0.01, 0.0]), np.array([0.1, 0.05]), np.array([0.0, 0.0])
+
+    def shifted(polygons):  # noqa: ANN001, ANN202
+        return [SupportInterval(s.t_start_s, s.t_end_s, p) for s, p in zip(supports, polygons)]
+
+    polys = [s.polygon for s in supports]
+    left = np.array([[0.0, 0.0], [0.2, 0.0], [0.2, 0.1], [0.0, 0.1]])
+    hop = [SupportInterval(0.0, 0.4, left), SupportInterval(0.4, 0.8, left + [0.1, -0.3]),
+           SupportInterval(0.8, 3.0, left + [0.1, 0.0])]
+    cases = {
+        "nan state": (0.2, np.array([np.nan, 0.0]), vel, cop, 0.7, supports),
+        "inf velocity": (0.2, com, np.array([np.inf, 0.0]), cop, 0.7, supports),
+        "nan time": (math.nan, com, vel, cop, 0.7, supports),
+        "zero height": (0.2, com, vel, cop, 0.0, supports),
+        "list state": (0.2, [0.01, 0.0], (0.1, 0.05), [0.0, 0.0], 0.7, supports),
+        "integer time and height": (0, com, vel, cop, 1, supports),
+        "float32 state": (np.float32(0.2), com.astype(np.float32), vel, cop, np.float32(0.7), supports),
+        "nan polygon": (0.2, com, vel, cop, 0.7, shifted([polys[0] * np.nan] + polys[1:])),
+        "degenerate polygon": (0.2, com, vel, cop, 0.7, shifted([polys[0] * 0.0] + polys[1:])),
+        "two vertices": (0.2, com, vel, cop, 0.7, shifted([polys[0][:2]] + polys[1:])),
+        "non-convex polygon": (0.2, com, vel, cop, 0.7, shifted([polys[0][[0, 2, 1, 3]]] + polys[1:])),
+        "integer polygon": (0.2, com, vel, cop, 0.7, shifted([np.round(polys[0] * 10).astype(int)] + polys[1:])),
+        "list polygon": (0.2, com, vel, cop, 0.7, shifted([polys[0].tolist()] + polys[1:])),
+        "many vertices": (0.2, com, vel, cop, 0.7, shifted(
+            [0.1 * np.stack([np.cos(a), np.sin(a)], axis=1) for a in [np.linspace(0, 2 * np.pi, 20, endpoint=False)]]
+            + polys[1:])),
+        "window not covered": (5.0, com, vel, cop, 0.7, supports[:2]),
+        "no supports": (0.2, com, vel, cop, 0.7, []),
+        "inverted times": (0.2, com, vel, cop, 0.7, [SupportInterval(1.0, 0.5, polys[0])] + supports[1:]),
+        "malformed support": (0.2, com, vel, cop, 0.7, [object()] + supports[1:]),
+        "general intersection": (0.0, np.array([0.1, 0.05]), np.zeros(2), np.array([0.1, 0.05]), 0.7, hop),
+        "pushed": (0.2, com, np.array([1.5, -1.2]), cop, 0.7, supports),
+    }
+    fast, reference = ComMpc(max_intervals=2), _step_by_step_mpc(max_intervals=2)  # the first call grows them
+    statuses = {}
+    for name, args in cases.items():
+        for _ in range(2):  # cold, then warm started
+            a, b = fast.solve(*args), reference.solve(*args)
+            _assert_same_solves(a, b, fast, reference)
+        statuses[name] = a.status
+    assert statuses["nan state"].startswith("invalid_input") and statuses["nan polygon"].startswith("invalid_input")
+    assert statuses["window not covered"].startswith("invalid_input")
+    assert statuses["degenerate polygon"].startswith("invalid_input")
+    assert statuses["general intersection"] == "solved_empty_intersection"
+    assert statuses["list polygon"] == statuses["pushed"] == "solved"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot_name", ["g1", "talos"])
+def test_one_call_plan_equals_the_step_by_step_solve_in_closed_loop(robot_name: str) -> None:
+    """The controller's own solve sequence (walking forward while turning, a push from the side, restarts): each
+    call solved by the controller's ComMpc (one-call plan) and by a step-by-step twin fed the same calls gives the
+    same solutions bit for bit."""
+    import engine.control.mpc.controller as controller
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.sim import Simulation
+
+    robot = load_robot(robot_name)
+    style = load_style(styles_dir(robot_name) / "neutral.json")
+    walker = WalkingController(robot, style)
+    sim = Simulation(robot, walker)
+    original = controller.ComMpc.solve
+    twins: dict[int, ComMpc] = {}
+    statuses: list[str] = []
+    pushed_calls = 0
+
+    def twin_solve(self, *args):  # noqa: ANN001, ANN002, ANN202
+        twin = twins.setdefault(id(self), _step_by_step_mpc(preview_s=self.preview_s))
+        a = original(self, *args)
+        b = original(twin, *args)
+        _assert_same_solves(a, b, self, twin)
+        statuses.append(a.status)
+        nonlocal pushed_calls
+        pushed_calls += bool(walker.observer.force_n.any())  # supports shifted by the observed push
+        return a
+
+    controller.ComMpc.solve = twin_solve
+    try:
+        v = style.velocities
+        for k in range(int(3.0 / 0.002)):
+            t = k * 0.002
+            walker.set_command(np.array([0.6 * v.x_max_mps, 0.0, 0.8 * v.yaw_max_radps]) if t > 0.5 else np.zeros(3))
+            if k == int(1.8 / 0.002):
+                sim.push(np.array([0.0, 1.0 * robot.mass_kg, 0.0]), 0.3)
+            sim.step()
+    finally:
+        controller.ComMpc.solve = original
+    assert len(statuses) > 300 and not sim.detect_fall()
+    assert pushed_calls > 10 and statuses.count("solved") > 0.9 * len(statuses)

@@ -75,7 +75,8 @@ restarts from the measured state after a failed solve), and large changes of the
 active set are made in blocks.  Closed-loop problems need 0-3 steps, restarts after
 large pushes up to ~70.  The result is exact up to rounding (no tolerance-driven
 polishing).  The condensation and the solver run compiled (numba: :mod:`engine.control.mpc.kernels`,
-:mod:`engine.control.mpc.active_set_kernel`; a solve with a wall-time limit runs the numpy solver,
+:mod:`engine.control.mpc.active_set_kernel`, the default solve from the supports to the plan in one call,
+:func:`~engine.control.mpc.active_set_kernel.plan_window`; a solve with a wall-time limit runs the numpy solver,
 which can check the clock).  An iteration cap (``max_iter``) or time limit returns the current
 iterate with its waypoints pulled into their regions (``"solved_inaccurate"``)
 instead of a fallback.  ``solver="osqp"`` solves the same condensed QP with OSQP

@@ -20,7 +20,17 @@ import math
 import numpy as np
 from numba import njit
 
-from engine.control.mpc.kernels import condense, lip_segments, match_rows, plan_from_waypoints, plan_is_finite
+from engine.control.mpc.kernels import (
+    _fma,
+    condense,
+    lip_segments,
+    match_rows,
+    plan_from_waypoints,
+    plan_is_finite,
+    problem_rows,
+    support_geometry,
+    window_intervals,
+)
 
 #: Active-set outcomes (as in :mod:`engine.control.mpc.active_set`).
 AS_OPTIMAL, AS_CAPPED, AS_INFEASIBLE = 0, 1, 2
@@ -387,3 +397,109 @@ def solve_window(times, omega, w_centroid, w_velocity, min_velocity_dt_s, stabil
     wps_world, pos_world, vel_wp, final, total = plan_from_waypoints(omega, a, b, grow, wps, com, vel, origin)
     finite = plan_is_finite(times, wps_world, pos_world, vel_wp, final, 1.0)
     return outcome, iterations, rows, violation, wps_world, pos_world, vel_wp, final, total, finite
+
+
+#: :func:`plan_window`'s status when it returns a plan; otherwise the caller takes its step-by-step path.
+WINDOW_PLANNED, WINDOW_STEP_BY_STEP = 0, 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def edge_length(dx, dy):  # noqa: ANN001, ANN201
+    """numpy's ``abs(dx + i dy)`` (its SIMD complex absolute: ``larger · sqrt(fma(r, r, 1))``, ``r`` the smaller part over
+    the larger one; not libm's hypot, which differs in the last bit), for finite parts."""
+    a, b = abs(dx), abs(dy)
+    larger, smaller = max(a, b), min(a, b)
+    if larger == np.inf:
+        return np.inf
+    ratio = smaller / larger if larger != 0.0 else 0.0
+    return math.sqrt(_fma(ratio, ratio, 1.0)) * larger
+
+
+@njit(cache=True, nogil=True)
+def plan_window(supports, points, t_now, com_x, com_y, vel_x, vel_y, cop_x, cop_y, height, gravity,  # noqa: ANN001, ANN201, PLR0913, PLR0915
+                preview_s, min_interval_s, max_interval_s, w_centroid, w_velocity, min_velocity_dt_s, w_final,
+                w_stability, max_stability_weight, max_intervals, max_halfplanes, min_area, contain_tol,
+                kind_offset_s, keys_a, normals_a, keys_b, normals_b, n_warm, warm_time_tol, warm_cos_min, tol, max_iter,
+                block_rounds, constraint_tol):
+    """``ComMpc.solve``'s default path (active set, no wall-time limit) from the supports to the plan in one
+    compiled call: :func:`window_intervals`, :func:`support_geometry`, :func:`problem_rows` and :func:`solve_window`
+    with the arguments ``ComMpc._build_problem`` and ``ComMpc._solve_compiled`` give them (the same kernels in the
+    same order: the same numbers).
+
+    ``supports`` (K, 3): each support's start and end times and its polygon's vertex count; the polygons stacked in
+    ``points`` (P, 2). The state as floats (finite, ``height > 1e-3``); ``w_stability < 0``: ``W_T exp(2 omega T)``.
+
+    Returns ``(status, iterations, times (N+1,), waypoints (N+1, 2), com (N+1, 2), com_vel (N+1, 2),
+    final_state (4,), centroids (N+1, 2), warm keys (k,), warm normals (k, 2))``: status
+    :data:`WINDOW_PLANNED` for a clean, finite optimum within ``constraint_tol``; :data:`WINDOW_STEP_BY_STEP` (and
+    empty arrays) whenever the step-by-step path does something else (invalid or uncovered supports, polygons
+    outside 3..16 vertices, non-finite, not convex or degenerate, a workspace to grow, a general intersection of
+    two supports, a solve that is not a clean optimum): it then computes it all (the same numbers)."""
+    empty1, empty2 = np.empty(0), np.empty((0, 2))
+    fail = (WINDOW_STEP_BY_STEP, 0, empty1, empty2, empty2, empty2, empty1, empty2, empty1, empty2)
+    n_all = supports.shape[0]
+    t_start = np.empty(n_all)
+    t_end = np.empty(n_all)
+    first = np.empty(n_all, dtype=np.int64)
+    total = 0
+    for k in range(n_all):
+        t_start[k], t_end[k] = supports[k, 0], supports[k, 1]
+        first[k] = total
+        total += int(supports[k, 2])
+    if total != points.shape[0]:
+        return fail
+    status, _, used, ends, own = window_intervals(t_start, t_end, t_now, t_now + preview_s, min_interval_s,
+                                                  max_interval_s)
+    if status != 0:
+        return fail
+    # the used supports' polygons and their edges' lengths in the padded layout (padding: zero-length edges)
+    n_sup = used.shape[0]
+    lens = np.empty(n_sup, dtype=np.int64)
+    n_v, n_min, n_points = 0, 1 << 30, 0
+    for i in range(n_sup):
+        n = int(supports[used[i], 2])
+        lens[i] = n
+        n_v, n_min, n_points = max(n_v, n), min(n_min, n), n_points + n
+    if n_min < 3 or n_v > 16:
+        return fail
+    vertices = np.empty((n_points, 2))
+    edges = np.zeros((n_sup, n_v))
+    r = 0
+    for i in range(n_sup):
+        s, n = first[used[i]], lens[i]
+        for j in range(n):
+            vertices[r, 0], vertices[r, 1] = points[s + j, 0], points[s + j, 1]
+            jn = s + j + 1 if j + 1 < n else s
+            edges[i, j] = edge_length(points[jn, 0] - points[s + j, 0], points[jn, 1] - points[s + j, 1])
+            r += 1
+    status, hull, normals, offsets, centroids, max_h = support_geometry(vertices, lens, n_v, edges, min_area)
+    if status != 0 or own.shape[0] > max_intervals or max_h > max_halfplanes:
+        return fail
+    overlap, row_normals, row_offsets, row_wp, row_key, times, row_centroids = problem_rows(
+        own, n_sup, hull, normals, offsets, centroids, ends, t_now, contain_tol, kind_offset_s)
+    if overlap:
+        return fail
+    final_centroid = centroids[own[own.shape[0] - 1]].copy()
+    omega = math.sqrt(gravity / height)
+    horizon_s = times[times.shape[0] - 1] - times[0]
+    if w_stability >= 0.0:
+        stability_weight = min(w_stability, max_stability_weight)
+    else:
+        stability_weight = min(w_final * math.exp(min(2.0 * omega * horizon_s, 700.0)), max_stability_weight)
+    com = np.empty(2)
+    vel = np.empty(2)
+    cop = np.empty(2)
+    com[0], com[1], vel[0], vel[1], cop[0], cop[1] = com_x, com_y, vel_x, vel_y, cop_x, cop_y
+    outcome, iterations, rows, violation, wps_world, pos_world, vel_wp, final_state, _, finite = solve_window(
+        times, omega, w_centroid, w_velocity, min_velocity_dt_s, stability_weight, row_centroids, final_centroid, com,
+        vel, cop, row_normals, row_offsets, row_wp, row_key, keys_a, normals_a, keys_b, normals_b, n_warm,
+        warm_time_tol, warm_cos_min, tol, max_iter, block_rounds)
+    if outcome != AS_OPTIMAL or not violation <= constraint_tol or not finite:
+        return fail
+    warm_keys = np.empty(rows.shape[0])
+    warm_normals = np.empty((rows.shape[0], 2))
+    for c in range(rows.shape[0]):
+        warm_keys[c] = row_key[rows[c]]
+        warm_normals[c, 0], warm_normals[c, 1] = row_normals[rows[c], 0], row_normals[rows[c], 1]
+    return (WINDOW_PLANNED, iterations, times, wps_world, pos_world, vel_wp, final_state, row_centroids, warm_keys,
+            warm_normals)

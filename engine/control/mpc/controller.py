@@ -24,7 +24,13 @@ from engine.control.mpc.active_set import (
     _dual_active_set,
     _inverse,
 )
-from engine.control.mpc.active_set_kernel import free_slacks, solve_window, waypoints_from_multipliers
+from engine.control.mpc.active_set_kernel import (
+    WINDOW_PLANNED,
+    free_slacks,
+    plan_window,
+    solve_window,
+    waypoints_from_multipliers,
+)
 from engine.control.mpc.kernels import (
     condense,
     match_rows,
@@ -46,6 +52,7 @@ from engine.control.mpc.types import (
     CONSTRAINT_TOL_M,
     FALLBACK_COM_HEIGHT_M,
     MAX_STABILITY_WEIGHT,
+    MIN_POLYGON_AREA_M2,
     ComMpcSolution,
     ComMpcWeights,
     SupportPhase,
@@ -229,6 +236,14 @@ class ComMpc:
         *,
         t_start: float,
     ) -> ComMpcSolution:
+        if self.solver == "active_set" and math.isinf(self.time_limit_s):
+            try:  # the one-call plan is only a shortcut: whatever it cannot do, the steps below do as before
+                solution = self._solve_window(t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports,
+                                              t_start)
+            except Exception:  # noqa: BLE001
+                solution = None
+            if solution is not None:
+                return solution
         args = (t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports)
         t_now, com, vel, cop, height, state_ok = _sanitize_state(*args[:5])
         if not state_ok:
@@ -344,6 +359,53 @@ class ComMpc:
             region_centroids_xy_m=problem.centroids,
             qp_final_state=final_state,
         )
+        object.__setattr__(solution, "_checked_finite", True)  # solve() need not check it again
+        self._last_good = solution
+        return solution
+
+    def _solve_window(self, t_now_s: float, com_xy_m: ArrayLike, com_vel_xy_mps: ArrayLike, cop_xy_m: ArrayLike,
+                      com_height_m: float, supports: Sequence[SupportPhase], t_start: float) -> ComMpcSolution | None:
+        """The default solve (active set, no wall-time limit) from the supports to the plan in one compiled call
+        (:func:`engine.control.mpc.active_set_kernel.plan_window`: :meth:`_build_problem` and :meth:`_solve_compiled`
+        compiled together, the same numbers). None (nothing changed) for anything else than the usual input (a
+        finite state of float arrays (2,), float polygons (M, 2)) solved to a clean optimum: :meth:`_solve` then
+        takes its step-by-step path, which computes the same and handles the rest."""
+        state = _state_floats(t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m)
+        history = self._warm_history
+        if state is None or len(history) > 2:
+            return None
+        try:
+            polygons = [s.polygon for s in supports]
+            # (start, end, vertex count) of each support: the times converted as _build_problem converts them
+            table = np.array([(s.t_start_s, s.t_end_s, len(p)) for s, p in zip(supports, polygons)], dtype=float)
+            points = np.concatenate(polygons, casting="no")  # float64 polygons only (no conversion)
+        except (TypeError, ValueError, AttributeError):
+            return None
+        if table.ndim != 2 or table.shape[1] != 3 or points.dtype != np.float64 or points.ndim != 2 \
+                or points.shape[1] != 2:
+            return None
+        (keys_a, nrm_a), (keys_b, nrm_b) = (list(history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
+        t_now, com_x, com_y, vel_x, vel_y, cop_x, cop_y, height = state
+        w = self.weights
+        t_qp = time.perf_counter()
+        status, iterations, times, wps_world, pos_world, vel_wp, final_state, centroids, warm_keys, warm_normals = \
+            plan_window(table, points, t_now, com_x, com_y, vel_x, vel_y, cop_x, cop_y,
+                        height, GRAVITY_MPS2, self.preview_s, self.min_interval_s, self.max_interval_s,
+                        float(w.cop_centroid), float(w.cop_velocity), self.min_velocity_dt_s,
+                        float(w.final_capture_point), -1.0 if w.stability is None else float(w.stability),
+                        MAX_STABILITY_WEIGHT, self._max_intervals, self._max_halfplanes, MIN_POLYGON_AREA_M2,
+                        _CONTAIN_TOL_M, _WARM_KIND_OFFSET_S, keys_a, nrm_a, keys_b, nrm_b, len(history),
+                        _WARM_TIME_TOL_S, _WARM_NORMAL_COS, _AS_TOL_M, self.max_iter, 4, CONSTRAINT_TOL_M)
+        qp_time = time.perf_counter() - t_qp  # (the polygons' geometry and rows included: one compiled call)
+        if status != WINDOW_PLANNED:
+            return None
+        self._warm_history = [(warm_keys, warm_normals)] + history[: _WARM_HISTORY - 1]
+        if iterations == 0:  # the free optimum holds every row: the active set did not run
+            message = "active set: unconstrained optimum"
+        else:
+            message = f"active set: optimal, {len(warm_keys)} active rows"
+        solution = ComMpcSolution(times, wps_world, pos_world, vel_wp, height, "solved", time.perf_counter() - t_start,
+                                  message, int(iterations), qp_time, centroids, final_state)
         object.__setattr__(solution, "_checked_finite", True)  # solve() need not check it again
         self._last_good = solution
         return solution
@@ -787,6 +849,28 @@ def _csc_pattern(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> 
     indptr = np.concatenate([[0], np.cumsum(np.bincount(c, minlength=shape[1]))])
     mat = sp.csc_matrix((np.zeros(len(r)), r.astype(np.int64), indptr.astype(np.int64)), shape=shape)
     return perm, mat
+
+
+def _state_floats(t_now_s: object, com_xy_m: object, com_vel_xy_mps: object, cop_xy_m: object,
+                  com_height_m: object) -> tuple[float, float, float, float, float, float, float, float] | None:
+    """The usual input of :meth:`ComMpc.solve` as floats ``(t, com, vel, cop, height)``: a finite time and height
+    above 1 mm (Python or numpy floats) and finite float arrays (2,), the numbers :func:`_sanitize_state` passes
+    on; None for anything else (:func:`_sanitize_state` then handles it)."""
+    scalar = (float, int, np.float64, np.float32)
+    if type(t_now_s) not in scalar or type(com_height_m) not in scalar:
+        return None
+    values = [float(t_now_s)]  # type: ignore[arg-type]
+    for v in (com_xy_m, com_vel_xy_mps, cop_xy_m):
+        if type(v) is not np.ndarray or v.dtype != np.float64 or v.shape != (2,):
+            return None
+        values += v.tolist()
+    height = float(com_height_m)  # type: ignore[arg-type]
+    values.append(height)
+    if not height > 1e-3:
+        return None
+    if not math.isfinite(sum(values)) and not all(math.isfinite(x) for x in values):  # (a finite sum can overflow)
+        return None
+    return tuple(values)  # type: ignore[return-value]
 
 
 def _sanitize_state(
