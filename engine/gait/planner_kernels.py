@@ -185,6 +185,46 @@ def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, per
     return values, rates
 
 
+@njit(cache=True, nogil=True)
+def _phase_segment(waypoints, p):  # noqa: ANN001, ANN202
+    """bisect_right(waypoints, p) − 1: the phase map's segment of phase p."""
+    j = -1
+    for w in waypoints:
+        if w <= p:
+            j += 1
+    return j
+
+
+@njit(cache=True, nogil=True)
+def merged_bank_at_phase(f, dphi_dt, waypoints, segments, cycles, member_of_row, offset, periodic, period, hi,  # noqa: ANN001, ANN201, PLR0913
+                         search, t0, coef):
+    """BlendedGait.channels' member times and rate scales and :func:`merged_bank_rows` in one call: each member's
+    time Ωᵢ(f) (PhaseMap.time_at on a float) and dΩᵢ/dφ(f) · ``dphi_dt`` (PhaseMap.dtime_dphase), from its phase
+    map's ``segments`` (members, 4, 5: the segment's phase, then the cubic's coefficients c0..c3, PhaseMap._seg) and
+    ``cycles``; their expressions (the same numbers)."""
+    m = segments.shape[0]
+    times = np.empty(m)
+    scale = np.empty(m)
+    for i in range(m):
+        p, k = f, 0.0
+        if not 0.0 <= p < 1.0:
+            k = math.floor(p)
+            p -= k
+            if p >= 1.0:
+                p, k = 0.0, k + 1.0
+        j = _phase_segment(waypoints, p)
+        s = p - segments[i, j, 0]
+        t = segments[i, j, 1] + s * (segments[i, j, 2] + s * (segments[i, j, 3] + s * segments[i, j, 4]))
+        times[i] = t + k * cycles[i] if k != 0.0 else t
+        q = f % 1.0
+        if q >= 1.0:
+            q = 0.0
+        j = _phase_segment(waypoints, q)
+        s = q - segments[i, j, 0]
+        scale[i] = (segments[i, j, 2] + s * (2.0 * segments[i, j, 3] + 3.0 * s * segments[i, j, 4])) * dphi_dt
+    return merged_bank_rows(times, scale, member_of_row, offset, periodic, period, hi, search, t0, coef)
+
+
 # ---------------------------------------------------------------------------------------------------- the preview
 # GaitPlanner.preview's loop compiled. Python's float semantics are kept where they could differ from LLVM's: min
 # and max keep their first argument on ties, squares go through libm's pow (Python's x ** 2 is pow(x, 2.0), which

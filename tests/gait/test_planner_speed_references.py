@@ -195,3 +195,40 @@ def test_reference_frames_equal_the_numpy_frames() -> None:
             swung += int(not ref.contact.all())
             prev = ref
     assert rolled > 50 and swung > 300  # soles rolled in double support, swings rigged
+
+
+def channels_reference(blend, phi: float) -> tuple[np.ndarray, ...]:  # noqa: ANN001
+    """BlendedGait.channels before the speed-up: the members' times and rate scales from their phase maps in Python."""
+    f = phi - math.floor(phi)
+    dphi_dt = 1.0 / blend.dtime_dphase(phi)
+    times = np.empty(len(blend.members))
+    scale = np.empty(len(blend.members))
+    for i, (_, b) in enumerate(blend.members):
+        times[i] = float(b.phase_map.time_at(f))
+        scale[i] = float(b.phase_map.dtime_dphase(f)) * dphi_dt
+    values, rates = blend.merged.evaluate(times, scale)
+    v = blend.weights @ values
+    r = blend.weights @ rates
+    c = blend.merged.n_cycle
+    return v[:c], v[c:c + 7], v[c + 7:], r[:c], r[c:c + 7], r[c + 7:]
+
+
+def test_channels_with_the_phase_maps_compiled_equal_the_reference() -> None:
+    """BlendedGait.channels (members' phase maps evaluated in the kernel) at random phases, also negative, beyond one
+    cycle and on the waypoints, for random member sets and weights of the G1 neutral and rigged styles' samples."""
+    from engine.gait.blending import BlendedGait, ChannelLayout, StyleBanks
+    from engine.gait.phase_map import PHASE_WAYPOINTS
+    from engine.gait.style import StyleContext, load_style, styles_dir
+
+    ctx = StyleContext.for_robot("g1")
+    layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
+    rng = np.random.default_rng(47)
+    for style in (load_style(styles_dir("g1") / "neutral.json"), _rigged_style()):
+        banks = list(StyleBanks(style, layout).banks.values())
+        for _ in range(200):
+            members = [banks[i] for i in rng.choice(len(banks), size=int(rng.integers(1, 7)), replace=False)]
+            blend = BlendedGait([(float(w), b) for w, b in zip(rng.uniform(0.05, 1.0, len(members)), members)])
+            phis = [*rng.uniform(-3.0, 5.0, 5).tolist(), *(k + w for k in (0, 2) for w in PHASE_WAYPOINTS), -1e-17]
+            for phi in phis:
+                for got, want in zip(blend.channels(phi), channels_reference(blend, phi)):
+                    np.testing.assert_array_equal(got, want)
