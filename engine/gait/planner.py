@@ -42,8 +42,7 @@ from engine.gait.planner_kernels import (
     FOOT_ROLLED,
     FOOT_SWING,
     PREVIEW_EVENT_PHASES,
-    command_ramp_pieces,
-    path_table_poses,
+    path_table,
     preview_intervals,
     reference_frames,
 )
@@ -361,28 +360,35 @@ class GaitPlanner:
             path = self.path
             return predict_xy_yaw(float(path.x), float(path.y), float(path.yaw), self.command, dt_s)
         if self._path_rows is None:
-            self._path_table = self._build_path_table()
-            _, poses, vels = self._path_table
-            self._path_rows = (poses, vels)
+            self._path_table_now()
+            assert self._path_rows is not None
         poses, vels = self._path_rows
         k = min(int(dt_s / PATH_TABLE_STEP_S), len(_PATH_TABLE_TIMES_LIST) - 1)
         x, y, yaw = poses[k].tolist()  # the row as floats (a tick reads two or three of the 61)
         return predict_xy_yaw(x, y, yaw, vels[k].tolist(), dt_s - _PATH_TABLE_TIMES_LIST[k])
 
+    def _path_table_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This tick's path table (times, poses, velocities), built on its first use."""
+        if self._path_table is None or self._path_rows is None:
+            self._path_table = self._build_path_table()
+            self._path_rows = self._path_table[1:]
+        return self._path_table
+
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
 
-        The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then
-        evaluated at once and chained by cumulative sums: the poses are rebuilt every planner tick, the
-        ramp (:func:`_command_ramp`) only when the command, its goal or its rate limits change."""
+        The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then chained
+        (:func:`engine.gait.planner_kernels.path_table`, one compiled call): rebuilt every planner tick, as the
+        path and the command (with the controller's velocity adjustment) move every tick."""
         command_goal, command_rate_limits = self.command_goal, self.command_rate_limits
         assert command_goal is not None and command_rate_limits is not None, "path_ahead builds it with a goal only"
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
-        times, vels, th, dx, dy = _command_ramp(self.command, goal, command_rate_limits)
-        poses = path_table_poses(float(self.path.x), float(self.path.y), float(self.path.yaw), th, dx, dy)  # compiled
-        return times, poses, vels
+        poses, vels = path_table(float(self.path.x), float(self.path.y), float(self.path.yaw),
+                                 np.asarray(self.command, dtype=float), goal,
+                                 np.asarray(command_rate_limits, dtype=float), PATH_TABLE_STEP_S, _PATH_TABLE_SIZE)
+        return _PATH_TABLE_TIMES, poses, vels
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:
         """Move the path frame by ``path_follows_feet`` × (dx, dy)."""
@@ -557,9 +563,7 @@ class GaitPlanner:
             table = (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
                      np.asarray(self.command, dtype=float).reshape(1, 3))
         else:
-            self._path_pose_ahead(0.0)  # builds the table if this tick has not yet
-            assert self._path_table is not None
-            table = self._path_table
+            table = self._path_table_now()
         region = self.region
         if self._region_array is None or self._region_array[0] is not region:
             self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
@@ -587,8 +591,8 @@ class GaitPlanner:
         if self._last_pose is None:
             return np.array([-1, -1])
         codes = []
-        for side in SIDES:
-            pitch = -math.asin(max(-1.0, min(1.0, float(self._last_pose["feet"][side].rot[2, 0]))))
+        for r20 in self._last_pose["rots"][1:, 2, 0].tolist():  # the soles' R[2, 0]
+            pitch = -math.asin(max(-1.0, min(1.0, r20)))
             codes.append(EDGE_CODES[_pitched_edge(min(pitch, 0.0), max(pitch, 0.0))])
         return np.array(codes)
 
@@ -605,34 +609,12 @@ class GaitPlanner:
         return cached[1], cached[2], cached[3], cached[4]
 
 
-#: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
-#: rebuilds only the poses.
-_RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
 _PATH_TABLE_TIMES = np.arange(int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1) * PATH_TABLE_STEP_S
 _PATH_TABLE_TIMES.flags.writeable = False
 _PATH_TABLE_TIMES_LIST = _PATH_TABLE_TIMES.tolist()
+_PATH_TABLE_SIZE = len(_PATH_TABLE_TIMES_LIST)
 _ONE_PIECE_TIMES = np.zeros(1)  # the preview's path table while the command holds
 assert tuple(PREVIEW_EVENT_PHASES) == (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
-
-
-def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The path table's velocity part: piece times, mean piece velocities (the rate-limited ramp
-    toward ``goal``, then the goal held), turn angles and the pieces' arcs in their start frame
-    (shared read-only arrays)."""
-    key = tuple(np.asarray(a, dtype=float).tobytes() for a in (command, goal, rate_limits))  # bytes: −0.0 ≠ 0.0
-    hit = _RAMP_CACHE.get(key)
-    if hit is not None:
-        return hit
-    times = _PATH_TABLE_TIMES
-    vels, th, dx, dy = command_ramp_pieces(np.asarray(command, dtype=float), np.asarray(goal, dtype=float),
-                                           np.asarray(rate_limits, dtype=float), PATH_TABLE_STEP_S, len(times))  # compiled
-    hit = (times, vels, th, dx, dy)
-    for a in hit:
-        a.flags.writeable = False
-    if len(_RAMP_CACHE) >= 32:
-        _RAMP_CACHE.clear()
-    _RAMP_CACHE[key] = hit
-    return hit
 
 
 def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:

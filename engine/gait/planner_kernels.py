@@ -162,6 +162,15 @@ def path_table_poses(x, y, yaw, th, dx, dy):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
+def path_table(x, y, yaw, command, goal, rate_limits, step_s, n):  # noqa: ANN001, ANN201, PLR0913
+    """The planner's path table in one call: the poses (n, 3) from (x, y, yaw) along the rate-limited ramp from
+    ``command`` toward ``goal`` (:func:`command_ramp_pieces`, :func:`path_table_poses`) and the pieces' mean
+    velocities (n, 3)."""
+    vels, th, dx, dy = command_ramp_pieces(command, goal, rate_limits, step_s, n)
+    return path_table_poses(x, y, yaw, th, dx, dy), vels
+
+
+@njit(cache=True, nogil=True)
 def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, periodic, period, hi, search, t0, coef):  # noqa: ANN001, ANN201, PLR0913
     """``MergedBank.evaluate``'s values and d/dt of every row (its numpy code, the same numbers: numpy's
     float remainder for periodic rows, its clip otherwise, then the Horner cubic of the row's segment)."""
