@@ -567,7 +567,7 @@ class GaitPlanner:
         region = self.region
         if self._region_array is None or self._region_array[0] is not region:
             self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
-        n, t_start, t_end, down, hold_index, holds, polygons, counts = preview_intervals(
+        times, rows, holds, polygons = preview_intervals(
             float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
             events, np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
             self._edges_now(), np.array([self.landed[s] for s in SIDES]), touchdown_edges, liftoff_edges, stances,
@@ -578,8 +578,7 @@ class GaitPlanner:
         polygons.flags.writeable = False  # the phases' polygons are views of it
         t_s = self.t_s
         phases = []
-        for i, (t0, t1, (left, right), (i_left, i_right), m) in enumerate(zip(
-                t_start.tolist(), t_end.tolist(), down.tolist(), hold_index.tolist(), counts.tolist())):
+        for i, ((t0, t1), (left, right, i_left, i_right, m)) in enumerate(zip(times.tolist(), rows.tolist())):
             on = {"left": footholds[i_left], "right": footholds[i_right]} if left and right else (
                 {"left": footholds[i_left]} if left else {"right": footholds[i_right]})
             phases.append(ContactPhase(t_s + t0, t_s + t1, on, polygons[i, :m]))
