@@ -43,13 +43,13 @@ def _warm_up_planner() -> None:
     solve :func:`~engine.control.mpc.active_set_kernel.solve_window`)."""
     from engine.robot.model import load_robot
     from engine.gait.footsteps import Foothold
-    from engine.gait.planner import _command_ramp
-    from engine.gait.planner_kernels import path_table_poses, preview_polygons, support_hull
+    from engine.gait.planner import PATH_TABLE_STEP_S
+    from engine.gait.planner_kernels import command_ramp_pieces, path_table_poses, preview_polygons, support_hull
 
     support_hull((Foothold(0.0, 0.1, 0.0), Foothold(0.1, -0.1, 0.1)), 0.2, 0.08, (None, "heel"), 0.02)
     preview_polygons(np.zeros((2, 2, 3)), np.array([[True, True], [True, False]]), np.zeros((2, 2), dtype=np.int64),
                      0.2, 0.08, 0.01, 0.02)
-    _, _, th, dx, dy = _command_ramp(np.zeros(3), np.array([0.3, 0.0, 0.2]), np.ones(3))  # command_ramp_pieces
+    _, th, dx, dy = command_ramp_pieces(np.zeros(3), np.array([0.3, 0.0, 0.2]), np.ones(3), PATH_TABLE_STEP_S, 61)
     path_table_poses(0.0, 0.0, 0.0, th, dx, dy)
     from engine.gait.offline_plan import planner_for
     from engine.gait.style import StyleContext, load_style, styles_dir

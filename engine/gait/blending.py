@@ -17,8 +17,8 @@ from typing import Sequence
 import numpy as np
 
 from engine.gait.curves import HermiteCurve
-from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD, PhaseMap
-from engine.gait.planner_kernels import merged_bank_rows
+from engine.gait.phase_map import PHASE_WAYPOINTS, PHI_LTD, PHI_RLO, PHI_RTD, PhaseMap
+from engine.gait.planner_kernels import merged_bank_at_phase, merged_bank_rows
 from engine.gait.style import (
     ATTRIBUTE_NAMES,
     PELVIS_CURVES,
@@ -33,6 +33,7 @@ from engine.gait.style import (
 SWING_PHASES = {"left": (0.0, PHI_LTD), "right": (PHI_RLO, PHI_RTD)}  # (liftoff φ, touchdown φ)
 HEEL, TOE = 4, 5  # indices of heel_pitch / toe_pitch in a swing bank
 ATTRIBUTE_INDEX = {name: i for i, name in enumerate(ATTRIBUTE_NAMES)}
+_WAYPOINTS = np.array(PHASE_WAYPOINTS)  # the phase maps' waypoint phases (bisect in PhaseMap.time_at)
 
 
 class CurveBank:
@@ -162,6 +163,9 @@ class MergedBank:
         self.period = np.where(self.periodic, np.array(period), 1.0)
         self.hi = np.array(hi)
         self._rows = np.arange(len(self.offset))
+        # The members' phase maps for merged_bank_at_phase: per segment its phase and cubic (PhaseMap._seg), cycles
+        self.phase_segments = np.array([[seg[:5] for seg in b.phase_map._seg] for b in banks])
+        self.cycles = np.array([b.phase_map.cycle_s for b in banks])
 
     def evaluate(self, member_times: np.ndarray, member_rate_scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values and d/dt of every row; shapes (members, rows_per_member). Compiled
@@ -169,6 +173,15 @@ class MergedBank:
         values, rates = merged_bank_rows(
             np.ascontiguousarray(member_times, dtype=np.float64), np.ascontiguousarray(member_rate_scale, dtype=np.float64),
             self.member_of_row, self.offset, self.periodic, self.period, self.hi, self.search, self.t0, self.coef)
+        shape = (self.n_members, self.rows_per_member)
+        return values.reshape(shape), rates.reshape(shape)
+
+    def evaluate_at_phase(self, phase: float, dphase_dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`evaluate` with each member at its own time Ωᵢ(φ) of ``phase`` and its rates scaled by Ωᵢ'(φ) ·
+        ``dphase_dt`` (the chain rule of :meth:`BlendedGait.channels`), in one compiled call."""
+        values, rates = merged_bank_at_phase(
+            float(phase), float(dphase_dt), _WAYPOINTS, self.phase_segments, self.cycles, self.member_of_row, self.offset,
+            self.periodic, self.period, self.hi, self.search, self.t0, self.coef)
         shape = (self.n_members, self.rows_per_member)
         return values.reshape(shape), rates.reshape(shape)
 
@@ -261,12 +274,7 @@ class BlendedGait:
         """
         f = phi - math.floor(phi)
         dphi_dt = 1.0 / self.dtime_dphase(phi)
-        times = np.empty(len(self.members))
-        scale = np.empty(len(self.members))
-        for i, (_, b) in enumerate(self.members):
-            times[i] = float(b.phase_map.time_at(f))
-            scale[i] = float(b.phase_map.dtime_dphase(f)) * dphi_dt
-        values, rates = self.merged.evaluate(times, scale)
+        values, rates = self.merged.evaluate_at_phase(f, dphi_dt)  # times[i] = Ωᵢ(f), rates scaled by Ωᵢ'(f) dφ/dt
         v = self.weights @ values
         r = self.weights @ rates
         c = self.merged.n_cycle

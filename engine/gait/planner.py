@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.geometry import quat_from_matrix, rot_z, rot_zyx, smooth_max, smooth_min, smoothstep
+from engine.geometry import quat_from_matrix, smooth_max, smooth_min, smoothstep
 from engine.gait.blending import HEEL, SWING_PHASES, TOE, BlendedGait, ChannelLayout, StyleBanks
 from engine.gait.footsteps import (
     Foothold,
@@ -32,16 +32,19 @@ from engine.gait.footsteps import (
     stance_offset,
     stance_offset_xy_yaw,
 )
-from engine.gait.heel_toe import foot_rig, stance_pitch
+from engine.gait.heel_toe import ROLL_SMOOTHING, stance_pitch
 from engine.gait.path_frame import PathFrame, predict_xy_yaw
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.gait.planner_kernels import (
     EDGE_CODES,
+    FOOT_FLAT,
+    FOOT_ROLLED,
+    FOOT_SWING,
     PREVIEW_EVENT_PHASES,
-    command_ramp_pieces,
-    path_table_poses,
+    path_table,
     preview_intervals,
+    reference_frames,
 )
 from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
@@ -135,12 +138,6 @@ def _remaining_ease_delay(hold_s: float) -> float:
     return START_HOLD_S * (antiderivative(1.0) - antiderivative(u0))
 
 
-def _angular_velocity(r0: np.ndarray, r1: np.ndarray, dt: float) -> np.ndarray:
-    """World angular velocity taking r0 to r1 in dt (small-angle)."""
-    d = (r1 @ r0.T).tolist()
-    return np.array([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]]) / (2.0 * dt)
-
-
 @dataclass
 class _Pose:
     pos: np.ndarray
@@ -148,6 +145,8 @@ class _Pose:
 
 
 _NO_FEEDBACK = PlannerFeedback()
+_NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
+_NO_POS = np.zeros((2, 3))
 PATH_TABLE_STEP_S = 0.05
 PATH_TABLE_HORIZON_S = 3.0
 
@@ -220,7 +219,7 @@ class GaitPlanner:
         self.landed = {side: False for side in SIDES}  # no touchdown transition before the first step
         self.hold_s = START_HOLD_S
         self._raw_target: dict[str, Foothold] = {}
-        self._last_pose: dict | None = None  # _pose_at of the last evaluate() (backward-difference rates)
+        self._last_pose: dict | None = None  # the frames of the last evaluate() (backward-difference rates)
 
     def set_style(self, style: Style) -> None:
         """Switch to an edited style; the reference cross-fades to it over STYLE_FADE_S."""
@@ -361,28 +360,35 @@ class GaitPlanner:
             path = self.path
             return predict_xy_yaw(float(path.x), float(path.y), float(path.yaw), self.command, dt_s)
         if self._path_rows is None:
-            self._path_table = self._build_path_table()
-            _, poses, vels = self._path_table
-            self._path_rows = (poses, vels)
+            self._path_table_now()
+            assert self._path_rows is not None
         poses, vels = self._path_rows
         k = min(int(dt_s / PATH_TABLE_STEP_S), len(_PATH_TABLE_TIMES_LIST) - 1)
         x, y, yaw = poses[k].tolist()  # the row as floats (a tick reads two or three of the 61)
         return predict_xy_yaw(x, y, yaw, vels[k].tolist(), dt_s - _PATH_TABLE_TIMES_LIST[k])
 
+    def _path_table_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This tick's path table (times, poses, velocities), built on its first use."""
+        if self._path_table is None or self._path_rows is None:
+            self._path_table = self._build_path_table()
+            self._path_rows = self._path_table[1:]
+        return self._path_table
+
     def _build_path_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Path poses and mean piece velocities every PATH_TABLE_STEP_S of the ramp toward the goal.
 
-        The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then
-        evaluated at once and chained by cumulative sums: the poses are rebuilt every planner tick, the
-        ramp (:func:`_command_ramp`) only when the command, its goal or its rate limits change."""
+        The rate-limited velocity ramp is a short float loop; the arcs of all pieces are then chained
+        (:func:`engine.gait.planner_kernels.path_table`, one compiled call): rebuilt every planner tick, as the
+        path and the command (with the controller's velocity adjustment) move every tick."""
         command_goal, command_rate_limits = self.command_goal, self.command_rate_limits
         assert command_goal is not None and command_rate_limits is not None, "path_ahead builds it with a goal only"
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
-        times, vels, th, dx, dy = _command_ramp(self.command, goal, command_rate_limits)
-        poses = path_table_poses(float(self.path.x), float(self.path.y), float(self.path.yaw), th, dx, dy)  # compiled
-        return times, poses, vels
+        poses, vels = path_table(float(self.path.x), float(self.path.y), float(self.path.yaw),
+                                 np.asarray(self.command, dtype=float), goal,
+                                 np.asarray(command_rate_limits, dtype=float), PATH_TABLE_STEP_S, _PATH_TABLE_SIZE)
+        return _PATH_TABLE_TIMES, poses, vels
 
     def _shift_path(self, dx_m: float, dy_m: float) -> None:
         """Move the path frame by ``path_follows_feet`` × (dx, dy)."""
@@ -458,62 +464,62 @@ class GaitPlanner:
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, phi: float) -> GaitReference:
         """r at phase φ for the current state. Rates are backward differences over the last tick
-        (the controller interpolates between ticks with them)."""
+        (the controller interpolates between ticks with them). The frames (pelvis and sole rotations, sole
+        positions and corners, their rates) are one compiled call
+        (:func:`engine.gait.planner_kernels.reference_frames`)."""
         blend = self.blend
-        pose = self._pose_at(phi, blend)
-        prev, self._last_pose = self._last_pose, pose
+        cycle_vals, left_vals, right_vals, *_ = blend.channels(phi)
+        t = blend.time_at(phi)
+        swinging = (self.in_swing("left", phi), self.in_swing("right", phi))
+        left, left_progress = self._foot_params("left", phi, t, blend, left_vals, swinging[0])
+        right, right_progress = self._foot_params("right", phi, t, blend, right_vals, swinging[1])
+        pelvis_yaw, pelvis_pitch, pelvis_roll = cycle_vals[1:4].tolist()
+        params = np.array([float(self.path.yaw), pelvis_yaw, pelvis_pitch, pelvis_roll, self.sole_length_m,
+                           self.sole_width_m, ROLL_SMOOTHING, ROLL_SMOOTHING ** 2, *left, *right])
+        prev = self._last_pose
         dt = self.t_s - prev["t"] if prev is not None else 0.0
-        feet = pose["feet"]
-        foot_pos = pose["foot_pos"].copy()  # the reference's own: the pose keeps its for the next rates
-        foot_rot = np.array([feet[s].rot for s in SIDES])
-        corners = (foot_rot @ self.sole_corners_local.T).transpose(0, 2, 1) + foot_pos[:, None, :]
+        rots, foot_pos, corners, ang, lin = reference_frames(
+            params, self.sole_corners_local, prev["rots"] if prev is not None else _NO_ROTS,
+            prev["foot_pos"] if prev is not None else _NO_POS, dt if prev is not None and dt > 0 else 0.0)
+        pelvis_rot, foot_rot = rots[0], rots[1:]
+        pelvis_z = blend.attribute("pelvis_height_m") + cycle_vals[0]
+        upper = cycle_vals[4:].copy()
+        self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper,
+                           "feet": {"left": _Pose(foot_pos[0], foot_rot[0]), "right": _Pose(foot_pos[1], foot_rot[1])}}
         if prev is None or dt <= 0:
-            z_rate, pelvis_w = 0.0, np.zeros(3)
-            lin, ang = np.zeros((2, 3)), np.zeros((2, 3))
-            upper_qd = np.zeros_like(pose["upper"])
+            z_rate = 0.0
+            upper_qd = np.zeros_like(upper)
         else:
-            z_rate = (pose["pelvis_z"] - prev["pelvis_z"]) / dt
-            pelvis_w = _angular_velocity(prev["pelvis_rot"], pose["pelvis_rot"], dt)
-            lin = (pose["foot_pos"] - prev["foot_pos"]) / dt  # per foot: (pos − previous pos) / dt
-            ang = np.array([_angular_velocity(prev["feet"][s].rot, feet[s].rot, dt) for s in SIDES])
-            upper_qd = (pose["upper"] - prev["upper"]) / dt
+            z_rate = (pelvis_z - prev["pelvis_z"]) / dt
+            upper_qd = (upper - prev["upper"]) / dt
         return GaitReference(
             t_s=self.t_s, phase=phi, command=self.command.copy(),
             sample_weights=self.weights.copy(), path_pose=self.path.pose(),
-            pelvis_z=pose["pelvis_z"], pelvis_z_rate=z_rate, pelvis_rot=pose["pelvis_rot"], pelvis_ang_vel=pelvis_w,
-            foot_pos=foot_pos, foot_rot=foot_rot, foot_lin_vel=lin, foot_ang_vel=ang,
-            contact=np.array([not self.in_swing(s, phi) for s in SIDES]),
+            pelvis_z=pelvis_z, pelvis_z_rate=z_rate, pelvis_rot=pelvis_rot, pelvis_ang_vel=ang[0],
+            foot_pos=foot_pos.copy(), foot_rot=foot_rot, foot_lin_vel=lin, foot_ang_vel=ang[1:],
+            contact=np.array([not swinging[0], not swinging[1]]),
             corner_contact=corners[:, :, 2] < CONTACT_TOL_M, sole_corners=corners,
-            upper_q=pose["upper"], upper_qd=upper_qd,
-            footholds={s: (self.target[s] if self.in_swing(s, phi) else self.latched[s]) for s in SIDES},
+            upper_q=upper, upper_qd=upper_qd,
+            footholds={s: (self.target[s] if swing else self.latched[s]) for s, swing in zip(SIDES, swinging)},
             cycle_s=blend.events_s[3],
-            swing_progress=np.array([pose["progress"][s] for s in SIDES]),
+            swing_progress=np.array([left_progress, right_progress]),
         )
 
-    def _pose_at(self, phi: float, blend: BlendedGait) -> dict:
-        cycle_vals, left_vals, right_vals, *_ = blend.channels(phi)
-        pelvis_rot = rot_z(self.path.yaw) @ rot_zyx(cycle_vals[1], cycle_vals[2], cycle_vals[3])
-        feet, progress = {}, {}
-        t = blend.time_at(phi)
-        for side, vals in (("left", left_vals), ("right", right_vals)):
-            feet[side], progress[side] = self._foot_at(side, phi, t, blend, vals)
-        return {"t": self.t_s, "pelvis_z": blend.attribute("pelvis_height_m") + cycle_vals[0], "pelvis_rot": pelvis_rot,
-                "feet": feet, "foot_pos": np.array([feet[s].pos for s in SIDES]), "upper": cycle_vals[4:].copy(),
-                "progress": progress}
+    def _foot_params(self, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray,
+                     swinging: bool) -> tuple[tuple[float, ...], float]:
+        """The sole's part of :func:`engine.gait.planner_kernels.reference_frames`' parameters (FOOT_PARAMS: mode,
+        x, y, yaw, rig yaw, heel and toe pitch, roll, offset) and its swing progress.
 
-    def _foot_at(self, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray) -> tuple[_Pose, float]:
+        Swinging: the nominal swing (Eqs. 5–6) at its progress ⊕ the style's rig and offset. Standing: the
+        latched foothold with the heel/toe transitions after touchdown / before liftoff."""
         lo, td = SWING_PHASES[side]
         k = math.floor(phi - lo)
-        if self.in_swing(side, phi):
+        if swinging:
             t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
             s = min(max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
             x, y, yaw, _ = nominal_swing(self.swing_start[side], self.target[side], s)
             v = vals.tolist()  # the rig's angles as floats (the same numbers, without numpy scalars)
-            rig_r, rig_t = foot_rig(self.sole_length_m, v[3], v[HEEL], v[TOE], v[6], self.sole_width_m)
-            offset = vals[0:3] + rig_t
-            base = rot_z(yaw)
-            return _Pose(np.array([x, y, 0.0]) + base @ offset, base @ rig_r), s
-        # Support phase: latched foothold with the heel/toe transitions after touchdown / before liftoff.
+            return (FOOT_SWING, x, y, yaw, v[3], v[HEEL], v[TOE], v[6], v[0], v[1], v[2]), s
         hold = self.latched[side]
         t_td = blend.event_time(k + td)  # last touchdown (k indexes the swing that ended)
         t_next_lo = blend.event_time(k + 1 + lo)
@@ -534,12 +540,8 @@ class GaitPlanner:
         if not self.landed[side]:
             d_td = 0.0
         heel, toe = stance_pitch(t - t_td, t_next_lo - t, touchdown_pitch, liftoff_pitch, d_td, d_lo)
-        base = rot_z(hold.yaw)
-        pos = hold.position()
-        if heel == 0.0 and toe == 0.0:
-            return _Pose(pos, base), 1.0
-        rig_r, rig_t = foot_rig(self.sole_length_m, 0.0, heel, toe, 0.0)
-        return _Pose(pos + base @ rig_t, base @ rig_r), 1.0
+        mode = FOOT_FLAT if heel == 0.0 and toe == 0.0 else FOOT_ROLLED
+        return (mode, hold.x, hold.y, hold.yaw, 0.0, heel, toe, 0.0, 0.0, 0.0, 0.0), 1.0
 
     # ------------------------------------------------------------------ preview for the MPC
     def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
@@ -561,13 +563,11 @@ class GaitPlanner:
             table = (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
                      np.asarray(self.command, dtype=float).reshape(1, 3))
         else:
-            self._path_pose_ahead(0.0)  # builds the table if this tick has not yet
-            assert self._path_table is not None
-            table = self._path_table
+            table = self._path_table_now()
         region = self.region
         if self._region_array is None or self._region_array[0] is not region:
             self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
-        n, t_start, t_end, down, hold_index, holds, polygons, counts = preview_intervals(
+        times, rows, holds, polygons = preview_intervals(
             float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
             events, np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
             self._edges_now(), np.array([self.landed[s] for s in SIDES]), touchdown_edges, liftoff_edges, stances,
@@ -578,8 +578,7 @@ class GaitPlanner:
         polygons.flags.writeable = False  # the phases' polygons are views of it
         t_s = self.t_s
         phases = []
-        for i, (t0, t1, (left, right), (i_left, i_right), m) in enumerate(zip(
-                t_start.tolist(), t_end.tolist(), down.tolist(), hold_index.tolist(), counts.tolist())):
+        for i, ((t0, t1), (left, right, i_left, i_right, m)) in enumerate(zip(times.tolist(), rows.tolist())):
             on = {"left": footholds[i_left], "right": footholds[i_right]} if left and right else (
                 {"left": footholds[i_left]} if left else {"right": footholds[i_right]})
             phases.append(ContactPhase(t_s + t0, t_s + t1, on, polygons[i, :m]))
@@ -591,8 +590,8 @@ class GaitPlanner:
         if self._last_pose is None:
             return np.array([-1, -1])
         codes = []
-        for side in SIDES:
-            pitch = -math.asin(max(-1.0, min(1.0, float(self._last_pose["feet"][side].rot[2, 0]))))
+        for r20 in self._last_pose["rots"][1:, 2, 0].tolist():  # the soles' R[2, 0]
+            pitch = -math.asin(max(-1.0, min(1.0, r20)))
             codes.append(EDGE_CODES[_pitched_edge(min(pitch, 0.0), max(pitch, 0.0))])
         return np.array(codes)
 
@@ -609,34 +608,12 @@ class GaitPlanner:
         return cached[1], cached[2], cached[3], cached[4]
 
 
-#: Command ramps of recent path tables, by (command, goal, rate limits): a held command (most ticks)
-#: rebuilds only the poses.
-_RAMP_CACHE: dict[tuple, tuple[np.ndarray, ...]] = {}
 _PATH_TABLE_TIMES = np.arange(int(math.ceil(PATH_TABLE_HORIZON_S / PATH_TABLE_STEP_S)) + 1) * PATH_TABLE_STEP_S
 _PATH_TABLE_TIMES.flags.writeable = False
 _PATH_TABLE_TIMES_LIST = _PATH_TABLE_TIMES.tolist()
+_PATH_TABLE_SIZE = len(_PATH_TABLE_TIMES_LIST)
 _ONE_PIECE_TIMES = np.zeros(1)  # the preview's path table while the command holds
 assert tuple(PREVIEW_EVENT_PHASES) == (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
-
-
-def _command_ramp(command: np.ndarray, goal: np.ndarray, rate_limits: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The path table's velocity part: piece times, mean piece velocities (the rate-limited ramp
-    toward ``goal``, then the goal held), turn angles and the pieces' arcs in their start frame
-    (shared read-only arrays)."""
-    key = tuple(np.asarray(a, dtype=float).tobytes() for a in (command, goal, rate_limits))  # bytes: −0.0 ≠ 0.0
-    hit = _RAMP_CACHE.get(key)
-    if hit is not None:
-        return hit
-    times = _PATH_TABLE_TIMES
-    vels, th, dx, dy = command_ramp_pieces(np.asarray(command, dtype=float), np.asarray(goal, dtype=float),
-                                           np.asarray(rate_limits, dtype=float), PATH_TABLE_STEP_S, len(times))  # compiled
-    hit = (times, vels, th, dx, dy)
-    for a in hit:
-        a.flags.writeable = False
-    if len(_RAMP_CACHE) >= 32:
-        _RAMP_CACHE.clear()
-    _RAMP_CACHE[key] = hit
-    return hit
 
 
 def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import intrinsic
 
 from engine.geometry.polygon import _hull_compiled
 
@@ -161,6 +162,15 @@ def path_table_poses(x, y, yaw, th, dx, dy):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
+def path_table(x, y, yaw, command, goal, rate_limits, step_s, n):  # noqa: ANN001, ANN201, PLR0913
+    """The planner's path table in one call: the poses (n, 3) from (x, y, yaw) along the rate-limited ramp from
+    ``command`` toward ``goal`` (:func:`command_ramp_pieces`, :func:`path_table_poses`) and the pieces' mean
+    velocities (n, 3)."""
+    vels, th, dx, dy = command_ramp_pieces(command, goal, rate_limits, step_s, n)
+    return path_table_poses(x, y, yaw, th, dx, dy), vels
+
+
+@njit(cache=True, nogil=True)
 def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, periodic, period, hi, search, t0, coef):  # noqa: ANN001, ANN201, PLR0913
     """``MergedBank.evaluate``'s values and d/dt of every row (its numpy code, the same numbers: numpy's
     float remainder for periodic rows, its clip otherwise, then the Horner cubic of the row's segment)."""
@@ -182,6 +192,46 @@ def merged_bank_rows(member_times, member_rate_scale, member_of_row, offset, per
         values[r] = c0 + tau * (c1 + tau * (c2 + tau * c3))
         rates[r] = (c1 + tau * (2.0 * c2 + 3.0 * c3 * tau)) * member_rate_scale[member_of_row[r]]
     return values, rates
+
+
+@njit(cache=True, nogil=True)
+def _phase_segment(waypoints, p):  # noqa: ANN001, ANN202
+    """bisect_right(waypoints, p) − 1: the phase map's segment of phase p."""
+    j = -1
+    for w in waypoints:
+        if w <= p:
+            j += 1
+    return j
+
+
+@njit(cache=True, nogil=True)
+def merged_bank_at_phase(f, dphi_dt, waypoints, segments, cycles, member_of_row, offset, periodic, period, hi,  # noqa: ANN001, ANN201, PLR0913
+                         search, t0, coef):
+    """BlendedGait.channels' member times and rate scales and :func:`merged_bank_rows` in one call: each member's
+    time Ωᵢ(f) (PhaseMap.time_at on a float) and dΩᵢ/dφ(f) · ``dphi_dt`` (PhaseMap.dtime_dphase), from its phase
+    map's ``segments`` (members, 4, 5: the segment's phase, then the cubic's coefficients c0..c3, PhaseMap._seg) and
+    ``cycles``; their expressions (the same numbers)."""
+    m = segments.shape[0]
+    times = np.empty(m)
+    scale = np.empty(m)
+    for i in range(m):
+        p, k = f, 0.0
+        if not 0.0 <= p < 1.0:
+            k = math.floor(p)
+            p -= k
+            if p >= 1.0:
+                p, k = 0.0, k + 1.0
+        j = _phase_segment(waypoints, p)
+        s = p - segments[i, j, 0]
+        t = segments[i, j, 1] + s * (segments[i, j, 2] + s * (segments[i, j, 3] + s * segments[i, j, 4]))
+        times[i] = t + k * cycles[i] if k != 0.0 else t
+        q = f % 1.0
+        if q >= 1.0:
+            q = 0.0
+        j = _phase_segment(waypoints, q)
+        s = q - segments[i, j, 0]
+        scale[i] = (segments[i, j, 2] + s * (2.0 * segments[i, j, 3] + 3.0 * s * segments[i, j, 4])) * dphi_dt
+    return merged_bank_rows(times, scale, member_of_row, offset, periodic, period, hi, search, t0, coef)
 
 
 # ---------------------------------------------------------------------------------------------------- the preview
@@ -305,9 +355,10 @@ def preview_intervals(phi, t_now, kappa, hold_s, horizon_s, events, holds, swing
 
     The feet start on ``holds`` (2, 3) (a swinging foot's on its target, ``swinging``); a foot that touches down
     later lands on its predicted foothold (``stances`` (2, 3), the path table, the safe ``region`` (side, front,
-    cross, max yaw)). Returns the number of intervals n, their start and end [s from now] (n,), feet down (n, 2),
-    foothold index per foot (n, 2; 0, 1: ``holds``, 2…: the predicted ones, returned (m, 3)), their polygons
-    (n, 8, 2) and vertex counts (n,) (:func:`preview_polygons`)."""
+    cross, max yaw)). Returns, for the n intervals, their start and end [s from now] (n, 2); per interval the
+    feet down (left, right: 0/1), the foothold index per foot (0, 1: ``holds``, 2…: the predicted ones) and the
+    polygon's vertex count (n, 5); the footholds (m, 3); the polygons (n, 8, 2) (:func:`preview_polygons`). Few
+    arrays: each one returned costs the call about a microsecond."""
     t_start = np.empty(MAX_PREVIEW_INTERVALS)
     t_end = np.empty(MAX_PREVIEW_INTERVALS)
     down = np.zeros((MAX_PREVIEW_INTERVALS, 2), dtype=np.bool_)
@@ -360,4 +411,169 @@ def preview_intervals(phi, t_now, kappa, hold_s, horizon_s, events, holds, swing
             break
     polygons, counts = preview_polygons(poses[:n], down[:n], codes[:n], length_m, width_m, front_trim_m,
                                         strip_depth_m)
-    return n, t_start[:n], t_end[:n], down[:n], hold_index[:n], footholds[:n_holds], polygons, counts
+    times = np.empty((n, 2))
+    rows = np.empty((n, 5), dtype=np.int64)
+    for i in range(n):
+        times[i, 0], times[i, 1] = t_start[i], t_end[i]
+        rows[i, 0], rows[i, 1] = down[i, 0], down[i, 1]
+        rows[i, 2], rows[i, 3], rows[i, 4] = hold_index[i, 0], hold_index[i, 1], counts[i]
+    return times, rows, footholds[:n_holds], polygons
+
+
+# ------------------------------------------------------------------------------------------ the reference's frames
+#: Layout of :func:`reference_frames`' ``params``: the path yaw, the pelvis yaw/pitch/roll curves, the sole's
+#: length and width, heel_toe.ROLL_SMOOTHING and its square (Python's ** 2), then per foot (left, right)
+#: FOOT_PARAMS values from FOOT_PARAMS_AT.
+FOOT_PARAMS_AT = 8
+FOOT_PARAMS = 11  # mode, x, y, yaw, rig yaw, heel pitch, toe pitch, roll, offset x, y, z
+#: Foot modes: swinging (the nominal swing ⊕ the style's rig and offset), standing rolled (the heel/toe rig about
+#: the latched foothold), standing flat.
+FOOT_SWING, FOOT_ROLLED, FOOT_FLAT = 0.0, 1.0, 2.0
+
+
+@intrinsic
+def fused_multiply_add(typingctx, a, b, c):  # noqa: ANN001, ANN201, ARG001
+    """a · b + c rounded once (LLVM's fma: the FMA instruction where the CPU has it, else libm's exact fma)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):  # noqa: ANN001, ANN202, ARG001
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def _rot_z_into(out, a):  # noqa: ANN001, ANN202
+    """engine.geometry.rot_z(a) into ``out`` (3, 3)."""
+    c, s = math.cos(a), math.sin(a)
+    out[0, 0], out[0, 1], out[0, 2] = c, -s, 0.0
+    out[1, 0], out[1, 1], out[1, 2] = s, c, 0.0
+    out[2, 0], out[2, 1], out[2, 2] = 0.0, 0.0, 1.0
+
+
+@njit(cache=True, nogil=True)
+def _rot_zyx_into(out, yaw, pitch, roll):  # noqa: ANN001, ANN202
+    """engine.geometry.rot_zyx(yaw, pitch, roll) into ``out`` (3, 3), its expressions."""
+    cz, sz = math.cos(yaw), math.sin(yaw)
+    cy, sy = math.cos(pitch), math.sin(pitch)
+    cx, sx = math.cos(roll), math.sin(roll)
+    out[0, 0], out[0, 1], out[0, 2] = cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx
+    out[1, 0], out[1, 1], out[1, 2] = sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx
+    out[2, 0], out[2, 1], out[2, 2] = -sy, cy * sx, cy * cx
+
+
+@njit(cache=True, nogil=True)
+def _mat3_into(out, a, b):  # noqa: ANN001, ANN202
+    """out = a @ b (3 × 3) as numpy's matmul computes it through OpenBLAS's dgemm with FMA: per entry
+    fma(a₂ b₂, fma(a₁ b₁, a₀ b₀))."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = _dot3_gemm(a[i, 0], a[i, 1], a[i, 2], b[0, j], b[1, j], b[2, j])
+
+
+@njit(cache=True, nogil=True)
+def _dot3_gemm(a0, a1, a2, b0, b1, b2):  # noqa: ANN001, ANN202, PLR0913
+    """A 3-term dot product in dgemm's order: fma(a₂, b₂, fma(a₁, b₁, a₀ b₀))."""
+    return fused_multiply_add(a2, b2, fused_multiply_add(a1, b1, a0 * b0))
+
+
+@njit(cache=True, nogil=True)
+def _dot3_gemv(a0, a1, a2, x0, x1, x2):  # noqa: ANN001, ANN202, PLR0913
+    """A 3-term dot product in the order of numpy's 3 × 3 matrix · vector (OpenBLAS's dgemv_t tail, compiled with
+    contraction): fma(a₂, x₂, fma(a₀, x₀, a₁ x₁))."""
+    return fused_multiply_add(a2, x2, fused_multiply_add(a0, x0, a1 * x1))
+
+
+@njit(cache=True, nogil=True)
+def _angular_velocity_into(out, r0, r1, dt):  # noqa: ANN001, ANN202
+    """planner._angular_velocity: the world angular velocity taking r0 to r1 in dt (small-angle), from r1 r0ᵀ."""
+    d = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            d[i, j] = _dot3_gemm(r1[i, 0], r1[i, 1], r1[i, 2], r0[j, 0], r0[j, 1], r0[j, 2])
+    h = 2.0 * dt
+    out[0], out[1], out[2] = (d[2, 1] - d[1, 2]) / h, (d[0, 2] - d[2, 0]) / h, (d[1, 0] - d[0, 1]) / h
+
+
+@njit(cache=True, nogil=True)
+def _foot_rig_into(rot, trans, length_m, yaw, heel_pitch, toe_pitch, roll, width_m, roll_smoothing,  # noqa: ANN001, ANN202, PLR0913
+                   roll_smoothing_sq):
+    """heel_toe.foot_rig into ``rot`` (3, 3) and ``trans`` (3,): its expressions."""
+    if yaw == 0.0 and heel_pitch == 0.0 and toe_pitch == 0.0 and roll == 0.0:
+        for i in range(3):
+            for j in range(3):
+                rot[i, j] = 1.0 if i == j else 0.0
+            trans[i] = 0.0
+        return
+    half = 0.5 * length_m
+    ch, sh = math.cos(heel_pitch), math.sin(heel_pitch)
+    toe_x, toe_z = -half + length_m * ch, -length_m * sh
+    hx = -half - (-half * ch) - toe_x
+    hz = 0.0 - (half * sh) - toe_z
+    ct, st = math.cos(toe_pitch), math.sin(toe_pitch)
+    tx = toe_x + ct * hx + st * hz
+    tz = toe_z - st * hx + ct * hz
+    if roll != 0.0 and width_m > 0.0:
+        sr = math.sin(roll)
+        tz += 0.5 * width_m * (math.sqrt(sr * sr + roll_smoothing_sq) - roll_smoothing)
+    cz, sz = math.cos(yaw), math.sin(yaw)
+    _rot_zyx_into(rot, yaw, heel_pitch + toe_pitch, roll)
+    trans[0], trans[1], trans[2] = cz * tx, sz * tx, tz
+
+
+@njit(cache=True, nogil=True)
+def reference_frames(params, corners_local, prev_rots, prev_foot_pos, dt):  # noqa: ANN001, ANN201
+    """The rotations and positions of GaitPlanner.evaluate in one call: the pelvis rotation Rz(path yaw) ·
+    Rzyx(pelvis curves); each sole's pose (``params``' FOOT_PARAMS: a swinging foot at the nominal swing's
+    (x, y, yaw) with the style's rig (foot_rig) and offset, a standing foot on its latched foothold, rolled by the
+    heel/toe rig or flat), its corners, and, with ``dt`` > 0, the backward-difference rates from the previous
+    tick's rotations ``prev_rots`` (pelvis, left, right) and sole positions.
+
+    Returns the rotations (3, 3, 3) (pelvis, left sole, right sole), the sole positions (2, 3), their corners
+    (2, 4, 3), the angular velocities (3, 3) (pelvis, left, right) and the sole velocities (2, 3). The 3 × 3 products
+    are multiplied out in the order numpy's matmul computes them through OpenBLAS with FMA (dgemm, dgemv): the same
+    numbers where numpy does, equal to rounding elsewhere (tests/gait/test_planner_speed_references.py keeps the
+    replaced code)."""
+    length_m, width_m, roll_smoothing, roll_sq = params[4], params[5], params[6], params[7]
+    base = np.empty((3, 3))
+    rig = np.empty((3, 3))
+    rots = np.empty((3, 3, 3))
+    pelvis = rots[0]
+    foot_rot = rots[1:]
+    _rot_z_into(base, params[0])
+    _rot_zyx_into(rig, params[1], params[2], params[3])
+    _mat3_into(pelvis, base, rig)
+    foot_pos = np.empty((2, 3))
+    trans = np.empty(3)
+    for j in range(2):
+        p = params[FOOT_PARAMS_AT + FOOT_PARAMS * j: FOOT_PARAMS_AT + FOOT_PARAMS * (j + 1)]
+        mode, x, y, yaw = p[0], p[1], p[2], p[3]
+        _rot_z_into(base, yaw)
+        if mode == FOOT_FLAT:
+            foot_pos[j, 0], foot_pos[j, 1], foot_pos[j, 2] = x, y, 0.0
+            foot_rot[j] = base
+            continue
+        if mode == FOOT_SWING:
+            _foot_rig_into(rig, trans, length_m, p[4], p[5], p[6], p[7], width_m, roll_smoothing, roll_sq)
+            trans[0], trans[1], trans[2] = p[8] + trans[0], p[9] + trans[1], p[10] + trans[2]
+        else:
+            _foot_rig_into(rig, trans, length_m, 0.0, p[5], p[6], 0.0, 0.0, roll_smoothing, roll_sq)
+        for i in range(3):
+            foot_pos[j, i] = (x if i == 0 else (y if i == 1 else 0.0)) + _dot3_gemv(
+                base[i, 0], base[i, 1], base[i, 2], trans[0], trans[1], trans[2])
+        _mat3_into(foot_rot[j], base, rig)
+    corners = np.empty((2, 4, 3))
+    for j in range(2):
+        for c in range(4):
+            for i in range(3):
+                corners[j, c, i] = _dot3_gemm(foot_rot[j, i, 0], foot_rot[j, i, 1], foot_rot[j, i, 2], corners_local[c, 0],
+                                              corners_local[c, 1], corners_local[c, 2]) + foot_pos[j, i]
+    ang = np.zeros((3, 3))
+    lin = np.zeros((2, 3))
+    if dt > 0.0:
+        _angular_velocity_into(ang[0], prev_rots[0], pelvis, dt)
+        for j in range(2):
+            _angular_velocity_into(ang[1 + j], prev_rots[1 + j], foot_rot[j], dt)
+            for i in range(3):
+                lin[j, i] = (foot_pos[j, i] - prev_foot_pos[j, i]) / dt
+    return rots, foot_pos, corners, ang, lin

@@ -284,20 +284,35 @@ def path_table_reference(pose, th, dx, dy):  # noqa: ANN001, ANN201
     return poses
 
 
+def _command_ramp(command, goal, rate_limits):  # noqa: ANN001, ANN202
+    """The planner's path table's velocity part: (times, piece velocities, turn angles, arcs dx, dy)."""
+    from engine.gait.planner import _PATH_TABLE_TIMES, PATH_TABLE_STEP_S
+    from engine.gait.planner_kernels import command_ramp_pieces
+
+    return (_PATH_TABLE_TIMES, *command_ramp_pieces(np.asarray(command, dtype=float), np.asarray(goal, dtype=float),
+                                                    np.asarray(rate_limits, dtype=float), PATH_TABLE_STEP_S,
+                                                    len(_PATH_TABLE_TIMES)))
+
+
 def test_compiled_path_table_equals_the_numpy_cumsums() -> None:
-    from engine.gait.planner import _command_ramp
-    from engine.gait.planner_kernels import path_table_poses
+    from engine.gait.planner import PATH_TABLE_STEP_S
+    from engine.gait.planner_kernels import path_table, path_table_poses
 
     rng = np.random.default_rng(23)
     for _ in range(500):
         command, goal = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
         if rng.random() < 0.2:
             goal = command.copy()  # held: the ramp's early exit
-        _, _, th, dx, dy = _command_ramp(command, goal, rng.uniform(0.1, 3.0, 3))
+        limits = rng.uniform(0.1, 3.0, 3)
+        _, _, th, dx, dy = _command_ramp(command, goal, limits)
         pose = rng.uniform(-5, 5, 3)
         # cos/sin are libm's in the kernel and numpy's SIMD ones in the reference: equal to rounding (bit-equal on
         # AVX2 machines, not necessarily where numpy dispatches AVX-512 versions)
         _assert_equal_to_rounding(path_table_poses(*pose.tolist(), th, dx, dy), path_table_reference(pose, th, dx, dy))
+        # the planner's one call: the ramp and the poses (the same kernels)
+        poses, vels = path_table(*pose.tolist(), command, goal, limits, PATH_TABLE_STEP_S, len(th))
+        np.testing.assert_array_equal(poses, path_table_poses(*pose.tolist(), th, dx, dy))
+        np.testing.assert_array_equal(vels, _command_ramp(command, goal, limits)[1])
 
 
 def test_compiled_merged_bank_equals_numpy() -> None:
@@ -412,7 +427,7 @@ def test_early_touchdown_flag_equals_the_array_expression() -> None:
 
 
 def command_ramp_reference(command, goal, rate_limits):  # noqa: ANN001, ANN201
-    """planner._command_ramp before the speed-up (a float loop for the ramp, numpy for the arcs)."""
+    """The planner's command ramp before the speed-up (a float loop for the ramp, numpy for the arcs)."""
     from engine.gait.planner import PATH_TABLE_HORIZON_S, PATH_TABLE_STEP_S
 
     h = PATH_TABLE_STEP_S
@@ -439,7 +454,6 @@ def command_ramp_reference(command, goal, rate_limits):  # noqa: ANN001, ANN201
 
 
 def test_compiled_command_ramp_equals_the_loop_and_numpy_arcs() -> None:
-    from engine.gait.planner import _RAMP_CACHE, _command_ramp
 
     rng = np.random.default_rng(31)
     for case in range(800):
@@ -450,7 +464,6 @@ def test_compiled_command_ramp_equals_the_loop_and_numpy_arcs() -> None:
             goal[2] = command[2] = 0.0  # no turn: the arcs' straight-line branch
         if case % 11 == 0:
             limits = -limits  # |limit|
-        _RAMP_CACHE.clear()
         got, want = _command_ramp(command, goal, limits), command_ramp_reference(command, goal, limits)
         for g, w in zip(got[:3], want[:3]):  # times, the ramp and the turn angles: plain float arithmetic
             np.testing.assert_array_equal(g, w)
