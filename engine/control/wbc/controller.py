@@ -53,7 +53,7 @@ from engine.control.wbc.tasks import (
     PelvisTask,
 )
 from engine.robot.model import RobotModel
-from engine.control.wbc.priority import LexicographicSolve, level2_rows
+from engine.control.wbc.priority import LexicographicSolve
 from engine.control.wbc.qp import ActiveSetQpSolver, CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
@@ -184,7 +184,7 @@ class TaskSpaceInverseDynamics:
         self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints, compiled=kernels == "numba")
         self.active_set_solver = ActiveSetQpSolver(self.nv, self.n_rho, self.n_joints)
         # Balance before style: two solves per tick when the slack is finite (engine/control/wbc/priority.py).
-        self.priority = (LexicographicSolve(self.nv, self.n_rho, self.n_joints, g.priority_slack_mps2)
+        self.priority = (LexicographicSolve(self.nv, self.n_rho, self.n_joints, self.n_rows, g.priority_slack_mps2)
                          if math.isfinite(g.priority_slack_mps2) else None)
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
@@ -266,11 +266,11 @@ class TaskSpaceInverseDynamics:
         priority = self.priority
         if priority is None:
             return self._solve_qp(qp)
-        level2 = level2_rows(self.n_rows, contact, com_z_tracked and self.gains.com_z_weight > 0.0)
-        first, backend, iterations, message = self._solve_qp(priority.level1_qp(qp, self._jac, self._rhs, self._w, level2))
+        first, backend, iterations, message = self._solve_qp(priority.level1_qp(
+            qp, self._jac, self._rhs, self._w, contact, com_z_tracked and self.gains.com_z_weight > 0.0))
         if first is None:
             return first, backend, iterations, message
-        second = priority.solve_level2(priority.level2_qp(qp, self._jac, level2, first[0]))
+        second = priority.solve_level2(priority.level2_qp(qp, self._jac, first[0]))
         iterations += priority.solver.iterations
         if second is None:
             return first, backend, iterations, f"{message}; level 2 failed, level 1's solution"
