@@ -86,3 +86,25 @@ def test_the_priority_keeps_level_one_at_its_optimum_and_tracks_the_style_with_t
 def test_the_default_is_one_weighted_qp(g1) -> None:
     assert WbcGains().priority_slack_mps2 == float("inf") and WbcGains().priority_level2_scale == 1.0
     assert TaskSpaceInverseDynamics(g1).priority is None
+
+
+def test_the_priority_is_chosen_per_robot_in_control_wbc(g1) -> None:
+    robot = replace(g1, config=replace(g1.config, wbc_gains={"priority_slack_mps2": 0.01}))
+    wbc = TaskSpaceInverseDynamics(robot)
+    assert wbc.priority is not None and wbc.priority.slack == 0.01
+
+
+@pytest.mark.slow
+def test_a_random_style_that_fell_walks_with_the_priority(g1) -> None:
+    """random-2-3 of ``studio bench styles --robot g1 --seed 2 --extent 0.15`` fell at 3.9 s of the sweep
+    without the priority (2026-11-29, main 725a999); with it, it walks the 20 s (slip 4.0 mm, CoP inside
+    99.6 %). Here its first 6 s."""
+    from engine.bench.styles import style_jobs
+    from engine.gait.command_schedule import parse_command
+    from engine.walk_runner import run_walk
+
+    style = style_jobs("g1", 4, 2, 6.0, 0.15)[3][0]
+    robot = replace(g1, config=replace(g1.config, wbc_gains={"priority_slack_mps2": SLACK}))
+    summary, _ = run_walk(robot, style, parse_command("sweep", style.velocities), 6.0, record=False)
+    assert not summary["fell"]
+    assert summary["cop_inside_fraction"] >= 0.99
