@@ -53,6 +53,7 @@ from engine.control.wbc.tasks import (
     PelvisTask,
 )
 from engine.robot.model import RobotModel
+from engine.control.wbc.priority import LexicographicSolve
 from engine.control.wbc.qp import ActiveSetQpSolver, CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
@@ -112,13 +113,16 @@ class TaskSpaceInverseDynamics:
         self.upper_v_indices = np.array([6 + robot.joint_names.index(j) for j in names], dtype=np.int64)
 
         g = self.gains
+        s2 = g.priority_level2_scale  # the style's tasks' weights (engine/control/wbc/priority.py)
+        self._swing_weights = (g.swing_foot_weight, s2 * g.swing_foot_rotation_weight)
         self.foot_tasks = [FramePoseTask(i) for i in range(len(SIDES))]
         self.pelvis_task = PelvisTask(kp=[g.pelvis_height_kp] + [g.pelvis_rot_kp] * 3,
                                       kd=[g.pelvis_height_kd] + [g.pelvis_rot_kd] * 3,
-                                      weight=[g.pelvis_height_weight] + [g.pelvis_rot_weight] * 3)
+                                      weight=[g.pelvis_height_weight] + [s2 * g.pelvis_rot_weight] * 3)
         self.com_task = ComTask(kp=g.com_kp, kd=g.com_kd, weight=[g.com_weight, g.com_weight, g.com_z_weight])
-        self.upper_task = JointTask(self.upper_v_indices, self.nv, g.upper_body_kp, g.upper_body_kd, g.upper_body_weight)
-        self.angular_momentum_task = AngularMomentumTask(kd=g.angular_momentum_kd, weight=g.angular_momentum_weight)
+        self.upper_task = JointTask(self.upper_v_indices, self.nv, g.upper_body_kp, g.upper_body_kd,
+                                    s2 * g.upper_body_weight)
+        self.angular_momentum_task = AngularMomentumTask(kd=g.angular_momentum_kd, weight=s2 * g.angular_momentum_weight)
         self.tasks = [*self.foot_tasks, self.pelvis_task, self.com_task, self.upper_task, self.angular_momentum_task]
         self.n_rows = sum(t.dim for t in self.tasks)
         self._jac = np.zeros((self.n_rows, self.nv))
@@ -141,10 +145,10 @@ class TaskSpaceInverseDynamics:
             r += task.dim
         self._foot_rows = 6 * n_feet
         # The compiled rows' gains (kernels.task_rows) and zero feed-forward.
-        self._task_gains = np.array([g.swing_foot_kp, g.swing_foot_kd, g.swing_foot_weight, g.contact_foot_kd,
+        self._task_gains = np.array([g.swing_foot_kp, g.swing_foot_kd, self._swing_weights[0], g.contact_foot_kd,
                                      g.contact_foot_weight, g.pelvis_height_kp, g.pelvis_height_kd, g.pelvis_rot_kp,
                                      g.pelvis_rot_kd, g.com_kp, g.com_kd, g.com_z_weight, g.upper_body_kp,
-                                     g.upper_body_kd, g.angular_momentum_kd, g.swing_foot_rotation_weight], dtype=float)
+                                     g.upper_body_kd, g.angular_momentum_kd, self._swing_weights[1]], dtype=float)
         self._zeros_2x3 = np.zeros((n_feet, 3))
         self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
         self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()
@@ -179,6 +183,9 @@ class TaskSpaceInverseDynamics:
         self.osqp_solver = OsqpQpSolver(self.nv, self.n_rho)
         self.daqp_solver = DaqpQpSolver(self.nv, self.n_rho, self.n_joints, compiled=kernels == "numba")
         self.active_set_solver = ActiveSetQpSolver(self.nv, self.n_rho, self.n_joints)
+        # Balance before style: two solves per tick when the slack is finite (engine/control/wbc/priority.py).
+        self.priority = (LexicographicSolve(self.nv, self.n_rho, self.n_joints, self.n_rows, g.priority_slack_mps2)
+                         if math.isfinite(g.priority_slack_mps2) else None)
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
         self.last_tau = np.zeros(self.n_joints)
@@ -235,7 +242,7 @@ class TaskSpaceInverseDynamics:
         qp = self._build_qp(snap, ref, contact)
         self.qp = qp
         t2 = time.perf_counter()
-        solution, backend, iterations, message = self._solve_qp(qp)
+        solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref.com_z_m is not None)
         t3 = time.perf_counter()
         if solution is None:
             return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
@@ -251,6 +258,23 @@ class TaskSpaceInverseDynamics:
             pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
             basis=self._basis, corners_m=self._corners_m, qp=qp)
         return cmd
+
+    def _solve_prioritized(self, qp: CentroidalQp, contact: NDArray[np.bool_],
+                           com_z_tracked: bool) -> tuple[tuple[FloatArray, FloatArray] | None, str, int, str]:
+        """:meth:`_solve_qp`, or with a task priority its two solves (:mod:`engine.control.wbc.priority`): the
+        level-1 QP by the chosen backend, then level 2 with level 1 held (its solution kept when that fails)."""
+        priority = self.priority
+        if priority is None:
+            return self._solve_qp(qp)
+        first, backend, iterations, message = self._solve_qp(priority.level1_qp(
+            qp, self._jac, self._rhs, self._w, contact, com_z_tracked and self.gains.com_z_weight > 0.0))
+        if first is None:
+            return first, backend, iterations, message
+        second = priority.solve_level2(priority.level2_qp(qp, self._jac, first[0]))
+        iterations += priority.solver.iterations
+        if second is None:
+            return first, backend, iterations, f"{message}; level 2 failed, level 1's solution"
+        return second, backend, iterations, message
 
     def _solve_qp(self, qp: CentroidalQp) -> tuple[tuple[FloatArray, FloatArray] | None, str, int, str]:
         """The QP by the chosen backend (DAQP by default), OSQP when that one gives no solution: (q̈, ρ) or
@@ -296,7 +320,7 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
         self.qp = qp
         t2 = time.perf_counter()
-        solution, backend, iterations, message = self._solve_qp(qp)
+        solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref.com_z_m is not None)
         t3 = time.perf_counter()
         if solution is None:
             return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
@@ -385,8 +409,7 @@ class TaskSpaceInverseDynamics:
                 if contact[i].any():
                     task.weight[:] = g.contact_foot_weight
                 else:
-                    task.weight[:3] = g.swing_foot_weight
-                    task.weight[3:] = g.swing_foot_rotation_weight
+                    task.weight[:3], task.weight[3:] = self._swing_weights
         self.pelvis_task.set_target(ref.pelvis_height_m, ref.pelvis_rotation, ref.pelvis_height_rate_mps,
                                     ref.pelvis_ang_vel_radps)
         com = self.com_task  # targets written in place (the task owns its 3-vectors)

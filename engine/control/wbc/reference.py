@@ -81,6 +81,14 @@ class WbcGains:
     max_velocity_error_radps: float = 0.2
     # Fallback: stiff PD hold; the last good feed-forward decays with this time constant.
     fallback_decay_s: float = 0.2
+    # Task priority (engine/control/wbc/priority.py, issue 13). Level 1: the feet on the ground, the swing
+    # foot's position, the pelvis height and the CoM; level 2: the style's tasks (swing foot orientation,
+    # pelvis orientation, upper body) and the angular-momentum damping. A finite slack (m/s², rad/s²) solves two QPs per tick: level 1 first, then
+    # level 2 with level 1's task accelerations held within the slack of the first solve's. inf: one QP
+    # weighing every task against every other (as before).
+    priority_slack_mps2: float = math.inf
+    # Level 2's weights × this (1: as before; < 1: a weighted hierarchy in the one QP).
+    priority_level2_scale: float = 1.0
 
     @classmethod
     def for_robot(cls, robot: RobotModel) -> WbcGains:
