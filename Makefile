@@ -2,8 +2,9 @@
 #   make studio   install if needed, then serve http://127.0.0.1:8080 with the default robot
 #   make test     install if needed (and Debian's chromium for the browser tests), run every test
 #   make typecheck  mypy over engine/ and studio/ (part of make test)
-#   make test-fast  the development tier (≈ 3 min on an idle 2-core machine): unit, property and fuzz tests,
-#                   without the `slow` (long runs: walks, training, Ray, whole CLI runs) and `e2e` (browser) tiers
+#   make test-fast  the development tier: unit, property and fuzz tests, without the `slow` (long runs: walks,
+#                   training, Ray, whole CLI runs) and `e2e` (browser) tiers, on one pytest-xdist worker per
+#                   core (at most 4; FAST_WORKERS=N to choose, FAST_WORKERS=0 for one process)
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
@@ -40,8 +41,12 @@ test: setup chromium typecheck
 typecheck: setup
 	$(PY) -m mypy
 
+# pytest-xdist: `auto` = the physical cores, capped by --maxprocesses (each worker holds ≈ 1 GB: torch, pinocchio,
+# MuJoCo, the robot models); worksteal: tests go out one by one and an idle worker takes queued tests from the
+# busy one, which matters with tests of 5 ms next to tests of 35 s (figures in the README, Tests and speed).
+FAST_WORKERS ?= auto
 test-fast: setup
-	$(PY) -m pytest -q -m "not slow and not e2e" $(PYTEST_ARGS)
+	$(PY) -m pytest -q -m "not slow and not e2e" -n $(FAST_WORKERS) --maxprocesses 4 --dist worksteal $(PYTEST_ARGS)
 
 bench: setup
 	$(VENV)/bin/studio bench

@@ -15,7 +15,7 @@ from engine.retarget.humanoid_arm.pose15 import bvh_points
 from engine.retarget.humanoid_arm.puppeteer import STAGES, ArmRetargeter
 from engine.retarget.humanoid_arm.wae import SharedLatentWAE
 from engine.retarget.importers.bvh import load_bvh
-from tests.conftest import free_port, run_studio
+from tests.conftest import run_studio
 
 
 def _clip(name: str):
@@ -107,9 +107,9 @@ def test_puppet_bad_input_is_one_line_and_writes_nothing(shipped_g1, tmp_path):
 
 def test_stream_bvh_sends_one_parseable_datagram_per_frame():
     clip = _clip("141_16.bvh")
-    port = free_port()
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", port))
+        sock.bind(("127.0.0.1", 0))  # the OS picks a free UDP port: no race with a parallel test (pytest -n)
+        port = sock.getsockname()[1]
         sock.settimeout(60)
         res = run_studio("stream-bvh", str(clip), "--to", f"udp://127.0.0.1:{port}", "--fps", "60", "--max-frames", "6")
         assert res.returncode == 0, res.stderr
