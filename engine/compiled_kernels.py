@@ -15,23 +15,28 @@ import numpy as np
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every kernel with the argument types the controller
-    passes, by running them once: a standing G1 whole-body tick in double and partial support, a hull, and LWL2's encoder and k-NN."""
+    passes, by running them once: a standing G1 whole-body tick in double and partial support (with and without the task priority), a hull, and LWL2's encoder and k-NN."""
     from engine.constants import SIDES
     from engine.control.controller import RobotState
     from engine.control.wbc.controller import TaskSpaceInverseDynamics
     from engine.geometry.polygon import convex_hull_2d
     from engine.robot.model import load_robot
 
+    from dataclasses import replace
+
     robot = load_robot("g1")
-    wbc = TaskSpaceInverseDynamics(robot)
     state = RobotState(0.0, robot.q_standing.copy(), np.zeros(robot.pin_model.nv))
-    wbc.reset(state)
-    ref = wbc.hold_reference(robot.q_standing)
-    for contact in (np.ones((len(SIDES), 4), dtype=bool), np.eye(len(SIDES), 4, dtype=bool)):
-        ref.contact = contact
-        wbc.compute(state, ref)
-        if not wbc.diagnostics.ok:
-            raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
+    plain = TaskSpaceInverseDynamics(robot)
+    # and with the task priority on (WbcGains.priority_slack_mps2: its two kernels, engine/control/wbc/priority.py)
+    prioritised = TaskSpaceInverseDynamics(robot, gains=replace(plain.gains, priority_slack_mps2=0.01))
+    for wbc in (plain, prioritised):
+        wbc.reset(state)
+        ref = wbc.hold_reference(robot.q_standing)
+        for contact in (np.ones((len(SIDES), 4), dtype=bool), np.eye(len(SIDES), 4, dtype=bool)):
+            ref.contact = contact
+            wbc.compute(state, ref)
+            if not wbc.diagnostics.ok:
+                raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
     convex_hull_2d(np.random.default_rng(0).random((8, 2)))
     _warm_up_planner()
     _warm_up_lwl2()
