@@ -58,9 +58,9 @@ def bench_render(robot: str = "g1", rounds: int = 3, window_s: float = 8.0, sett
             page.goto(f"http://127.0.0.1:{studio.server.get_port()}/", timeout=120_000)
             page.wait_for_selector("canvas", timeout=120_000)
             page.evaluate(FRAMES_JS)
+            walk = _status_line_walk(page, studio, duration_s, hold_forward, out_dir) if duration_s > 0 else None
             if keys > 0:  # the Style tab (its New name field) stays open: the canvas draws beside it
                 page.get_by_role("tab", name="Style").click(timeout=300_000)
-            walk = _status_line_walk(page, studio, duration_s, hold_forward, out_dir) if duration_s > 0 else None
             for _ in range(rounds):
                 for shadows in (True, False):
                     studio.set_shadows(shadows)
@@ -100,6 +100,7 @@ def _status_line_walk(page, studio, duration_s: float, hold_forward, out_dir: st
     real-time factor the page's status line shows, read from the page once a second (what the animator sees;
     the engine measures it over its last second), and a screenshot of the page at the end."""
     studio.set_shadows(False)
+    page.get_by_role("tab", name="Robot").click(timeout=300_000)  # where the status line is
     hold_forward(5.0)  # walking, the engine's first 1 s window is full
     status = page.get_by_text(STATUS_RTF)
     shown: list[float] = []
