@@ -16,13 +16,13 @@ import numpy as np
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every kernel with the argument types the controller
     passes, by running them once: a standing G1 whole-body tick in double and partial support (with and without the task priority), a hull, and LWL2's encoder and k-NN."""
+    from dataclasses import replace
+
     from engine.constants import SIDES
     from engine.control.controller import RobotState
     from engine.control.wbc.controller import TaskSpaceInverseDynamics
     from engine.geometry.polygon import convex_hull_2d
     from engine.robot.model import load_robot
-
-    from dataclasses import replace
 
     robot = load_robot("g1")
     state = RobotState(0.0, robot.q_standing.copy(), np.zeros(robot.pin_model.nv))
