@@ -326,7 +326,7 @@ class ComMpc:
         w = self.weights
         t_qp = time.perf_counter()
         history = self._warm_history
-        (keys_a, nrm_a), (keys_b, nrm_b) = (list(history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
+        (keys_a, nrm_a), (keys_b, nrm_b) = _two_newest(history)
         times = problem.times_s
         outcome, iterations, rows, violation, wps_world, pos_world, vel_wp, final_state, total, finite = solve_window(
             times, omega, float(w.cop_centroid), float(w.cop_velocity), self.min_velocity_dt_s,
@@ -337,12 +337,20 @@ class ComMpc:
         if outcome != _AS_OPTIMAL or not violation <= CONSTRAINT_TOL_M or not finite:
             return None
         self._store_warm(problem, rows)
+        return self._optimal_solution(times, wps_world, pos_world, vel_wp, height, int(iterations), len(rows),
+                                      problem.empty_intersection, qp_time, problem.centroids, final_state, t_start)
+
+    def _optimal_solution(self, times: FloatArray, wps_world: FloatArray, pos_world: FloatArray, vel_wp: FloatArray,
+                          height: float, iterations: int, n_active: int, empty_intersection: bool, qp_time: float,
+                          centroids: FloatArray, final_state: FloatArray, t_start: float) -> ComMpcSolution:
+        """The plan of a clean, finite active-set optimum (the compiled paths :meth:`_solve_compiled` and
+        :meth:`_solve_window`), kept as the last good one."""
         if iterations == 0:  # the free optimum holds every row: the active set did not run
             message = "active set: unconstrained optimum"
         else:
-            message = f"active set: optimal, {len(rows)} active rows"
+            message = f"active set: optimal, {n_active} active rows"
         status = "solved"
-        if problem.empty_intersection:
+        if empty_intersection:
             status = "solved_empty_intersection"
             message += "; empty support intersection: end waypoint constrained to the closing interval's polygon"
         solution = ComMpcSolution(
@@ -354,9 +362,9 @@ class ComMpc:
             status=status,
             solve_time_s=time.perf_counter() - t_start,
             message=message,
-            osqp_iterations=int(iterations),
+            osqp_iterations=iterations,
             osqp_time_s=qp_time,
-            region_centroids_xy_m=problem.centroids,
+            region_centroids_xy_m=centroids,
             qp_final_state=final_state,
         )
         object.__setattr__(solution, "_checked_finite", True)  # solve() need not check it again
@@ -384,7 +392,7 @@ class ComMpc:
         if table.ndim != 2 or table.shape[1] != 3 or points.dtype != np.float64 or points.ndim != 2 \
                 or points.shape[1] != 2:
             return None
-        (keys_a, nrm_a), (keys_b, nrm_b) = (list(history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
+        (keys_a, nrm_a), (keys_b, nrm_b) = _two_newest(history)
         t_now, com_x, com_y, vel_x, vel_y, cop_x, cop_y, height = state
         w = self.weights
         t_qp = time.perf_counter()
@@ -399,16 +407,9 @@ class ComMpc:
         qp_time = time.perf_counter() - t_qp  # (the polygons' geometry and rows included: one compiled call)
         if status != WINDOW_PLANNED:
             return None
-        self._warm_history = [(warm_keys, warm_normals)] + history[: _WARM_HISTORY - 1]
-        if iterations == 0:  # the free optimum holds every row: the active set did not run
-            message = "active set: unconstrained optimum"
-        else:
-            message = f"active set: optimal, {len(warm_keys)} active rows"
-        solution = ComMpcSolution(times, wps_world, pos_world, vel_wp, height, "solved", time.perf_counter() - t_start,
-                                  message, int(iterations), qp_time, centroids, final_state)
-        object.__setattr__(solution, "_checked_finite", True)  # solve() need not check it again
-        self._last_good = solution
-        return solution
+        self._remember_warm(warm_keys, warm_normals)
+        return self._optimal_solution(times, wps_world, pos_world, vel_wp, height, int(iterations), len(warm_keys),
+                                      False, qp_time, centroids, final_state, t_start)
 
     # ------------------------------------------------------------ geometry
 
@@ -537,8 +538,11 @@ class ComMpc:
 
     def _store_warm(self, pb: _Problem, rows: NDArray[np.intp]) -> None:
         """Remember the active rows by waypoint time and kind (encoded together) and normal."""
-        entry = (pb.row_key[rows], pb.normals[rows])
-        self._warm_history = [entry] + self._warm_history[: _WARM_HISTORY - 1]
+        self._remember_warm(pb.row_key[rows], pb.normals[rows])
+
+    def _remember_warm(self, keys: FloatArray, normals: FloatArray) -> None:
+        """The newest active rows (keys, normals (k, 2)) first in the warm-start history."""
+        self._warm_history = [(keys, normals)] + self._warm_history[: _WARM_HISTORY - 1]
 
     def _match_warm(self, pb: _Problem, entry: tuple[FloatArray, NDArray[np.complex128]]) -> list[int]:
         """Rows of this problem matching a remembered solution's active rows.
@@ -849,6 +853,11 @@ def _csc_pattern(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> 
     indptr = np.concatenate([[0], np.cumsum(np.bincount(c, minlength=shape[1]))])
     mat = sp.csc_matrix((np.zeros(len(r)), r.astype(np.int64), indptr.astype(np.int64)), shape=shape)
     return perm, mat
+
+
+def _two_newest(history: list) -> list:
+    """The warm-start history's two newest entries, padded with empty ones (what the compiled solves take)."""
+    return (list(history) + [(_NO_KEYS, _NO_NORMALS)] * 2)[:2]
 
 
 def _state_floats(t_now_s: object, com_xy_m: object, com_vel_xy_mps: object, cop_xy_m: object,
