@@ -20,7 +20,8 @@ from engine import protocol as msg
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PUBLISH_HZ = 60.0
 TELEMETRY_HZ = 20.0
-MAX_CATCH_UP_TICKS = 25  # never run more than 50 ms of simulation in one go; drop time instead
+MAX_BATCH_TICKS = 25  # at most 50 ms of simulation between two looks at commands, frames and telemetry
+MAX_BACKLOG_S = 0.25  # behind wall time by more than this: drop the excess (a stall is not replayed at speed)
 COMMAND_POLL_TICKS = 4  # read commands every planner tick, even inside a catch-up batch
 
 
@@ -75,11 +76,8 @@ def engine_main(conn: Connection, robot: str) -> None:
             period = 1.0 / (CONTROL_RATE_HZ * core.playback_speed)
             now = time.perf_counter()
             if core.running:
-                due = int((now - wall0) / period) - ticks
-                if due > MAX_CATCH_UP_TICKS:  # too slow: let simulated time fall behind
-                    wall0 += (due - MAX_CATCH_UP_TICKS) * period
-                    due = MAX_CATCH_UP_TICKS
-                for i in range(max(due, 0)):
+                due, wall0 = ticks_due(now, wall0, ticks, period)
+                for i in range(due):
                     core.tick()
                     ticks += 1
                     if core.style_revision != published_revision:
@@ -116,6 +114,22 @@ def engine_main(conn: Connection, robot: str) -> None:
                 conn.poll(min(sleep, 0.05))
     except (EOFError, BrokenPipeError, ConnectionResetError, KeyboardInterrupt, _ShutdownRequested):
         return
+
+
+def ticks_due(now_s: float, wall0_s: float, ticks: int, period_s: float) -> tuple[int, float]:
+    """Ticks to run now, and the clock origin, for a fixed-step simulation paced to wall time.
+
+    The simulation owes ``(now - wall0) / period - ticks`` ticks. A backlog up to ``MAX_BACKLOG_S`` is kept
+    and paid back in batches of at most ``MAX_BATCH_TICKS`` (a short preemption on a busy machine costs no
+    simulated time); beyond it the origin moves forward and the excess is dropped, so a long stall or a
+    machine slower than real time never makes the robot race to catch up.
+    """
+    owed = int((now_s - wall0_s) / period_s) - ticks
+    max_owed = max(int(round(MAX_BACKLOG_S / period_s)), MAX_BATCH_TICKS)
+    if owed > max_owed:
+        wall0_s += (owed - max_owed) * period_s
+        owed = max_owed
+    return max(0, min(owed, MAX_BATCH_TICKS)), wall0_s
 
 
 class _ShutdownRequested(Exception):
