@@ -16,7 +16,7 @@ import pytest
 from engine.bench.mpc_problems import closed_loop_like_problems, example_walking_supports
 from engine.constants import GRAVITY_MPS2
 from engine.control.mpc import ComMpc, SupportInterval
-from engine.control.mpc.controller import _sanitize_state
+from engine.control.mpc.state_input import sanitize_state as _sanitize_state
 from engine.control.mpc.lip import _Segments
 
 
@@ -193,7 +193,7 @@ def test_compiled_active_set_equals_numpy() -> None:
 
 def test_compiled_plan_and_finiteness_equal_numpy() -> None:
     """plan_from_waypoints (propagation, world frame, final state) and _is_finite against their numpy code."""
-    from engine.control.mpc.controller import _is_finite
+    from engine.control.mpc.fallbacks import is_finite_plan as _is_finite
     from engine.control.mpc.kernels import plan_from_waypoints
     from engine.control.mpc.types import ComMpcSolution
 

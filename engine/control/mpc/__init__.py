@@ -5,8 +5,13 @@
 * :mod:`~engine.control.mpc.regions` — the waypoints' constraint regions (Eq. 12's polygons);
 * :mod:`~engine.control.mpc.lip` — exact LIP propagation under a piecewise-linear CoP (Eq. 11);
 * :mod:`~engine.control.mpc.problem` — the support schedule as QP rows and the condensed QP (Eqs. 12–14);
-* :mod:`~engine.control.mpc.active_set` — the dense dual active-set solver;
-* :mod:`~engine.control.mpc.controller` — :class:`ComMpc` (build, condense, solve, warm starts, fallbacks).
+* :mod:`~engine.control.mpc.active_set` — the dense dual active-set solver (compiled:
+  :mod:`~engine.control.mpc.active_set_kernel`, :mod:`~engine.control.mpc.kernels`);
+* :mod:`~engine.control.mpc.warm_start` — matching the previous solutions' active rows;
+* :mod:`~engine.control.mpc.osqp_backend` — OSQP on a padded, fixed sparsity pattern (``solver="osqp"``);
+* :mod:`~engine.control.mpc.state_input` — the input state, made finite and flagged;
+* :mod:`~engine.control.mpc.fallbacks` — previous plan, centroid plan or held CoP when the QP gives none;
+* :mod:`~engine.control.mpc.controller` — :class:`ComMpc` (build, condense, solve).
 
 Other QP backends: :mod:`engine.control.qp_backends`. Polygon geometry: :mod:`engine.geometry.polygon`.
 

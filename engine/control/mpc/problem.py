@@ -9,7 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.control.mpc.regions import _CONTAIN_TOL_M
+from engine.control.mpc.warm_start import WARM_KIND_OFFSET_S
 from engine.control.qp_backends import QpProblem
+from engine.geometry.polygon import clip_convex_polygons, convex_hull, polygon_centroid
 
 FloatArray = NDArray[np.float64]
 
@@ -93,3 +96,89 @@ class _Condensed:
             return h_rows[:, rv[j]] * (nrm @ nrm[j].T)
 
         return cols
+
+
+# ------------------------------------------------------- rows, reference path
+
+_ROW_WAYPOINTS: dict[tuple[int, int], NDArray[np.intp]] = {}
+
+
+def _row_waypoints(n_int: int, n_v: int) -> NDArray[np.intp]:
+    """Waypoint index of each row slot: per interval ``n_v`` midpoint slots, ``2 n_v`` end slots."""
+    key = (n_int, n_v)
+    out = _ROW_WAYPOINTS.get(key)
+    if out is None:
+        out = (2 * np.arange(n_int)[:, None] + np.repeat([1, 2], [n_v, 2 * n_v])[None, :]).ravel()
+        _ROW_WAYPOINTS[key] = out
+    return out
+
+
+def problem_numpy(geom, own, n_sup, ends_arr, t_now):  # noqa: ANN001, ANN202
+    """The rows of one call's QP from its supports' geometry (numpy; :func:`problem_rows` computes the same
+    numbers compiled and hands the calls whose end waypoints need a general intersection to this)."""
+    n_int = len(own)
+    # End waypoints: C_k ∩ C_k+1.  Consecutive supports nest in walking (a foot inside
+    # the double-support hull): the intersection is the inner polygon.  Otherwise both
+    # polygons' rows are stacked (clipped only for the centroid and the empty check).
+    nrm, off, hull, cent = geom.normals, geom.offsets, geom.hull, geom.centroids
+    nxt = np.append(own[1:], own[-1])
+    switch = nxt != own  # the interval closes its support
+    if n_sup > 1:
+        # max over (half-plane of one polygon, vertex of the other) of the signed distance
+        inner_b = ((nrm[:-1, :, None].conj() * hull[1:, None, :]).real - off[:-1, :, None]).max(axis=(1, 2))
+        inner_a = ((nrm[1:, :, None].conj() * hull[:-1, None, :]).real - off[1:, :, None]).max(axis=(1, 2))
+        pair = np.minimum(own, n_sup - 2)
+        in_a = inner_a[pair] <= _CONTAIN_TOL_M  # C_k ⊂ C_k+1: the intersection is C_k
+        in_b = inner_b[pair] <= _CONTAIN_TOL_M  # C_k+1 ⊂ C_k: it is C_k+1
+        use_b = switch & ~in_a
+        use_a = ~(use_b & in_b)
+    else:
+        use_a, use_b = np.ones(n_int, bool), np.zeros(n_int, bool)
+    end_centroids = np.where(use_a, cent[own], cent[nxt])
+    empty = False
+    for i in np.flatnonzero(use_a & use_b):  # general overlap (rare)
+        k = own[i]
+        hull_a = convex_hull(np.stack([hull[k].real, hull[k].imag], axis=1))
+        hull_b = convex_hull(np.stack([hull[k + 1].real, hull[k + 1].imag], axis=1))
+        inter = clip_convex_polygons(hull_a, hull_b)
+        if len(inter) == 0:  # fall back to C_k alone
+            use_b[i] = False
+            empty = True
+        else:
+            c = polygon_centroid(inter)
+            end_centroids[i] = c[0] + 1j * c[1]
+
+    # Rows, per interval: V midpoint slots (C_k), then 2V end slots (C_k, C_k+1);
+    # unused slots (+inf offsets) are dropped.
+    n_v = off.shape[1]
+    off_all = np.concatenate(
+        [off[own], np.where(use_a[:, None], off[own], np.inf), np.where(use_b[:, None], off[nxt], np.inf)], axis=1
+    ).ravel()
+    nrm_all = np.concatenate([nrm[own], nrm[own], nrm[nxt]], axis=1).ravel()
+    keep = off_all < np.inf
+    wp_all = _row_waypoints(n_int, n_v)
+
+    times = np.empty(2 * n_int + 1)
+    times[0] = t_now
+    times[2::2] = ends_arr
+    times[1::2] = 0.5 * (times[0:-1:2] + ends_arr)
+    centroids = np.empty(2 * n_int + 1, np.complex128)
+    centroids[0] = cent[own[0]]
+    centroids[1::2] = cent[own]
+    centroids[2::2] = end_centroids
+    final = cent[own[-1]]
+    nrm_c = nrm_all[keep]
+    row_wp = wp_all[keep]
+    problem = _Problem(
+        times,
+        ends_arr,
+        nrm_c.view(np.float64).reshape(-1, 2),
+        nrm_c,
+        times[row_wp] + WARM_KIND_OFFSET_S * (row_wp & 1),
+        off_all[keep],
+        row_wp,
+        centroids.view(np.float64).reshape(-1, 2),
+        np.array([final.real, final.imag]),
+        empty,
+    )
+    return problem
