@@ -27,6 +27,7 @@ from studio.robot_view import RobotView
 from studio.stream_rate import FRAME_HZ, TELEMETRY_HZ, StreamRate
 from studio.style_session import StyleSession
 from studio.viser_threads import allow_pushes_from_threads
+from studio.thread_priority import yield_to_engine
 
 if TYPE_CHECKING:
     from studio.panels.curve_editor import CurveEditor
@@ -136,6 +137,9 @@ class Studio:
     def start(self) -> "Studio":
         self.link.start()
         self._status_thread.start()
+        loop = getattr(getattr(self.server, "_websock_server", None), "_background_event_loop", None)
+        if loop is not None:  # viser's event loop (serialising and sending to every browser): after the engine
+            loop.call_soon_threadsafe(yield_to_engine)
         return self
 
     def stop(self) -> None:
@@ -479,6 +483,7 @@ class Studio:
         return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
     def _status_loop(self) -> None:
+        yield_to_engine()
         tick = 0
         while not self._stop.wait(STATUS_PERIOD_S):
             tick += 1

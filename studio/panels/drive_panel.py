@@ -209,6 +209,9 @@ class DrivePanel:
         self.readout.content = text
 
     def _loop(self) -> None:
+        from studio.thread_priority import yield_to_engine
+
+        yield_to_engine()  # the joystick and the camera follow yield to the engine's simulation
         while not self._stop.wait(SEND_PERIOD_S):
             try:
                 if self.studio.mode == "test":
