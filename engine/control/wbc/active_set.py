@@ -119,6 +119,18 @@ def _row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, out):  # noqa: ANN001,
 
 
 @njit(cache=True, nogil=True)
+def _mapped_range(i, n, nv):  # noqa: ANN001, ANN202
+    """The columns of L⁻¹aᵢ that can be non-zero: a bound on q̈ᵢ, [i, nv) (L is block-diagonal; the ρ block
+    comes out +0 exactly); a bound on ρ, [i, n); a row, all. Sums over them skip only exact zeros, which leave
+    a sum begun at +0 unchanged bit for bit (finite terms)."""
+    if i < nv:
+        return i, nv
+    if i < n:
+        return i, n
+    return 0, n
+
+
+@njit(cache=True, nogil=True)
 def _map_row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, out):  # noqa: ANN001, ANN202
     """m = L⁻¹ aᵢ into ``out`` (block by block); returns ‖m‖."""
     start = _row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, row)
@@ -179,6 +191,8 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
     w_idx = np.empty(k_max, dtype=np.int64)
     w_up = np.empty(k_max, dtype=np.bool_)
     m_hat = np.empty((k_max, n))
+    m_lo = np.empty(k_max, dtype=np.int64)  # the columns of m̂ that can be non-zero (_mapped_range)
+    m_hi = np.empty(k_max, dtype=np.int64)
     d_hat = np.empty(k_max)
     gram = np.empty((k_max, k_max))
     chol = np.empty((k_max, k_max))
@@ -207,20 +221,19 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
         norm[i] = nrm
         side_up = start_up[i] == 2
         bound = upper[i] if side_up else lower[i]
+        lo_k, hi_k = _mapped_range(i, n, nv)
+        m_lo[k], m_hi[k] = lo_k, hi_k
         mv = 0.0
         for j in range(n):
             m_hat[k, j] = m_vec[j] / nrm
+        for j in range(lo_k, hi_k):
             mv += m_vec[j] * v[j]
         d_hat[k] = (bound + mv) / nrm
-        for p in range(k):
+        for p in range(k + 1):
             acc = 0.0
-            for j in range(n):
+            for j in range(max(m_lo[p], lo_k), min(m_hi[p], hi_k)):
                 acc += m_hat[p, j] * m_hat[k, j]
             gram[p, k] = gram[k, p] = acc
-        acc = 0.0
-        for j in range(n):
-            acc += m_hat[k, j] * m_hat[k, j]
-        gram[k, k] = acc
         w_idx[k], w_up[k], lam[k] = i, side_up, 0.0
         in_ws[i] = True
         k += 1
@@ -228,10 +241,12 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
     diff = np.empty(n)
     outcome = QP_ITERATION_LIMIT
     it = 0
+    n_factored = 0  # leading rows of chol that factor the present Gram matrix (rows are added at the end)
     while it < max_iter:
         it += 1
-        # ---- λ* on the working set: Cholesky of the Gram matrix, G λ* = −d̂
-        for i in range(k):
+        # ---- λ* on the working set: Cholesky of the Gram matrix, G λ* = −d̂ (row i of the factor depends on
+        # G's rows ≤ i only: the rows still valid are not recomputed, the same numbers)
+        for i in range(n_factored, k):
             for j in range(i + 1):
                 acc = gram[i, j]
                 for p in range(j):
@@ -247,6 +262,7 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
                 break
         if outcome == QP_SINGULAR:
             break
+        n_factored = k
         for i in range(k):
             lam_star[i] = -d_hat[i]
         _gram_solve(chol, lam_star, k)
@@ -270,6 +286,7 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
             in_ws[w_idx[block]] = False
             for p in range(block, k - 1):
                 w_idx[p], w_up[p], lam[p], d_hat[p] = w_idx[p + 1], w_up[p + 1], lam[p + 1], d_hat[p + 1]
+                m_lo[p], m_hi[p] = m_lo[p + 1], m_hi[p + 1]
                 for j in range(n):
                     m_hat[p, j] = m_hat[p + 1, j]
             for p in range(block, k - 1):
@@ -279,15 +296,16 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
                 for p in range(k - 1):
                     gram[p, q] = gram[p, q + 1]
             k -= 1
+            n_factored = min(n_factored, block)
             continue
         # ---- dual feasible: λ = λ*, the primal point, the most violated constraint outside the set
         for p in range(k):
             lam[p] = lam_star[p]
         for j in range(n):
             u[j] = 0.0
-        for p in range(k):
+        for p in range(k):  # (u begins at +0 and is never −0: skipping m̂'s exact zeros leaves it bit for bit)
             lp = lam[p]
-            for j in range(n):
+            for j in range(m_lo[p], m_hi[p]):
                 u[j] -= m_hat[p, j] * lp
         for j in range(n):
             diff[j] = u[j] - v[j]
@@ -329,7 +347,7 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
             _gram_solve(chol, lam_star, k)
             for p in range(k):
                 dp = lam_star[p]
-                for j in range(n):
+                for j in range(m_lo[p], m_hi[p]):
                     u[j] -= m_hat[p, j] * dp
             for j in range(n):
                 diff[j] = u[j] - v[j]
@@ -342,14 +360,17 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
             break
         nrm = _map_row(worst_i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
         bound = upper[worst_i] if worst_up else lower[worst_i]
+        lo_k, hi_k = _mapped_range(worst_i, n, nv)
+        m_lo[k], m_hi[k] = lo_k, hi_k
         mv = 0.0
         for j in range(n):
             m_hat[k, j] = m_vec[j] / nrm
+        for j in range(lo_k, hi_k):
             mv += m_vec[j] * v[j]
         d_hat[k] = (bound + mv) / nrm
         for p in range(k + 1):
             acc = 0.0
-            for j in range(n):
+            for j in range(max(m_lo[p], lo_k), min(m_hi[p], hi_k)):
                 acc += m_hat[p, j] * m_hat[k, j]
             gram[p, k] = gram[k, p] = acc
         w_idx[k], w_up[k], lam[k] = worst_i, worst_up, 0.0

@@ -8,8 +8,14 @@
 * :func:`fill_daqp` — the QP in DAQP's dense form (Hessian, cost, rows, bounds) written into the
   solver's preallocated arrays.
 
+* :func:`foot_frames` — the snapshot's feet (placements, Jacobians, classical accelerations) from pinocchio's
+  joint-level results (:mod:`engine.control.wbc.snapshot`).
+* :func:`solve_tick` — the default tick in one call: :func:`build_qp`, the compiled active set, :func:`finish_tick`.
+
 Compiled on first use and cached on disk (``cache=True``: a fresh process loads the machine code
-instead of compiling it again).
+instead of compiling it again). numba keys a cached kernel on its own file only: after editing
+:mod:`engine.control.wbc.active_set`, delete ``__pycache__/kernels.solve_tick*.nb[ic]`` (the one-call tick
+inlines its solver).
 """
 
 from __future__ import annotations
@@ -18,6 +24,13 @@ import math
 
 import numpy as np
 from numba import njit
+
+from engine.control.wbc.active_set import QP_OPTIMAL, solve_centroidal_qp
+
+#: Outcomes of :func:`solve_tick`: solved (torques and set-points computed), a non-finite reference (nothing
+#: written), no contact corner (the QP built, not solved), the compiled active set without a solution (the QP
+#: built: the caller runs DAQP).
+TICK_SOLVED, TICK_INVALID_REFERENCE, TICK_NO_CONTACT, TICK_NOT_SOLVED = 0, 1, 2, 3
 
 
 @njit(cache=True, nogil=True)
@@ -31,21 +44,25 @@ def assemble_qp(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, basis_xy, bas
         c_q[i] = 0.0
         for j in range(nv):
             p_qq[i, j] = 0.0
+    nz = np.empty(nv, dtype=np.int64)  # the row's non-zero columns, in order (the same terms, in the same order)
     for r in range(n_rows):
         wr = w[r]
         if wr == 0.0:
             continue
         wrr = wr * rhs[r]
+        k = 0
         for i in range(nv):
+            if jac[r, i] != 0.0:
+                nz[k] = i
+                k += 1
+        for ii in range(k):
+            i = nz[ii]
             a = jac[r, i]
-            if a == 0.0:
-                continue
             wa = wr * a
             c_q[i] -= a * wrr
-            for j in range(i, nv):
-                b = jac[r, j]
-                if b != 0.0:
-                    p_qq[i, j] += wa * b
+            for jj in range(ii, k):
+                j = nz[jj]
+                p_qq[i, j] += wa * jac[r, j]
     for i in range(nv):
         p_qq[i, i] += lambda_qdd
         for j in range(i + 1, nv):
@@ -512,3 +529,135 @@ def finish_tick(mass_matrix, nle, tau_map, rho, qdd, joint_damping, has_damping,
         y = y if y > lo else lo
         q_new[j] = y if y < hi else hi
     return tau, rhs, gen, q_new, qd_new, force
+
+
+@njit(cache=True, nogil=True)
+def _rotate3(rot, x, out, offset):  # noqa: ANN001, ANN202
+    """``out[offset:offset + 3] = rot @ x`` in the order pinocchio's Eigen evaluates a 3 × 3 product: rows 0 and 1
+    as one SSE2 packet, ((r₀x₀ + r₁x₁) + r₂x₂), row 2 by the scalar reduction, r₀x₀ + (r₁x₁ + r₂x₂)."""
+    for i in range(2):
+        out[offset + i] = (rot[i, 0] * x[0] + rot[i, 1] * x[1]) + rot[i, 2] * x[2]
+    out[offset + 2] = rot[2, 0] * x[0] + (rot[2, 1] * x[1] + rot[2, 2] * x[2])
+
+
+@njit(cache=True, nogil=True)
+def _frame_motion(parent_rot, motion, t):  # noqa: ANN001, ANN202
+    """A joint's spatial motion [linear; angular] (local axes) at a point ``t`` of the joint's frame, in world
+    axes: [R (v + ω × t); R ω] (pinocchio's getFrameVelocity / getFrameAcceleration, LOCAL_WORLD_ALIGNED)."""
+    lx, ly, lz, ax, ay, az = motion[0], motion[1], motion[2], motion[3], motion[4], motion[5]
+    moved = np.empty(3)
+    moved[0] = lx + (ay * t[2] - az * t[1])
+    moved[1] = ly + (az * t[0] - ax * t[2])
+    moved[2] = lz + (ax * t[1] - ay * t[0])
+    out = np.empty(6)
+    _rotate3(parent_rot, moved, out, 0)
+    moved[0], moved[1], moved[2] = ax, ay, az
+    _rotate3(parent_rot, moved, out, 3)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _foot_frame(s, joint_jac, parent_rot, parent_pos, parent_vel, parent_acc, frame_rot, frame_pos, support, pos,
+                rot, jac, drift):  # noqa: ANN001, ANN202
+    """Frame ``s`` of :func:`foot_frames`."""
+    nv = joint_jac.shape[1]
+    col, tmp = np.empty(3), np.empty(3)
+    # oMf = oMi · jMf (pinocchio.updateFramePlacement)
+    for j in range(3):
+        for i in range(3):
+            col[i] = frame_rot[s, i, j]
+        _rotate3(parent_rot, col, tmp, 0)
+        for i in range(3):
+            rot[s, i, j] = tmp[i]
+    _rotate3(parent_rot, frame_pos[s], tmp, 0)
+    for i in range(3):
+        pos[s, i] = tmp[i] + parent_pos[i]
+    # LOCAL_WORLD_ALIGNED Jacobian: the joint Jacobians' columns on the frame's support, their linear part
+    # moved to the frame's origin: v − p × ω (pinocchio's translateJointJacobian); zero elsewhere
+    px, py, pz = pos[s, 0], pos[s, 1], pos[s, 2]
+    for j in range(nv):
+        if support[s, j]:
+            wx, wy, wz = joint_jac[3, j], joint_jac[4, j], joint_jac[5, j]
+            jac[s, 0, j] = joint_jac[0, j] - (py * wz - pz * wy)
+            jac[s, 1, j] = joint_jac[1, j] - (pz * wx - px * wz)
+            jac[s, 2, j] = joint_jac[2, j] - (px * wy - py * wx)
+            jac[s, 3, j], jac[s, 4, j], jac[s, 5, j] = wx, wy, wz
+        else:
+            for r in range(6):
+                jac[s, r, j] = 0.0
+    # classical acceleration of the frame origin, world axes (pinocchio.getFrameClassicalAcceleration,
+    # LOCAL_WORLD_ALIGNED): R (a + α × t), R α, plus ω × v of the frame's velocity R (v + ω × t), R ω
+    vel = _frame_motion(parent_rot, parent_vel, frame_pos[s])
+    acc = _frame_motion(parent_rot, parent_acc, frame_pos[s])
+    drift[s, 0] = acc[0] + (vel[4] * vel[2] - vel[5] * vel[1])
+    drift[s, 1] = acc[1] + (vel[5] * vel[0] - vel[3] * vel[2])
+    drift[s, 2] = acc[2] + (vel[3] * vel[1] - vel[4] * vel[0])
+    for r in range(3, 6):
+        drift[s, r] = acc[r]
+
+
+@njit(cache=True, nogil=True)
+def foot_frames(joint_jac, left_rot, left_pos, left_vel, left_acc, right_rot, right_pos, right_vel, right_acc,
+                frame_rot, frame_pos, support, pos, rot, jac, drift, base_rot_view, base_rot):  # noqa: ANN001, ANN201
+    """Both feet's frame quantities from pinocchio's joint-level results (read in place: ``data.J``, and the
+    parent joints' ``data.oMi`` rotation and translation, ``data.v`` and ``data.a`` vectors), written into
+    ``pos`` (2, 3), ``rot`` (2, 3, 3), ``jac`` (2, 6, nv) and ``drift`` (2, 6): the numbers of
+    ``updateFramePlacement``, ``getFrameJacobian`` and ``getFrameClassicalAcceleration`` (LOCAL_WORLD_ALIGNED)
+    bit for bit (the same operations in the same order; ``tests/control/test_wbc_snapshot.py``).
+    ``frame_rot``/``frame_pos``: the frames' placements in their parent joints; ``support`` (2, nv): the
+    velocity columns of each frame's kinematic chain. ``base_rot_view`` (pinocchio's column-major
+    ``data.oMi[1].rotation``) is copied into ``base_rot``."""
+    _foot_frame(0, joint_jac, left_rot, left_pos, left_vel, left_acc, frame_rot, frame_pos, support, pos, rot, jac,
+                drift)
+    _foot_frame(1, joint_jac, right_rot, right_pos, right_vel, right_acc, frame_rot, frame_pos, support, pos, rot,
+                jac, drift)
+    for i in range(3):
+        for j in range(3):
+            base_rot[i, j] = base_rot_view[i, j]
+
+
+@njit(cache=True, nogil=True)
+def solve_tick(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+               foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+               pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+               momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, com_z_given, upper_v_idx, upper_q_ref,
+               upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
+               damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis, mass_matrix, rho_up, tau_lo,
+               tau_up, rho_idx, ws_index, ws_upper, n_warm, max_iter, x, qdd, rho, q_des, qd_des, dt,
+               max_position_error, max_velocity_error):  # noqa: ANN001, ANN201
+    """One whole-body tick in one call, the default path's kernels in their order: :func:`build_qp`, the compiled
+    active set (:func:`engine.control.wbc.active_set.solve_centroidal_qp`, warm, then cold when the warm
+    working set fails, as :meth:`engine.control.wbc.qp.ActiveSetQpSolver.solve`) and :func:`finish_tick`. The
+    arguments are theirs (``mass_matrix``: M, whose joint rows are the torque rows; ``tau_map``'s joint rows
+    the torque rows' ρ map). Returns (tick outcome, solver outcome, iterations, final working-set size, b, lo,
+    up, bias, τ, q*, q̇*, horizontal force); τ is empty unless solved with a positive definite base block."""
+    empty = np.empty(0)
+    finite, b, lo, up, bias = build_qp(
+        jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+        foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+        pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+        momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, com_z_given, upper_v_idx, upper_q_ref,
+        upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
+        damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+    if not finite:
+        return TICK_INVALID_REFERENCE, QP_OPTIMAL, 0, n_warm, b, lo, up, bias, empty, empty, empty, empty
+    touching = False
+    for c in contact.flat:
+        if c:
+            touching = True
+    if not touching:
+        return TICK_NO_CONTACT, QP_OPTIMAL, 0, n_warm, b, lo, up, bias, empty, empty, empty, empty
+    tau_qdd, tau_rho = mass_matrix[6:], tau_map[6:]
+    outcome, iterations, n_out = solve_centroidal_qp(
+        p_qq, c_q, r_rr, centroidal_map, g_rho, b, lo, up, rho_up, tau_qdd, tau_rho, bias, tau_lo, tau_up, rho_idx,
+        ws_index, ws_upper, n_warm, max_iter, x, qdd, rho)
+    if outcome != QP_OPTIMAL and n_warm > 0:  # the warm working set did not work: once more, cold
+        outcome, more, n_out = solve_centroidal_qp(
+            p_qq, c_q, r_rr, centroidal_map, g_rho, b, lo, up, rho_up, tau_qdd, tau_rho, bias, tau_lo, tau_up,
+            rho_idx, ws_index, ws_upper, 0, max_iter, x, qdd, rho)
+        iterations += more
+    if outcome != QP_OPTIMAL:
+        return TICK_NOT_SOLVED, outcome, iterations, n_out, b, lo, up, bias, empty, empty, empty, empty
+    tau, _, _, q_new, qd_new, force = finish_tick(mass_matrix, nle, tau_map, rho, qdd, damping, has_damping, v, q,
+                                                  q_des, qd_des, dt, max_position_error, max_velocity_error, basis)
+    return TICK_SOLVED, outcome, iterations, n_out, b, lo, up, bias, tau, q_new, qd_new, force
