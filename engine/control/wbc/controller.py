@@ -164,6 +164,7 @@ class TaskSpaceInverseDynamics:
         self._arms_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3))
         self._edges_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3, N_BASIS))
         self._rho_up_cache: tuple[bytes, FloatArray] = (b"", np.zeros(self.n_rho))
+        self._rho_idx_cache: tuple[FloatArray | None, NDArray[np.int64]] = (None, np.zeros(0, dtype=np.int64))
         self._wrench_buf = np.zeros((len(SIDES), 6, N_CORNERS * N_BASIS))
 
         damping = np.asarray(self.model.damping[6:], dtype=float).copy()
@@ -386,12 +387,19 @@ class TaskSpaceInverseDynamics:
             rho_max = self.gains.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
             self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
         rho_up = self._rho_up_cache[1]
+        if self._rho_idx_cache[0] is not rho_up:  # the ρ in the QP (ActiveSetQpSolver.workspace), per bounds array
+            self._rho_idx_cache = (rho_up, np.flatnonzero(rho_up > 0.0).astype(np.int64))
+        rho_idx = self._rho_idx_cache[1]
         solver = self.active_set_solver
-        rho_idx, index, upper, count = solver.workspace(rho_up)
+        index, upper, count = solver.warm_set(rho_idx.size)
         x, qdd, rho = np.empty(nv + rho_idx.size), np.empty(nv), np.empty(n_rho)
+        nj = self.n_joints
+        b, lo, up, bias, tau, q_des, qd_des = (np.empty(6), np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj),
+                                               np.empty(nj), np.empty(nj))
+        force = np.empty(2)
         g = self.gains
         assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
-        tick, outcome, iterations, n_out, b, lo, up, bias, tau, q_des, qd_des, force = _kernels.solve_tick(
+        tick, outcome, iterations, n_out = _kernels.solve_tick(
             self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
             snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
             ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
@@ -406,7 +414,8 @@ class TaskSpaceInverseDynamics:
             self._no_damping if damping is None else damping, damping is not None,
             p_qq, c_q, r_rr, g_rho, tau_map, corners, basis, snap.mass_matrix, rho_up, self._neg_torque_limit,
             self._torque_limit, rho_idx, index, upper, count[0], solver.max_iter, x, qdd, rho, self.q_des, self.qd_des,
-            float(self.dt_s), float(g.max_position_error_rad), float(g.max_velocity_error_radps))
+            float(self.dt_s), float(g.max_position_error_rad), float(g.max_velocity_error_radps), b, lo, up, bias, tau,
+            q_des, qd_des, force)
         t2 = time.perf_counter()
         if tick == _kernels.TICK_INVALID_REFERENCE:
             return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
@@ -419,7 +428,7 @@ class TaskSpaceInverseDynamics:
                           tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
         self.qp = qp
         solved = solver.record(outcome, iterations, n_out, count)
-        if not solved or not tau.size:  # DAQP, then OSQP (as _solve_qp); or the base block's LU (_finish_compiled)
+        if tick != _kernels.TICK_SOLVED:  # DAQP, then OSQP (as _solve_qp); or the base block's LU (_finish_compiled)
             solution: tuple[FloatArray, FloatArray] | None = (qdd, rho)
             backend, message = "active_set", solver.status
             if not solved:

@@ -29,8 +29,8 @@ from engine.control.wbc.active_set import QP_OPTIMAL, solve_centroidal_qp
 
 #: Outcomes of :func:`solve_tick`: solved (torques and set-points computed), a non-finite reference (nothing
 #: written), no contact corner (the QP built, not solved), the compiled active set without a solution (the QP
-#: built: the caller runs DAQP).
-TICK_SOLVED, TICK_INVALID_REFERENCE, TICK_NO_CONTACT, TICK_NOT_SOLVED = 0, 1, 2, 3
+#: built: the caller runs DAQP), solved but the base block of M not positive definite (the caller's LU).
+TICK_SOLVED, TICK_INVALID_REFERENCE, TICK_NO_CONTACT, TICK_NOT_SOLVED, TICK_BASE_NOT_PD = 0, 1, 2, 3, 4
 
 
 @njit(cache=True, nogil=True)
@@ -624,15 +624,17 @@ def solve_tick(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_ja
                upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
                damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis, mass_matrix, rho_up, tau_lo,
                tau_up, rho_idx, ws_index, ws_upper, n_warm, max_iter, x, qdd, rho, q_des, qd_des, dt,
-               max_position_error, max_velocity_error):  # noqa: ANN001, ANN201
+               max_position_error, max_velocity_error, b, lo, up, bias, tau, q_new, qd_new,
+               force):  # noqa: ANN001, ANN201
     """One whole-body tick in one call, the default path's kernels in their order: :func:`build_qp`, the compiled
     active set (:func:`engine.control.wbc.active_set.solve_centroidal_qp`, warm, then cold when the warm
     working set fails, as :meth:`engine.control.wbc.qp.ActiveSetQpSolver.solve`) and :func:`finish_tick`. The
     arguments are theirs (``mass_matrix``: M, whose joint rows are the torque rows; ``tau_map``'s joint rows
-    the torque rows' ρ map). Returns (tick outcome, solver outcome, iterations, final working-set size, b, lo,
-    up, bias, τ, q*, q̇*, horizontal force); τ is empty unless solved with a positive definite base block."""
-    empty = np.empty(0)
-    finite, b, lo, up, bias = build_qp(
+    the torque rows' ρ map). Writes the QP's b (6), q̈ bounds ``lo``/``up`` and torque-row bias (n_joints) once
+    built, τ, q*, q̇* (n_joints) and the horizontal ground force (2) once solved (arrays returned by the kernels
+    they call, copied: a preallocated output costs less than an array handed back to Python). Returns (tick
+    outcome, solver outcome, iterations, final working-set size)."""
+    finite, b_, lo_, up_, bias_ = build_qp(
         jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
         foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
         pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
@@ -640,13 +642,17 @@ def solve_tick(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_ja
         upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
         damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
     if not finite:
-        return TICK_INVALID_REFERENCE, QP_OPTIMAL, 0, n_warm, b, lo, up, bias, empty, empty, empty, empty
+        return TICK_INVALID_REFERENCE, QP_OPTIMAL, 0, n_warm
+    b[:] = b_
+    lo[:] = lo_
+    up[:] = up_
+    bias[:] = bias_
     touching = False
     for c in contact.flat:
         if c:
             touching = True
     if not touching:
-        return TICK_NO_CONTACT, QP_OPTIMAL, 0, n_warm, b, lo, up, bias, empty, empty, empty, empty
+        return TICK_NO_CONTACT, QP_OPTIMAL, 0, n_warm
     tau_qdd, tau_rho = mass_matrix[6:], tau_map[6:]
     outcome, iterations, n_out = solve_centroidal_qp(
         p_qq, c_q, r_rr, centroidal_map, g_rho, b, lo, up, rho_up, tau_qdd, tau_rho, bias, tau_lo, tau_up, rho_idx,
@@ -657,7 +663,14 @@ def solve_tick(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_ja
             rho_idx, ws_index, ws_upper, 0, max_iter, x, qdd, rho)
         iterations += more
     if outcome != QP_OPTIMAL:
-        return TICK_NOT_SOLVED, outcome, iterations, n_out, b, lo, up, bias, empty, empty, empty, empty
-    tau, _, _, q_new, qd_new, force = finish_tick(mass_matrix, nle, tau_map, rho, qdd, damping, has_damping, v, q,
-                                                  q_des, qd_des, dt, max_position_error, max_velocity_error, basis)
-    return TICK_SOLVED, outcome, iterations, n_out, b, lo, up, bias, tau, q_new, qd_new, force
+        return TICK_NOT_SOLVED, outcome, iterations, n_out
+    tau_, _, _, q_new_, qd_new_, force_ = finish_tick(mass_matrix, nle, tau_map, rho, qdd, damping, has_damping, v,
+                                                      q, q_des, qd_des, dt, max_position_error, max_velocity_error,
+                                                      basis)
+    if tau_.size == 0:
+        return TICK_BASE_NOT_PD, outcome, iterations, n_out
+    tau[:] = tau_
+    q_new[:] = q_new_
+    qd_new[:] = qd_new_
+    force[:] = force_
+    return TICK_SOLVED, outcome, iterations, n_out

@@ -516,17 +516,22 @@ class ActiveSetQpSolver:
 
     def workspace(self, rho_up: FloatArray) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_], list[int]]:
         """The ρ in the QP (the corners in contact: ``rho_up > 0``) and the warm working set of their number
-        (constraint indices, upper sides, a one-element list holding its size): what a solve reads and updates."""
+        (:meth:`warm_set`): what a solve reads and updates."""
         key = (rho_up > 0.0).tobytes()
         if key != self._rho_idx_cache[0]:
             self._rho_idx_cache = (key, np.flatnonzero(rho_up > 0.0).astype(np.int64))
         rho_idx = self._rho_idx_cache[1]
-        warm = self._warm.get(rho_idx.size)
-        if warm is None:
-            size = self.nv + rho_idx.size + 6 + self.n_tau
-            warm = self._warm[rho_idx.size] = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.bool_), [0])
-        index, upper, count = warm
+        index, upper, count = self.warm_set(rho_idx.size)
         return rho_idx, index, upper, count
+
+    def warm_set(self, n_rho: int) -> tuple[NDArray[np.int64], NDArray[np.bool_], list[int]]:
+        """The warm working set of QPs with ``n_rho`` ρ: constraint indices, upper sides and a one-element list
+        holding its size."""
+        warm = self._warm.get(n_rho)
+        if warm is None:
+            size = self.nv + n_rho + 6 + self.n_tau
+            warm = self._warm[n_rho] = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.bool_), [0])
+        return warm
 
     def record(self, outcome: int, iterations: int, n_out: int, count: list[int]) -> bool:
         """Keep a solve's final working-set size, iterations and status; True when it is optimal."""
