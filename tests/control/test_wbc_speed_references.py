@@ -26,10 +26,8 @@ from engine.control.wbc.active_set import (
     QP_SINGULAR,
     SINGULAR_TOL,
     _backward,
-    _cholesky_block,
-    _forward,
     _gram_solve,
-    _map_row,
+    _row,
 )
 
 
@@ -146,6 +144,47 @@ def assemble_qp_reference(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, bas
 
 
 @njit(cache=False, nogil=True)
+def _cholesky_block_reference(h, lo, hi, low):  # noqa: ANN001, ANN202
+    """Lower Cholesky factor of ``h[lo:hi, lo:hi]`` into ``low[lo:hi, lo:hi]``; False unless positive definite."""
+    for i in range(lo, hi):
+        for j in range(lo, i + 1):
+            acc = h[i, j]
+            for k in range(lo, j):
+                acc -= low[i, k] * low[j, k]
+            if i == j:
+                if not acc > 0.0:
+                    return False
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, j] = acc / low[j, j]
+    return True
+
+
+@njit(cache=False, nogil=True)
+def _forward_reference(low, rhs, out, lo, hi, start):  # noqa: ANN001, ANN202
+    """``out[lo:hi] = L[lo:hi, lo:hi]⁻¹ rhs[lo:hi]`` with ``rhs`` zero before ``start`` (out is 0 there)."""
+    for i in range(lo, start):
+        out[i] = 0.0
+    for i in range(start, hi):
+        acc = rhs[i]
+        for k in range(start, i):
+            acc -= low[i, k] * out[k]
+        out[i] = acc / low[i, i]
+
+
+@njit(cache=False, nogil=True)
+def _map_row_reference(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, out):  # noqa: ANN001, ANN202
+    """m = L⁻¹ aᵢ into ``out`` (block by block); returns ‖m‖."""
+    start = _row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, row)
+    _forward_reference(low, row, out, 0, nv, min(start, nv))
+    _forward_reference(low, row, out, nv, n, max(start, nv))
+    acc = 0.0
+    for j in range(n):
+        acc += out[j] * out[j]
+    return math.sqrt(acc)
+
+
+@njit(cache=False, nogil=True)
 def solve_centroidal_qp_reference(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, tau_qdd, tau_rho, tau_bias, tau_lo,
                         tau_up, rho_idx, ws_index, ws_upper, n_warm, max_iter, x, qdd, rho):  # noqa: ANN001, ANN201, PLR0912, PLR0915
     """Solve the QP over x = [q̈; ρ[rho_idx]] into ``x`` (n = nv + len(rho_idx)); see the module docstring.
@@ -167,13 +206,13 @@ def solve_centroidal_qp_reference(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up
     for i in range(n_r):
         for j in range(n_r):
             h_r[nv + i, nv + j] = r_rr[rho_idx[i], rho_idx[j]]
-    if not (_cholesky_block(p_qq, 0, nv, low) and _cholesky_block(h_r, nv, n, low)):
+    if not (_cholesky_block_reference(p_qq, 0, nv, low) and _cholesky_block_reference(h_r, nv, n, low)):
         return QP_NOT_CONVEX, 0, n_warm
     f = np.zeros(n)
     for j in range(nv):
         f[j] = c_q[j]
     v = np.zeros(n)
-    _forward(low, f, v, 0, nv, 0)
+    _forward_reference(low, f, v, 0, nv, 0)
     # ---- bounds of every constraint and their normalisation (1/‖L⁻¹aᵢ‖, computed when needed)
     lower = np.empty(n_con)
     upper = np.empty(n_con)
@@ -216,7 +255,7 @@ def solve_centroidal_qp_reference(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up
             continue
         if k >= k_max:
             return QP_SINGULAR, 0, 0
-        nrm = _map_row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
+        nrm = _map_row_reference(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
         if not nrm > 0.0:
             return QP_SINGULAR, 0, 0
         norm[i] = nrm
@@ -326,7 +365,7 @@ def solve_centroidal_qp_reference(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up
             if over_up <= 0.0 and over_lo <= 0.0:
                 continue
             if norm[i] < 0.0:
-                norm[i] = _map_row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
+                norm[i] = _map_row_reference(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
             if over_up / norm[i] > worst:
                 worst, worst_i, worst_up = over_up / norm[i], i, True
             elif over_lo / norm[i] > worst:
@@ -355,7 +394,7 @@ def solve_centroidal_qp_reference(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up
         if k >= k_max:
             outcome = QP_SINGULAR
             break
-        nrm = _map_row(worst_i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
+        nrm = _map_row_reference(worst_i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
         bound = upper[worst_i] if worst_up else lower[worst_i]
         mv = 0.0
         for j in range(n):
@@ -516,3 +555,32 @@ def test_one_call_tick_equals_the_step_by_step_path(name: str, tight: bool) -> N
             for field in ("p_qq", "c_q", "r_rr", "g_rho", "b", "qdd_joint_lo", "qdd_joint_up", "rho_up",
                           "tau_bias"):
                 assert _same(getattr(da.qp, field), getattr(db.qp, field)), field
+
+
+def test_factor_and_forward_substitution_equal_their_references() -> None:
+    """Two rows at a time, the same numbers: random SPD blocks of odd and even sizes at offsets, and the
+    substitution from every start (the zeros before it), and a block that is not positive definite."""
+    from engine.control.wbc.active_set import _cholesky_block, _forward
+
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(1, 70))
+        lo = int(rng.integers(0, min(n, 5)))
+        a = rng.normal(size=(n, n))
+        h = a @ a.T + rng.random() * np.eye(n)
+        if trial % 10 == 0:  # not positive definite: both stop, at the same row
+            h[n - 1, n - 1] = -1.0
+        low, low_ref = np.zeros((n, n)), np.zeros((n, n))
+        ok = _cholesky_block(h, lo, n, low)
+        assert ok == _cholesky_block_reference(h, lo, n, low_ref)
+        if not ok:
+            continue
+        assert _same(low, low_ref)
+        rhs = rng.normal(size=n)
+        for start in range(lo, n + 1):
+            rhs_s = rhs.copy()
+            rhs_s[:start] = 0.0
+            out, out_ref = np.full(n, 3.0), np.full(n, 3.0)
+            _forward(low, rhs_s, out, lo, n, start)
+            _forward_reference(low, rhs_s, out_ref, lo, n, start)
+            assert _same(out, out_ref)

@@ -42,27 +42,69 @@ QP_OPTIMAL, QP_NOT_CONVEX, QP_SINGULAR, QP_ITERATION_LIMIT = 0, 1, 2, 3
 
 @njit(cache=True, nogil=True)
 def _cholesky_block(h, lo, hi, low):  # noqa: ANN001, ANN202
-    """Lower Cholesky factor of ``h[lo:hi, lo:hi]`` into ``low[lo:hi, lo:hi]``; False unless positive definite."""
-    for i in range(lo, hi):
+    """Lower Cholesky factor of ``h[lo:hi, lo:hi]`` into ``low[lo:hi, lo:hi]``; False unless positive definite.
+
+    Rows two at a time: each entry's sum runs in the same order as row by row (the same numbers), the two
+    rows' sums side by side (a sum is a chain of dependent subtractions: two chains keep the core busy)."""
+    i = lo
+    while i < hi:
+        if i + 1 == hi:  # the last row alone
+            for j in range(lo, i + 1):
+                acc = h[i, j]
+                for k in range(lo, j):
+                    acc -= low[i, k] * low[j, k]
+                if i == j:
+                    if not acc > 0.0:
+                        return False
+                    low[i, i] = math.sqrt(acc)
+                else:
+                    low[i, j] = acc / low[j, j]
+            return True
+        i2 = i + 1
         for j in range(lo, i + 1):
             acc = h[i, j]
+            acc2 = h[i2, j]
             for k in range(lo, j):
-                acc -= low[i, k] * low[j, k]
+                ljk = low[j, k]
+                acc -= low[i, k] * ljk
+                acc2 -= low[i2, k] * ljk
             if i == j:
                 if not acc > 0.0:
                     return False
                 low[i, i] = math.sqrt(acc)
             else:
                 low[i, j] = acc / low[j, j]
+            low[i2, j] = acc2 / low[j, j]
+        acc = h[i2, i2]
+        for k in range(lo, i2):
+            acc -= low[i2, k] * low[i2, k]
+        if not acc > 0.0:
+            return False
+        low[i2, i2] = math.sqrt(acc)
+        i += 2
     return True
 
 
 @njit(cache=True, nogil=True)
 def _forward(low, rhs, out, lo, hi, start):  # noqa: ANN001, ANN202
-    """``out[lo:hi] = L[lo:hi, lo:hi]⁻¹ rhs[lo:hi]`` with ``rhs`` zero before ``start`` (out is 0 there)."""
+    """``out[lo:hi] = L[lo:hi, lo:hi]⁻¹ rhs[lo:hi]`` with ``rhs`` zero before ``start`` (out is 0 there).
+    Rows two at a time (as :func:`_cholesky_block`: each row's sum in its order, two sums side by side)."""
     for i in range(lo, start):
         out[i] = 0.0
-    for i in range(start, hi):
+    i = start
+    while i + 1 < hi:
+        i2 = i + 1
+        acc = rhs[i]
+        acc2 = rhs[i2]
+        for k in range(start, i):
+            ok = out[k]
+            acc -= low[i, k] * ok
+            acc2 -= low[i2, k] * ok
+        out[i] = acc / low[i, i]
+        acc2 -= low[i2, i] * out[i]
+        out[i2] = acc2 / low[i2, i2]
+        i += 2
+    if i < hi:
         acc = rhs[i]
         for k in range(start, i):
             acc -= low[i, k] * out[k]
