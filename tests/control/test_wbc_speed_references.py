@@ -2,7 +2,8 @@
 
 The kernels before the speed-up are kept here as the references (verbatim, compiled without the disk cache):
 ``assemble_qp`` (the task rows' normal equations over every column, now over each row's non-zero columns) and
-``solve_centroidal_qp`` (the Gram products and the primal point over every column, now over the columns of
+``torques`` (its two matrix-vector products row by row, now two rows side by side), the active set's
+``_cholesky_block`` and ``_forward`` (row by row, now two rows side by side) and ``solve_centroidal_qp`` (the Gram products and the primal point over every column, now over the columns of
 L⁻¹aᵢ that can be non-zero; the working set's Cholesky factor recomputed whole each iteration, now from its
 first changed row). The tests assert bit-equal results (signed zeros included) on recorded whole-body QPs of
 G1 and TALOS walks, cold and warm started, and on perturbed ones. The one-call tick
@@ -141,6 +142,65 @@ def assemble_qp_reference(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, bas
             r_rr[a, b] = lambda_tau * r_rr[a, b]
             r_rr[b, a] = r_rr[a, b]
         r_rr[a, a] += lambda_rho
+
+
+@njit(cache=False, nogil=True)
+def torques_reference(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN201
+    """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block), written into
+    ``qdd[:6]``; returns (τ, base rows' right-hand side, −Σ J_cᵀ f_c) with τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c
+    + ``damping`` (the model's viscous joint torque, already multiplied by q̇_j; zeros when the model
+    has none). τ is empty when the base block is not positive definite: the caller solves it (LU)."""
+    nv = mass_matrix.shape[0]
+    n_rho = rho.shape[0]
+    gen = np.empty(nv)  # −Σ J_cᵀ f_c
+    for i in range(nv):
+        acc = 0.0
+        for k in range(n_rho):
+            acc += tau_map[i, k] * rho[k]
+        gen[i] = acc
+    rhs = np.empty(6)
+    for r in range(6):
+        acc = 0.0
+        for j in range(6, nv):
+            acc += mass_matrix[r, j] * qdd[j]
+        rhs[r] = -acc - nle[r] - gen[r]
+    low = np.zeros((6, 6))  # Cholesky factor of M[:6, :6]
+    ok = True
+    for i in range(6):
+        for j in range(i + 1):
+            acc = mass_matrix[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            if i == j:
+                if acc <= 0.0:
+                    ok = False
+                    break
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, j] = acc / low[j, j]
+        if not ok:
+            break
+    if ok:
+        y = np.empty(6)
+        for i in range(6):
+            acc = rhs[i]
+            for k in range(i):
+                acc -= low[i, k] * y[k]
+            y[i] = acc / low[i, i]
+        for i in range(5, -1, -1):
+            acc = y[i]
+            for k in range(i + 1, 6):
+                acc -= low[k, i] * qdd[k]
+            qdd[i] = acc / low[i, i]
+    else:  # the caller solves with LU (numba's LAPACK binding would triple this kernel's compile time)
+        return np.empty(0), rhs, gen
+    tau = np.empty(nv - 6)
+    for i in range(nv - 6):
+        acc = 0.0
+        for j in range(nv):
+            acc += mass_matrix[6 + i, j] * qdd[j]
+        tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
+    return tau, rhs, gen
 
 
 @njit(cache=False, nogil=True)
@@ -584,3 +644,35 @@ def test_factor_and_forward_substitution_equal_their_references() -> None:
             _forward(low, rhs_s, out, lo, n, start)
             _forward_reference(low, rhs_s, out_ref, lo, n, start)
             assert _same(out, out_ref)
+
+
+@pytest.mark.parametrize(("name", "tight"), CASES)
+def test_torques_equal_their_reference(name: str, tight: bool) -> None:
+    """Eq. 15's torques of recorded solutions (and of random accelerations, odd and even row counts)."""
+    wbc, ticks = _controllers(name, tight)
+    wbc.reset(ticks[0][0])
+    rng = np.random.default_rng(1)
+    checked = 0
+    for state, ref in ticks:
+        wbc.compute(state, ref)
+        d = wbc.diagnostics
+        if not d.ok:
+            continue
+        snap = wbc._snapshot.compute(np.asarray(state.q, float), np.asarray(state.v, float))
+        damping = rng.normal(size=wbc.n_joints)
+        for qdd in (d.qdd, rng.normal(size=wbc.nv)):
+            a, b = qdd.copy(), qdd.copy()
+            new = kernels.torques(snap.mass_matrix, snap.nonlinear_effects, wbc._tau_map, d.rho, a, damping)
+            old = torques_reference(snap.mass_matrix, snap.nonlinear_effects, wbc._tau_map, d.rho, b, damping)
+            assert _same(a, b) and all(_same(x, y) for x, y in zip(new, old))
+        checked += 1
+    assert checked >= 10
+    for rows in (7, 8):  # odd and even joint rows
+        m = rng.normal(size=(rows, rows))
+        m = m @ m.T + np.eye(rows)
+        tau_map, rho, qdd, damping = (rng.normal(size=(rows, 5)), rng.normal(size=5), rng.normal(size=rows),
+                                      rng.normal(size=rows - 6))
+        a, b = qdd.copy(), qdd.copy()
+        new = kernels.torques(m, np.ones(rows), tau_map, rho, a, damping)
+        old = torques_reference(m, np.ones(rows), tau_map, rho, b, damping)
+        assert _same(a, b) and all(_same(x, y) for x, y in zip(new, old))

@@ -358,19 +358,37 @@ def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac
 
 
 @njit(cache=True, nogil=True)
+def _rows_times(a, first, last, x, out):  # noqa: ANN001, ANN202
+    """``out[i − first] = a[i] · x`` for rows first..last−1, each sum from 0.0 in column order; two rows side by
+    side (independent chains of additions: the same numbers in about half the time)."""
+    n = x.shape[0]
+    i = first
+    while i + 1 < last:
+        acc = 0.0
+        acc2 = 0.0
+        for k in range(n):
+            xk = x[k]
+            acc += a[i, k] * xk
+            acc2 += a[i + 1, k] * xk
+        out[i - first] = acc
+        out[i + 1 - first] = acc2
+        i += 2
+    if i < last:
+        acc = 0.0
+        for k in range(n):
+            acc += a[i, k] * x[k]
+        out[i - first] = acc
+
+
+@njit(cache=True, nogil=True)
 def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN201
     """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block), written into
     ``qdd[:6]``; returns (τ, base rows' right-hand side, −Σ J_cᵀ f_c) with τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c
     + ``damping`` (the model's viscous joint torque, already multiplied by q̇_j; zeros when the model
     has none). τ is empty when the base block is not positive definite: the caller solves it (LU)."""
     nv = mass_matrix.shape[0]
-    n_rho = rho.shape[0]
     gen = np.empty(nv)  # −Σ J_cᵀ f_c
-    for i in range(nv):
-        acc = 0.0
-        for k in range(n_rho):
-            acc += tau_map[i, k] * rho[k]
-        gen[i] = acc
+    _rows_times(tau_map, 0, nv, rho, gen)
     rhs = np.empty(6)
     for r in range(6):
         acc = 0.0
@@ -408,11 +426,9 @@ def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN2
     else:  # the caller solves with LU (numba's LAPACK binding would triple this kernel's compile time)
         return np.empty(0), rhs, gen
     tau = np.empty(nv - 6)
+    _rows_times(mass_matrix, 6, nv, qdd, tau)
     for i in range(nv - 6):
-        acc = 0.0
-        for j in range(nv):
-            acc += mass_matrix[6 + i, j] * qdd[j]
-        tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
+        tau[i] = tau[i] + nle[6 + i] + gen[6 + i] + damping[i]
     return tau, rhs, gen
 
 
