@@ -676,3 +676,19 @@ def test_torques_equal_their_reference(name: str, tight: bool) -> None:
         new = kernels.torques(m, np.ones(rows), tau_map, rho, a, damping)
         old = torques_reference(m, np.ones(rows), tau_map, rho, b, damping)
         assert _same(a, b) and all(_same(x, y) for x, y in zip(new, old))
+
+
+def test_numpy_sum_is_numpys_sum() -> None:
+    """The compiled finiteness checks sum as numpy does (its pairwise summation), bit for bit: any length (the
+    eight running sums from 8 terms, the halves above 128), magnitudes over six decades, signed zeros."""
+    rng = np.random.default_rng(11)
+    for n in list(range(0, 140)) + [200, 257, 300]:
+        for _ in range(5):
+            a = rng.normal(size=n) * 10.0 ** rng.uniform(-3, 3, size=n)
+            assert _same(np.array([kernels.numpy_sum(a)]), np.array([a.sum()]))
+            b = rng.normal(size=n + 1)
+            assert _same(np.array([kernels.state_sum(a, b)]), np.array([a.sum() + b.sum()]))
+    for n in (0, 1, 7, 8, 9, 16, 130, 300):
+        for zeros in (np.full(n, -0.0), np.zeros(n)):
+            assert _same(np.array([kernels.numpy_sum(zeros)]), np.array([zeros.sum()]))
+    assert not math.isfinite(kernels.numpy_sum(np.array([1e308] * 9)))  # overflows as numpy's does

@@ -227,10 +227,17 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_exception", f"{type(exc).__name__}: {exc}", t0)
 
     # ------------------------------------------------------------------ one tick
+    def _state_sum(self, q: FloatArray, v: FloatArray) -> float:
+        """``q.sum() + v.sum()`` (finite for a finite state), compiled with the compiled kernels (numpy's
+        summation, the same number: :func:`engine.control.wbc.kernels.state_sum`)."""
+        if self.kernels == "numba":
+            return float(_kernels.state_sum(q, v))
+        return float(q.sum() + v.sum())
+
     def _compute(self, state: RobotState, ref: WbcReference, t0: float) -> JointCommand:
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or not math.isfinite(q.sum() + v.sum()):
+        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or not math.isfinite(self._state_sum(q, v)):
             return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
         if self.q_des is None:
             self.reset(state)
@@ -428,7 +435,8 @@ class TaskSpaceInverseDynamics:
                           tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
         self.qp = qp
         solved = solver.record(outcome, iterations, n_out, count)
-        if tick != _kernels.TICK_SOLVED:  # DAQP, then OSQP (as _solve_qp); or the base block's LU (_finish_compiled)
+        if tick in (_kernels.TICK_NOT_SOLVED, _kernels.TICK_BASE_NOT_PD):  # DAQP, then OSQP (as _solve_qp); or the
+            # base block's LU (_finish_compiled)
             solution: tuple[FloatArray, FloatArray] | None = (qdd, rho)
             backend, message = "active_set", solver.status
             if not solved:
@@ -441,7 +449,7 @@ class TaskSpaceInverseDynamics:
                     iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
             return self._finish_compiled(state, snap, qp, solution, backend, iterations, message,
                                          (t0, t1, t2, time.perf_counter()))
-        if not math.isfinite(tau.sum()):
+        if tick == _kernels.TICK_NONFINITE_TORQUES:
             return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
         self.q_des, self.qd_des = q_des, qd_des
         cmd = JointCommand(q_des.copy(), qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)

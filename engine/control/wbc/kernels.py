@@ -29,8 +29,87 @@ from engine.control.wbc.active_set import QP_OPTIMAL, solve_centroidal_qp
 
 #: Outcomes of :func:`solve_tick`: solved (torques and set-points computed), a non-finite reference (nothing
 #: written), no contact corner (the QP built, not solved), the compiled active set without a solution (the QP
-#: built: the caller runs DAQP), solved but the base block of M not positive definite (the caller's LU).
-TICK_SOLVED, TICK_INVALID_REFERENCE, TICK_NO_CONTACT, TICK_NOT_SOLVED, TICK_BASE_NOT_PD = 0, 1, 2, 3, 4
+#: built: the caller runs DAQP), solved but the base block of M not positive definite (the caller's LU), solved
+#: with torques whose sum is not finite.
+TICK_SOLVED, TICK_INVALID_REFERENCE, TICK_NO_CONTACT, TICK_NOT_SOLVED, TICK_BASE_NOT_PD, TICK_NONFINITE_TORQUES = (
+    0, 1, 2, 3, 4, 5)
+
+
+@njit(cache=True, nogil=True)
+def _block_sum(a, lo, n):  # noqa: ANN001, ANN202
+    """numpy's sum of at most 128 terms ``a[lo:lo + n]``: below 8 in order from 0.0, else eight running sums
+    combined as ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), then the rest in order."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_sum(a, lo, n):  # noqa: ANN001, ANN202
+    """numpy's sum of ``a[lo:lo + n]`` (its pairwise summation), the same number bit for bit: :func:`_block_sum`
+    up to 128 terms, above that the sum of the two halves split at a multiple of 8 (numpy's recursion, walked
+    with an explicit stack: numba's disk cache does not keep recursive functions)."""
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    starts, lengths = np.empty(64, dtype=np.int64), np.empty(64, dtype=np.int64)
+    stage, left = np.zeros(64, dtype=np.int64), np.empty(64)
+    top = 0
+    starts[0], lengths[0] = lo, n
+    ret = 0.0
+    while top >= 0:
+        m = lengths[top]
+        half = m // 2
+        half -= half % 8
+        if stage[top] == 0:
+            if m <= 128:  # a leaf: its sum goes to the parent
+                ret = _block_sum(a, starts[top], m)
+                top -= 1
+                continue
+            stage[top] = 1
+            top += 1
+            starts[top], lengths[top], stage[top] = starts[top - 1], half, 0
+        elif stage[top] == 1:  # the left half's sum is in: the right half next
+            left[top] = ret
+            stage[top] = 2
+            top += 1
+            starts[top], lengths[top], stage[top] = starts[top - 1] + half, m - half, 0
+        else:
+            ret = left[top] + ret
+            top -= 1
+    return ret
+
+
+@njit(cache=True, nogil=True)
+def numpy_sum(a):  # noqa: ANN001, ANN201
+    """``a.sum()`` of a 1-D float array, as numpy computes it: its reduction starts from 0.0 and adds the
+    pairwise sum (:func:`_pairwise_sum`; the start matters for a sum of −0.0 only)."""
+    return 0.0 + _pairwise_sum(a, 0, a.shape[0])
+
+
+@njit(cache=True, nogil=True)
+def state_sum(q, v):  # noqa: ANN001, ANN201
+    """``q.sum() + v.sum()`` as numpy computes it (the controller's finiteness check of a state)."""
+    return (0.0 + _pairwise_sum(q, 0, q.shape[0])) + (0.0 + _pairwise_sum(v, 0, v.shape[0]))
 
 
 @njit(cache=True, nogil=True)
@@ -685,6 +764,8 @@ def solve_tick(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_ja
                                                       basis)
     if tau_.size == 0:
         return TICK_BASE_NOT_PD, outcome, iterations, n_out
+    if not math.isfinite(numpy_sum(tau_)):  # math.isfinite(tau.sum())
+        return TICK_NONFINITE_TORQUES, outcome, iterations, n_out
     tau[:] = tau_
     q_new[:] = q_new_
     qd_new[:] = qd_new_
