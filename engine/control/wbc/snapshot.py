@@ -77,9 +77,6 @@ class SnapshotReader:
                              views[7], self._frame_rot, self._frame_pos, self._support, pos, rot, jac, drift,
                              self._base_rot_view, base_rot)
         np.matmul(jac, v, out=self._vel)
-        return DynamicsSnapshot(
-            q=q, v=v, mass_matrix=mass_matrix, nonlinear_effects=nonlinear_effects, centroidal_map=centroidal_map,
-            centroidal_drift=self._momentum_rate, momentum=self._momentum, com_m=self._com, mass_kg=self._mass_kg,
-            base_rotation=base_rot, frame_position_m=pos, frame_rotation=rot, frame_jacobian=jac,
-            frame_velocity=self._vel, frame_drift=drift,
-        )
+        return DynamicsSnapshot(  # (positional: the field order, q … frame_drift; keywords cost more per tick)
+            q, v, mass_matrix, nonlinear_effects, centroidal_map, self._momentum_rate, self._momentum, self._com,
+            self._mass_kg, base_rot, pos, rot, jac, self._vel, drift)
