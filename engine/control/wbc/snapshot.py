@@ -11,7 +11,8 @@ parent joints' ``data.oMi``, ``data.v``, ``data.a``; ``data.hg``, ``data.dhg``, 
 numbers bit for bit (``tests/control/test_wbc_snapshot.py``).
 
 The snapshot's arrays are the reader's buffers and views into ``data``: valid until the next :meth:`compute`
-(the controller uses them within its tick; the QP keeps only arrays of its own).
+(the controller uses them within its tick; the QP keeps only arrays of its own). ``data.oMf`` is not updated
+(no pinocchio frame function runs): read the feet from the snapshot.
 """
 
 from __future__ import annotations
