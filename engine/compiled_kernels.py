@@ -2,7 +2,8 @@
 :func:`warm_up` so a fresh clone pays the compilation once (≈ 15 s CPU) and every later process loads
 the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` beside the sources).
 
-Kernels: :mod:`engine.control.wbc.kernels` (the whole-body QP's rows, assembly, DAQP form, torques)
+Kernels: :mod:`engine.control.wbc.kernels` (the whole-body tick: the feet's frames of the snapshot, the QP's rows,
+assembly, DAQP form, torques, and the one call that builds, solves and finishes a tick)
 the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
 planner's command ramp, path table, blended channels and preview polygons (:mod:`engine.gait.planner_kernels`) and the CoM MPC's polygon geometry
 (:mod:`engine.control.mpc.kernels`).
@@ -15,7 +16,8 @@ import numpy as np
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every kernel with the argument types the controller
-    passes, by running them once: a standing G1 whole-body tick in double and partial support (with and without the task priority), a hull, and LWL2's encoder and k-NN."""
+    passes, by running them once: a standing G1 whole-body tick in double and partial support (with and without the task priority:
+the one-call tick and the step-by-step kernels), a hull, and LWL2's encoder and k-NN."""
     from dataclasses import replace
 
     from engine.constants import SIDES

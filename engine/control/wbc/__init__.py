@@ -2,6 +2,7 @@
 one concept a module:
 
 * :mod:`~engine.control.wbc.tasks` — acceleration tasks (Eq. 18) and the per-tick pinocchio snapshot;
+* :mod:`~engine.control.wbc.snapshot` — that snapshot as the compiled tick reads it (pinocchio's memory in place);
 * :mod:`~engine.control.wbc.reference` — gains, the tracked reference, diagnostics, friction pyramid (Eq. 17);
 * :mod:`~engine.control.wbc.qp` — the QP of Eqs. 20–25 and its solvers (DAQP default, hand-written, OSQP);
 * :mod:`~engine.control.wbc.controller` — :class:`TaskSpaceInverseDynamics` (build, solve, Eq. 15 torques);

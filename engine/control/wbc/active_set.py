@@ -42,27 +42,69 @@ QP_OPTIMAL, QP_NOT_CONVEX, QP_SINGULAR, QP_ITERATION_LIMIT = 0, 1, 2, 3
 
 @njit(cache=True, nogil=True)
 def _cholesky_block(h, lo, hi, low):  # noqa: ANN001, ANN202
-    """Lower Cholesky factor of ``h[lo:hi, lo:hi]`` into ``low[lo:hi, lo:hi]``; False unless positive definite."""
-    for i in range(lo, hi):
+    """Lower Cholesky factor of ``h[lo:hi, lo:hi]`` into ``low[lo:hi, lo:hi]``; False unless positive definite.
+
+    Rows two at a time: each entry's sum runs in the same order as row by row (the same numbers), the two
+    rows' sums side by side (a sum is a chain of dependent subtractions: two chains keep the core busy)."""
+    i = lo
+    while i < hi:
+        if i + 1 == hi:  # the last row alone
+            for j in range(lo, i + 1):
+                acc = h[i, j]
+                for k in range(lo, j):
+                    acc -= low[i, k] * low[j, k]
+                if i == j:
+                    if not acc > 0.0:
+                        return False
+                    low[i, i] = math.sqrt(acc)
+                else:
+                    low[i, j] = acc / low[j, j]
+            return True
+        i2 = i + 1
         for j in range(lo, i + 1):
             acc = h[i, j]
+            acc2 = h[i2, j]
             for k in range(lo, j):
-                acc -= low[i, k] * low[j, k]
+                ljk = low[j, k]
+                acc -= low[i, k] * ljk
+                acc2 -= low[i2, k] * ljk
             if i == j:
                 if not acc > 0.0:
                     return False
                 low[i, i] = math.sqrt(acc)
             else:
                 low[i, j] = acc / low[j, j]
+            low[i2, j] = acc2 / low[j, j]
+        acc = h[i2, i2]
+        for k in range(lo, i2):
+            acc -= low[i2, k] * low[i2, k]
+        if not acc > 0.0:
+            return False
+        low[i2, i2] = math.sqrt(acc)
+        i += 2
     return True
 
 
 @njit(cache=True, nogil=True)
 def _forward(low, rhs, out, lo, hi, start):  # noqa: ANN001, ANN202
-    """``out[lo:hi] = L[lo:hi, lo:hi]⁻¹ rhs[lo:hi]`` with ``rhs`` zero before ``start`` (out is 0 there)."""
+    """``out[lo:hi] = L[lo:hi, lo:hi]⁻¹ rhs[lo:hi]`` with ``rhs`` zero before ``start`` (out is 0 there).
+    Rows two at a time (as :func:`_cholesky_block`: each row's sum in its order, two sums side by side)."""
     for i in range(lo, start):
         out[i] = 0.0
-    for i in range(start, hi):
+    i = start
+    while i + 1 < hi:
+        i2 = i + 1
+        acc = rhs[i]
+        acc2 = rhs[i2]
+        for k in range(start, i):
+            ok = out[k]
+            acc -= low[i, k] * ok
+            acc2 -= low[i2, k] * ok
+        out[i] = acc / low[i, i]
+        acc2 -= low[i2, i] * out[i]
+        out[i2] = acc2 / low[i2, i2]
+        i += 2
+    if i < hi:
         acc = rhs[i]
         for k in range(start, i):
             acc -= low[i, k] * out[k]
@@ -116,6 +158,18 @@ def _row(i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, out):  # noqa: ANN001,
         for j in range(n - nv):
             out[nv + j] = tau_rho[r, rho_idx[j]]
     return 0
+
+
+@njit(cache=True, nogil=True)
+def _mapped_range(i, n, nv):  # noqa: ANN001, ANN202
+    """The columns of L⁻¹aᵢ that can be non-zero: a bound on q̈ᵢ, [i, nv) (L is block-diagonal; the ρ block
+    comes out +0 exactly); a bound on ρ, [i, n); a row, all. Sums over them skip only exact zeros, which leave
+    a sum begun at +0 unchanged bit for bit (finite terms)."""
+    if i < nv:
+        return i, nv
+    if i < n:
+        return i, n
+    return 0, n
 
 
 @njit(cache=True, nogil=True)
@@ -179,6 +233,8 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
     w_idx = np.empty(k_max, dtype=np.int64)
     w_up = np.empty(k_max, dtype=np.bool_)
     m_hat = np.empty((k_max, n))
+    m_lo = np.empty(k_max, dtype=np.int64)  # the columns of m̂ that can be non-zero (_mapped_range)
+    m_hi = np.empty(k_max, dtype=np.int64)
     d_hat = np.empty(k_max)
     gram = np.empty((k_max, k_max))
     chol = np.empty((k_max, k_max))
@@ -207,20 +263,19 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
         norm[i] = nrm
         side_up = start_up[i] == 2
         bound = upper[i] if side_up else lower[i]
+        lo_k, hi_k = _mapped_range(i, n, nv)
+        m_lo[k], m_hi[k] = lo_k, hi_k
         mv = 0.0
         for j in range(n):
             m_hat[k, j] = m_vec[j] / nrm
+        for j in range(lo_k, hi_k):
             mv += m_vec[j] * v[j]
         d_hat[k] = (bound + mv) / nrm
-        for p in range(k):
+        for p in range(k + 1):
             acc = 0.0
-            for j in range(n):
+            for j in range(max(m_lo[p], lo_k), min(m_hi[p], hi_k)):
                 acc += m_hat[p, j] * m_hat[k, j]
             gram[p, k] = gram[k, p] = acc
-        acc = 0.0
-        for j in range(n):
-            acc += m_hat[k, j] * m_hat[k, j]
-        gram[k, k] = acc
         w_idx[k], w_up[k], lam[k] = i, side_up, 0.0
         in_ws[i] = True
         k += 1
@@ -228,10 +283,12 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
     diff = np.empty(n)
     outcome = QP_ITERATION_LIMIT
     it = 0
+    n_factored = 0  # leading rows of chol that factor the present Gram matrix (rows are added at the end)
     while it < max_iter:
         it += 1
-        # ---- λ* on the working set: Cholesky of the Gram matrix, G λ* = −d̂
-        for i in range(k):
+        # ---- λ* on the working set: Cholesky of the Gram matrix, G λ* = −d̂ (row i of the factor depends on
+        # G's rows ≤ i only: the rows still valid are not recomputed, the same numbers)
+        for i in range(n_factored, k):
             for j in range(i + 1):
                 acc = gram[i, j]
                 for p in range(j):
@@ -247,6 +304,7 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
                 break
         if outcome == QP_SINGULAR:
             break
+        n_factored = k
         for i in range(k):
             lam_star[i] = -d_hat[i]
         _gram_solve(chol, lam_star, k)
@@ -270,6 +328,7 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
             in_ws[w_idx[block]] = False
             for p in range(block, k - 1):
                 w_idx[p], w_up[p], lam[p], d_hat[p] = w_idx[p + 1], w_up[p + 1], lam[p + 1], d_hat[p + 1]
+                m_lo[p], m_hi[p] = m_lo[p + 1], m_hi[p + 1]
                 for j in range(n):
                     m_hat[p, j] = m_hat[p + 1, j]
             for p in range(block, k - 1):
@@ -279,15 +338,16 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
                 for p in range(k - 1):
                     gram[p, q] = gram[p, q + 1]
             k -= 1
+            n_factored = min(n_factored, block)
             continue
         # ---- dual feasible: λ = λ*, the primal point, the most violated constraint outside the set
         for p in range(k):
             lam[p] = lam_star[p]
         for j in range(n):
             u[j] = 0.0
-        for p in range(k):
+        for p in range(k):  # (u begins at +0 and is never −0: skipping m̂'s exact zeros leaves it bit for bit)
             lp = lam[p]
-            for j in range(n):
+            for j in range(m_lo[p], m_hi[p]):
                 u[j] -= m_hat[p, j] * lp
         for j in range(n):
             diff[j] = u[j] - v[j]
@@ -329,7 +389,7 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
             _gram_solve(chol, lam_star, k)
             for p in range(k):
                 dp = lam_star[p]
-                for j in range(n):
+                for j in range(m_lo[p], m_hi[p]):
                     u[j] -= m_hat[p, j] * dp
             for j in range(n):
                 diff[j] = u[j] - v[j]
@@ -342,14 +402,17 @@ def solve_centroidal_qp(p_qq, c_q, r_rr, a_h, g_rho, b, qdd_lo, qdd_up, rho_up, 
             break
         nrm = _map_row(worst_i, n, nv, a_h, g_rho, tau_qdd, tau_rho, rho_idx, low, row, m_vec)
         bound = upper[worst_i] if worst_up else lower[worst_i]
+        lo_k, hi_k = _mapped_range(worst_i, n, nv)
+        m_lo[k], m_hi[k] = lo_k, hi_k
         mv = 0.0
         for j in range(n):
             m_hat[k, j] = m_vec[j] / nrm
+        for j in range(lo_k, hi_k):
             mv += m_vec[j] * v[j]
         d_hat[k] = (bound + mv) / nrm
         for p in range(k + 1):
             acc = 0.0
-            for j in range(n):
+            for j in range(max(m_lo[p], lo_k), min(m_hi[p], hi_k)):
                 acc += m_hat[p, j] * m_hat[k, j]
             gram[p, k] = gram[k, p] = acc
         w_idx[k], w_up[k], lam[k] = worst_i, worst_up, 0.0

@@ -57,6 +57,7 @@ from engine.control.wbc.priority import LexicographicSolve
 from engine.control.wbc.qp import ActiveSetQpSolver, CentroidalQp, DaqpQpSolver, DenseQpSolver, OsqpQpSolver
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
+from engine.control.wbc.snapshot import SnapshotReader
 from engine.control.wbc import kernels as _kernels
 
 #: How the QP is assembled: compiled (numba, the default) or the numpy reference it replaces.
@@ -105,6 +106,7 @@ class TaskSpaceInverseDynamics:
         self.n_rho = len(SIDES) * N_CORNERS * N_BASIS
         self.mass_kg = robot.mass_kg
         self.foot_frame_ids = [self.model.getFrameId(f"{s}_foot") for s in SIDES]
+        self._snapshot = SnapshotReader(self.model, self.data, self.foot_frame_ids)  # the compiled tick's
         # Corner offsets in the foot frame (sole centre, sole plane): (2, 4, 3).
         self.corner_offsets_m = np.array([[np.subtract(c, robot.config.soles[s].center)
                                            for c in robot.config.soles[s].corners()] for s in SIDES])
@@ -162,6 +164,7 @@ class TaskSpaceInverseDynamics:
         self._arms_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3))
         self._edges_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3, N_BASIS))
         self._rho_up_cache: tuple[bytes, FloatArray] = (b"", np.zeros(self.n_rho))
+        self._rho_idx_cache: tuple[FloatArray | None, NDArray[np.int64]] = (None, np.zeros(0, dtype=np.int64))
         self._wrench_buf = np.zeros((len(SIDES), 6, N_CORNERS * N_BASIS))
 
         damping = np.asarray(self.model.damping[6:], dtype=float).copy()
@@ -186,6 +189,9 @@ class TaskSpaceInverseDynamics:
         # Balance before style: two solves per tick when the slack is finite (engine/control/wbc/priority.py).
         self.priority = (LexicographicSolve(self.nv, self.n_rho, self.n_joints, self.n_rows, g.priority_slack_mps2)
                          if math.isfinite(g.priority_slack_mps2) else None)
+        # build, solve and finish in one compiled call with the default solver and no task priority (False: the
+        # step-by-step calls it replaces, the tests' reference: the same numbers)
+        self.one_call = True
         self.q_des: FloatArray | None = None
         self.qd_des: FloatArray | None = None
         self.last_tau = np.zeros(self.n_joints)
@@ -221,10 +227,17 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_exception", f"{type(exc).__name__}: {exc}", t0)
 
     # ------------------------------------------------------------------ one tick
+    def _state_sum(self, q: FloatArray, v: FloatArray) -> float:
+        """``q.sum() + v.sum()`` (finite for a finite state), compiled with the compiled kernels (numpy's
+        summation, the same number: :func:`engine.control.wbc.kernels.state_sum`)."""
+        if self.kernels == "numba":
+            return float(_kernels.state_sum(q, v))
+        return float(q.sum() + v.sum())
+
     def _compute(self, state: RobotState, ref: WbcReference, t0: float) -> JointCommand:
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or not math.isfinite(q.sum() + v.sum()):
+        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or not math.isfinite(self._state_sum(q, v)):
             return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
         if self.q_des is None:
             self.reset(state)
@@ -309,10 +322,13 @@ class TaskSpaceInverseDynamics:
                           t0: float) -> JointCommand:
         """:meth:`_compute` with the compiled kernels: the reference's finiteness, the task rows, the QP's
         assembly and bounds in one call (:func:`engine.control.wbc.kernels.build_qp`), the torques and
-        set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers."""
+        set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers. With the
+        default solver and no task priority, build, solve and finish are one call (:meth:`_compute_one_call`)."""
         contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
-        snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
+        snap = self._snapshot.compute(q, v)
         t1 = time.perf_counter()
+        if self.one_call and self.priority is None and self.qp_backend == "active_set":
+            return self._compute_one_call(state, snap, ref, contact, t0, t1)
         qp = self._build_qp_compiled(snap, ref, contact)
         if qp is None:
             return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
@@ -322,6 +338,13 @@ class TaskSpaceInverseDynamics:
         t2 = time.perf_counter()
         solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref.com_z_m is not None)
         t3 = time.perf_counter()
+        return self._finish_compiled(state, snap, qp, solution, backend, iterations, message, (t0, t1, t2, t3))
+
+    def _finish_compiled(self, state: RobotState, snap: DynamicsSnapshot, qp: CentroidalQp,
+                         solution: tuple[FloatArray, FloatArray] | None, backend: str, iterations: int, message: str,
+                         times: tuple[float, float, float, float]) -> JointCommand:
+        """Torques and set-points of a solved QP (:func:`engine.control.wbc.kernels.finish_tick`), the diagnostics."""
+        t0, t1, t2, t3 = times
         if solution is None:
             return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
         qdd, rho = solution
@@ -352,6 +375,89 @@ class TaskSpaceInverseDynamics:
             status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
             pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
             basis=self._basis, corners_m=self._corners_m, qp=qp, horizontal_force_n=force)
+        return cmd
+
+    def _compute_one_call(self, state: RobotState, snap: DynamicsSnapshot, ref: WbcReference,
+                          contact: NDArray[np.bool_], t0: float, t1: float) -> JointCommand:
+        """Build, solve (the compiled active set) and finish in one compiled call
+        (:func:`engine.control.wbc.kernels.solve_tick`: the kernels of the step-by-step path in their order, so
+        the same numbers); when the active set gives no solution, the QP it built goes on to DAQP, then OSQP,
+        as in :meth:`_solve_qp`. ``build_s`` is the one call's time (``qp_s`` 0, unless DAQP or OSQP ran)."""
+        nv, n_rho = self.nv, self.n_rho
+        p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
+        g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
+        corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
+        zeros = self._zeros_2x3
+        ext, com_z, damping = ref.external_wrench, ref.com_z_m, self._joint_damping
+        key = contact.tobytes()
+        if key != self._rho_up_cache[0]:
+            rho_max = self.gains.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
+            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
+        rho_up = self._rho_up_cache[1]
+        if self._rho_idx_cache[0] is not rho_up:  # the ρ in the QP (ActiveSetQpSolver.workspace), per bounds array
+            self._rho_idx_cache = (rho_up, np.flatnonzero(rho_up > 0.0).astype(np.int64))
+        rho_idx = self._rho_idx_cache[1]
+        solver = self.active_set_solver
+        index, upper, count = solver.warm_set(rho_idx.size)
+        x, qdd, rho = np.empty(nv + rho_idx.size), np.empty(nv), np.empty(n_rho)
+        nj = self.n_joints
+        b, lo, up, bias, tau, q_des, qd_des = (np.empty(6), np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj),
+                                               np.empty(nj), np.empty(nj))
+        force = np.empty(2)
+        g = self.gains
+        assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
+        tick, outcome, iterations, n_out = _kernels.solve_tick(
+            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
+            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
+            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
+            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
+            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
+            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
+            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
+            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if com_z is None else float(com_z), com_z is not None,
+            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps,
+            self._zeros_6 if ext is None else np.asarray(ext, dtype=float), ext is not None, self._build_params,
+            self._corner_offsets_t, self._basis_xy, self._joint_lower, self._joint_upper, snap.nonlinear_effects,
+            self._no_damping if damping is None else damping, damping is not None,
+            p_qq, c_q, r_rr, g_rho, tau_map, corners, basis, snap.mass_matrix, rho_up, self._neg_torque_limit,
+            self._torque_limit, rho_idx, index, upper, count[0], solver.max_iter, x, qdd, rho, self.q_des, self.qd_des,
+            float(self.dt_s), float(g.max_position_error_rad), float(g.max_velocity_error_radps), b, lo, up, bias, tau,
+            q_des, qd_des, force)
+        t2 = time.perf_counter()
+        if tick == _kernels.TICK_INVALID_REFERENCE:
+            return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
+        self._jac_filled = True
+        self._basis, self._corners_m, self._tau_map = basis, corners, tau_map
+        if tick == _kernels.TICK_NO_CONTACT:
+            return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
+        # (positional arguments: CentroidalQp's field order; a call with keywords costs more at 500 Hz)
+        qp = CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up, snap.mass_matrix[6:],
+                          tau_map[6:], bias, self._neg_torque_limit, self._torque_limit)
+        self.qp = qp
+        solved = solver.record(outcome, iterations, n_out, count)
+        if tick in (_kernels.TICK_NOT_SOLVED, _kernels.TICK_BASE_NOT_PD):  # DAQP, then OSQP (as _solve_qp); or the
+            # base block's LU (_finish_compiled)
+            solution: tuple[FloatArray, FloatArray] | None = (qdd, rho)
+            backend, message = "active_set", solver.status
+            if not solved:
+                backend = "daqp"
+                solution = self.daqp_solver.solve(qp)
+                iterations, message = iterations + self.daqp_solver.iterations, self.daqp_solver.status
+                if solution is None:
+                    backend = "osqp"
+                    solution = self.osqp_solver.solve(qp)
+                    iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
+            return self._finish_compiled(state, snap, qp, solution, backend, iterations, message,
+                                         (t0, t1, t2, time.perf_counter()))
+        if tick == _kernels.TICK_NONFINITE_TORQUES:
+            return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
+        self.q_des, self.qd_des = q_des, qd_des
+        cmd = JointCommand(q_des.copy(), qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
+        self.last_tau = tau
+        self.diagnostics = WbcDiagnostics(  # (status, message, backend, qdd, rho, tau_nm, qp_iterations, pinocchio_s,
+            # build_s, qp_s, total_s, basis, corners_m, qp, horizontal_force_n: positional, as above)
+            "solved", solver.status, "active_set", qdd, rho, tau, iterations, t1 - t0, t2 - t1, 0.0,
+            time.perf_counter() - t0, basis, corners, qp, force)
         return cmd
 
     def _build_qp_compiled(self, snap: DynamicsSnapshot, ref: WbcReference,

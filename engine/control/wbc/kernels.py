@@ -8,8 +8,14 @@
 * :func:`fill_daqp` — the QP in DAQP's dense form (Hessian, cost, rows, bounds) written into the
   solver's preallocated arrays.
 
+* :func:`foot_frames` — the snapshot's feet (placements, Jacobians, classical accelerations) from pinocchio's
+  joint-level results (:mod:`engine.control.wbc.snapshot`).
+* :func:`solve_tick` — the default tick in one call: :func:`build_qp`, the compiled active set, :func:`finish_tick`.
+
 Compiled on first use and cached on disk (``cache=True``: a fresh process loads the machine code
-instead of compiling it again).
+instead of compiling it again). numba keys a cached kernel on its own file only: after editing
+:mod:`engine.control.wbc.active_set`, delete ``__pycache__/kernels.solve_tick*.nb[ic]`` (the one-call tick
+inlines its solver).
 """
 
 from __future__ import annotations
@@ -18,6 +24,92 @@ import math
 
 import numpy as np
 from numba import njit
+
+from engine.control.wbc.active_set import QP_OPTIMAL, solve_centroidal_qp
+
+#: Outcomes of :func:`solve_tick`: solved (torques and set-points computed), a non-finite reference (nothing
+#: written), no contact corner (the QP built, not solved), the compiled active set without a solution (the QP
+#: built: the caller runs DAQP), solved but the base block of M not positive definite (the caller's LU), solved
+#: with torques whose sum is not finite.
+TICK_SOLVED, TICK_INVALID_REFERENCE, TICK_NO_CONTACT, TICK_NOT_SOLVED, TICK_BASE_NOT_PD, TICK_NONFINITE_TORQUES = (
+    0, 1, 2, 3, 4, 5)
+
+
+@njit(cache=True, nogil=True)
+def _block_sum(a, lo, n):  # noqa: ANN001, ANN202
+    """numpy's sum of at most 128 terms ``a[lo:lo + n]``: below 8 in order from 0.0, else eight running sums
+    combined as ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), then the rest in order."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_sum(a, lo, n):  # noqa: ANN001, ANN202
+    """numpy's sum of ``a[lo:lo + n]`` (its pairwise summation), the same number bit for bit: :func:`_block_sum`
+    up to 128 terms, above that the sum of the two halves split at a multiple of 8 (numpy's recursion, walked
+    with an explicit stack: numba's disk cache does not keep recursive functions)."""
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    starts, lengths = np.empty(64, dtype=np.int64), np.empty(64, dtype=np.int64)
+    stage, left = np.zeros(64, dtype=np.int64), np.empty(64)
+    top = 0
+    starts[0], lengths[0] = lo, n
+    ret = 0.0
+    while top >= 0:
+        m = lengths[top]
+        half = m // 2
+        half -= half % 8
+        if stage[top] == 0:
+            if m <= 128:  # a leaf: its sum goes to the parent
+                ret = _block_sum(a, starts[top], m)
+                top -= 1
+                continue
+            stage[top] = 1
+            top += 1
+            starts[top], lengths[top], stage[top] = starts[top - 1], half, 0
+        elif stage[top] == 1:  # the left half's sum is in: the right half next
+            left[top] = ret
+            stage[top] = 2
+            top += 1
+            starts[top], lengths[top], stage[top] = starts[top - 1] + half, m - half, 0
+        else:
+            ret = left[top] + ret
+            top -= 1
+    return ret
+
+
+@njit(cache=True, nogil=True)
+def numpy_sum(a):  # noqa: ANN001, ANN201
+    """``a.sum()`` of a 1-D float array, as numpy computes it: its reduction starts from 0.0 and adds the
+    pairwise sum (:func:`_pairwise_sum`; the start matters for a sum of −0.0 only)."""
+    return 0.0 + _pairwise_sum(a, 0, a.shape[0])
+
+
+@njit(cache=True, nogil=True)
+def state_sum(q, v):  # noqa: ANN001, ANN201
+    """``q.sum() + v.sum()`` as numpy computes it (the controller's finiteness check of a state)."""
+    return (0.0 + _pairwise_sum(q, 0, q.shape[0])) + (0.0 + _pairwise_sum(v, 0, v.shape[0]))
 
 
 @njit(cache=True, nogil=True)
@@ -31,21 +123,25 @@ def assemble_qp(jac, w, rhs, lambda_qdd, rot, pos, offsets_t, com, basis_xy, bas
         c_q[i] = 0.0
         for j in range(nv):
             p_qq[i, j] = 0.0
+    nz = np.empty(nv, dtype=np.int64)  # the row's non-zero columns, in order (the same terms, in the same order)
     for r in range(n_rows):
         wr = w[r]
         if wr == 0.0:
             continue
         wrr = wr * rhs[r]
+        k = 0
         for i in range(nv):
+            if jac[r, i] != 0.0:
+                nz[k] = i
+                k += 1
+        for ii in range(k):
+            i = nz[ii]
             a = jac[r, i]
-            if a == 0.0:
-                continue
             wa = wr * a
             c_q[i] -= a * wrr
-            for j in range(i, nv):
-                b = jac[r, j]
-                if b != 0.0:
-                    p_qq[i, j] += wa * b
+            for jj in range(ii, k):
+                j = nz[jj]
+                p_qq[i, j] += wa * jac[r, j]
     for i in range(nv):
         p_qq[i, i] += lambda_qdd
         for j in range(i + 1, nv):
@@ -341,19 +437,37 @@ def task_rows(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac
 
 
 @njit(cache=True, nogil=True)
+def _rows_times(a, first, last, x, out):  # noqa: ANN001, ANN202
+    """``out[i − first] = a[i] · x`` for rows first..last−1, each sum from 0.0 in column order; two rows side by
+    side (independent chains of additions: the same numbers in about half the time)."""
+    n = x.shape[0]
+    i = first
+    while i + 1 < last:
+        acc = 0.0
+        acc2 = 0.0
+        for k in range(n):
+            xk = x[k]
+            acc += a[i, k] * xk
+            acc2 += a[i + 1, k] * xk
+        out[i - first] = acc
+        out[i + 1 - first] = acc2
+        i += 2
+    if i < last:
+        acc = 0.0
+        for k in range(n):
+            acc += a[i, k] * x[k]
+        out[i - first] = acc
+
+
+@njit(cache=True, nogil=True)
 def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN201
     """Eq. 15: the base rows solved for q̈_base (6×6 Cholesky of M's base block), written into
     ``qdd[:6]``; returns (τ, base rows' right-hand side, −Σ J_cᵀ f_c) with τ = M_j q̈ + h_j − Σ J_c,jᵀ f_c
     + ``damping`` (the model's viscous joint torque, already multiplied by q̇_j; zeros when the model
     has none). τ is empty when the base block is not positive definite: the caller solves it (LU)."""
     nv = mass_matrix.shape[0]
-    n_rho = rho.shape[0]
     gen = np.empty(nv)  # −Σ J_cᵀ f_c
-    for i in range(nv):
-        acc = 0.0
-        for k in range(n_rho):
-            acc += tau_map[i, k] * rho[k]
-        gen[i] = acc
+    _rows_times(tau_map, 0, nv, rho, gen)
     rhs = np.empty(6)
     for r in range(6):
         acc = 0.0
@@ -391,11 +505,9 @@ def torques(mass_matrix, nle, tau_map, rho, qdd, damping):  # noqa: ANN001, ANN2
     else:  # the caller solves with LU (numba's LAPACK binding would triple this kernel's compile time)
         return np.empty(0), rhs, gen
     tau = np.empty(nv - 6)
+    _rows_times(mass_matrix, 6, nv, qdd, tau)
     for i in range(nv - 6):
-        acc = 0.0
-        for j in range(nv):
-            acc += mass_matrix[6 + i, j] * qdd[j]
-        tau[i] = acc + nle[6 + i] + gen[6 + i] + damping[i]
+        tau[i] = tau[i] + nle[6 + i] + gen[6 + i] + damping[i]
     return tau, rhs, gen
 
 
@@ -512,3 +624,150 @@ def finish_tick(mass_matrix, nle, tau_map, rho, qdd, joint_damping, has_damping,
         y = y if y > lo else lo
         q_new[j] = y if y < hi else hi
     return tau, rhs, gen, q_new, qd_new, force
+
+
+@njit(cache=True, nogil=True)
+def _rotate3(rot, x, out, offset):  # noqa: ANN001, ANN202
+    """``out[offset:offset + 3] = rot @ x`` in the order pinocchio's Eigen evaluates a 3 × 3 product: rows 0 and 1
+    as one SSE2 packet, ((r₀x₀ + r₁x₁) + r₂x₂), row 2 by the scalar reduction, r₀x₀ + (r₁x₁ + r₂x₂)."""
+    for i in range(2):
+        out[offset + i] = (rot[i, 0] * x[0] + rot[i, 1] * x[1]) + rot[i, 2] * x[2]
+    out[offset + 2] = rot[2, 0] * x[0] + (rot[2, 1] * x[1] + rot[2, 2] * x[2])
+
+
+@njit(cache=True, nogil=True)
+def _frame_motion(parent_rot, motion, t):  # noqa: ANN001, ANN202
+    """A joint's spatial motion [linear; angular] (local axes) at a point ``t`` of the joint's frame, in world
+    axes: [R (v + ω × t); R ω] (pinocchio's getFrameVelocity / getFrameAcceleration, LOCAL_WORLD_ALIGNED)."""
+    lx, ly, lz, ax, ay, az = motion[0], motion[1], motion[2], motion[3], motion[4], motion[5]
+    moved = np.empty(3)
+    moved[0] = lx + (ay * t[2] - az * t[1])
+    moved[1] = ly + (az * t[0] - ax * t[2])
+    moved[2] = lz + (ax * t[1] - ay * t[0])
+    out = np.empty(6)
+    _rotate3(parent_rot, moved, out, 0)
+    moved[0], moved[1], moved[2] = ax, ay, az
+    _rotate3(parent_rot, moved, out, 3)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _foot_frame(s, joint_jac, parent_rot, parent_pos, parent_vel, parent_acc, frame_rot, frame_pos, support, pos,
+                rot, jac, drift):  # noqa: ANN001, ANN202
+    """Frame ``s`` of :func:`foot_frames`."""
+    nv = joint_jac.shape[1]
+    col, tmp = np.empty(3), np.empty(3)
+    # oMf = oMi · jMf (pinocchio.updateFramePlacement)
+    for j in range(3):
+        for i in range(3):
+            col[i] = frame_rot[s, i, j]
+        _rotate3(parent_rot, col, tmp, 0)
+        for i in range(3):
+            rot[s, i, j] = tmp[i]
+    _rotate3(parent_rot, frame_pos[s], tmp, 0)
+    for i in range(3):
+        pos[s, i] = tmp[i] + parent_pos[i]
+    # LOCAL_WORLD_ALIGNED Jacobian: the joint Jacobians' columns on the frame's support, their linear part
+    # moved to the frame's origin: v − p × ω (pinocchio's translateJointJacobian); zero elsewhere
+    px, py, pz = pos[s, 0], pos[s, 1], pos[s, 2]
+    for j in range(nv):
+        if support[s, j]:
+            wx, wy, wz = joint_jac[3, j], joint_jac[4, j], joint_jac[5, j]
+            jac[s, 0, j] = joint_jac[0, j] - (py * wz - pz * wy)
+            jac[s, 1, j] = joint_jac[1, j] - (pz * wx - px * wz)
+            jac[s, 2, j] = joint_jac[2, j] - (px * wy - py * wx)
+            jac[s, 3, j], jac[s, 4, j], jac[s, 5, j] = wx, wy, wz
+        else:
+            for r in range(6):
+                jac[s, r, j] = 0.0
+    # classical acceleration of the frame origin, world axes (pinocchio.getFrameClassicalAcceleration,
+    # LOCAL_WORLD_ALIGNED): R (a + α × t), R α, plus ω × v of the frame's velocity R (v + ω × t), R ω
+    vel = _frame_motion(parent_rot, parent_vel, frame_pos[s])
+    acc = _frame_motion(parent_rot, parent_acc, frame_pos[s])
+    drift[s, 0] = acc[0] + (vel[4] * vel[2] - vel[5] * vel[1])
+    drift[s, 1] = acc[1] + (vel[5] * vel[0] - vel[3] * vel[2])
+    drift[s, 2] = acc[2] + (vel[3] * vel[1] - vel[4] * vel[0])
+    for r in range(3, 6):
+        drift[s, r] = acc[r]
+
+
+@njit(cache=True, nogil=True)
+def foot_frames(joint_jac, left_rot, left_pos, left_vel, left_acc, right_rot, right_pos, right_vel, right_acc,
+                frame_rot, frame_pos, support, pos, rot, jac, drift, base_rot_view, base_rot):  # noqa: ANN001, ANN201
+    """Both feet's frame quantities from pinocchio's joint-level results (read in place: ``data.J``, and the
+    parent joints' ``data.oMi`` rotation and translation, ``data.v`` and ``data.a`` vectors), written into
+    ``pos`` (2, 3), ``rot`` (2, 3, 3), ``jac`` (2, 6, nv) and ``drift`` (2, 6): the numbers of
+    ``updateFramePlacement``, ``getFrameJacobian`` and ``getFrameClassicalAcceleration`` (LOCAL_WORLD_ALIGNED)
+    bit for bit (the same operations in the same order; ``tests/control/test_wbc_snapshot.py``).
+    ``frame_rot``/``frame_pos``: the frames' placements in their parent joints; ``support`` (2, nv): the
+    velocity columns of each frame's kinematic chain. ``base_rot_view`` (pinocchio's column-major
+    ``data.oMi[1].rotation``) is copied into ``base_rot``."""
+    _foot_frame(0, joint_jac, left_rot, left_pos, left_vel, left_acc, frame_rot, frame_pos, support, pos, rot, jac,
+                drift)
+    _foot_frame(1, joint_jac, right_rot, right_pos, right_vel, right_acc, frame_rot, frame_pos, support, pos, rot,
+                jac, drift)
+    for i in range(3):
+        for j in range(3):
+            base_rot[i, j] = base_rot_view[i, j]
+
+
+@njit(cache=True, nogil=True)
+def solve_tick(jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+               foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+               pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+               momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, com_z_given, upper_v_idx, upper_q_ref,
+               upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
+               damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis, mass_matrix, rho_up, tau_lo,
+               tau_up, rho_idx, ws_index, ws_upper, n_warm, max_iter, x, qdd, rho, q_des, qd_des, dt,
+               max_position_error, max_velocity_error, b, lo, up, bias, tau, q_new, qd_new,
+               force):  # noqa: ANN001, ANN201
+    """One whole-body tick in one call, the default path's kernels in their order: :func:`build_qp`, the compiled
+    active set (:func:`engine.control.wbc.active_set.solve_centroidal_qp`, warm, then cold when the warm
+    working set fails, as :meth:`engine.control.wbc.qp.ActiveSetQpSolver.solve`) and :func:`finish_tick`. The
+    arguments are theirs (``mass_matrix``: M, whose joint rows are the torque rows; ``tau_map``'s joint rows
+    the torque rows' ρ map). Writes the QP's b (6), q̈ bounds ``lo``/``up`` and torque-row bias (n_joints) once
+    built, τ, q*, q̇* (n_joints) and the horizontal ground force (2) once solved (arrays returned by the kernels
+    they call, copied: a preallocated output costs less than an array handed back to Python). Returns (tick
+    outcome, solver outcome, iterations, final working-set size)."""
+    finite, b_, lo_, up_, bias_ = build_qp(
+        jac, rhs, w, gains, fill_constant, frame_pos, frame_rot, frame_jac, frame_vel, frame_drift, contact,
+        foot_pos, foot_rot, foot_lin_vel, foot_ang_vel, foot_lin_acc, foot_ang_acc, base_rot, q, v,
+        pelvis_height, pelvis_height_rate, pelvis_rot, pelvis_ang_vel, centroidal_map, centroidal_drift,
+        momentum, com, mass, com_xy, com_xy_vel, com_xy_acc, com_z, com_z_given, upper_v_idx, upper_q_ref,
+        upper_qd_ref, external_wrench, has_external, params, offsets_t, basis_xy, joint_lower, joint_upper, nle,
+        damping, has_damping, p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+    if not finite:
+        return TICK_INVALID_REFERENCE, QP_OPTIMAL, 0, n_warm
+    b[:] = b_
+    lo[:] = lo_
+    up[:] = up_
+    bias[:] = bias_
+    touching = False
+    for c in contact.flat:
+        if c:
+            touching = True
+    if not touching:
+        return TICK_NO_CONTACT, QP_OPTIMAL, 0, n_warm
+    tau_qdd, tau_rho = mass_matrix[6:], tau_map[6:]
+    outcome, iterations, n_out = solve_centroidal_qp(
+        p_qq, c_q, r_rr, centroidal_map, g_rho, b, lo, up, rho_up, tau_qdd, tau_rho, bias, tau_lo, tau_up, rho_idx,
+        ws_index, ws_upper, n_warm, max_iter, x, qdd, rho)
+    if outcome != QP_OPTIMAL and n_warm > 0:  # the warm working set did not work: once more, cold
+        outcome, more, n_out = solve_centroidal_qp(
+            p_qq, c_q, r_rr, centroidal_map, g_rho, b, lo, up, rho_up, tau_qdd, tau_rho, bias, tau_lo, tau_up,
+            rho_idx, ws_index, ws_upper, 0, max_iter, x, qdd, rho)
+        iterations += more
+    if outcome != QP_OPTIMAL:
+        return TICK_NOT_SOLVED, outcome, iterations, n_out
+    tau_, _, _, q_new_, qd_new_, force_ = finish_tick(mass_matrix, nle, tau_map, rho, qdd, damping, has_damping, v,
+                                                      q, q_des, qd_des, dt, max_position_error, max_velocity_error,
+                                                      basis)
+    if tau_.size == 0:
+        return TICK_BASE_NOT_PD, outcome, iterations, n_out
+    if not math.isfinite(numpy_sum(tau_)):  # math.isfinite(tau.sum())
+        return TICK_NONFINITE_TORQUES, outcome, iterations, n_out
+    tau[:] = tau_
+    q_new[:] = q_new_
+    qd_new[:] = qd_new_
+    force[:] = force_
+    return TICK_SOLVED, outcome, iterations, n_out

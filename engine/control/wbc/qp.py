@@ -500,17 +500,8 @@ class ActiveSetQpSolver:
         if tau_qdd is None or tau_rho is None or tau_bias is None or tau_lo is None or tau_up is None:
             self.status = "active set: the QP has no torque rows"
             return None
-        key = (qp.rho_up > 0.0).tobytes()
-        if key != self._rho_idx_cache[0]:
-            self._rho_idx_cache = (key, np.flatnonzero(qp.rho_up > 0.0).astype(np.int64))
-        rho_idx = self._rho_idx_cache[1]
-        n = self.nv + rho_idx.size
-        warm = self._warm.get(rho_idx.size)
-        if warm is None:
-            size = n + 6 + self.n_tau
-            warm = self._warm[rho_idx.size] = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.bool_), [0])
-        index, upper, count = warm
-        x, qdd, rho = np.empty(n), np.empty(self.nv), np.empty(self.n_rho)
+        rho_idx, index, upper, count = self.workspace(qp.rho_up)
+        x, qdd, rho = np.empty(self.nv + rho_idx.size), np.empty(self.nv), np.empty(self.n_rho)
         outcome, iterations, n_out = solve_centroidal_qp(
             qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up, tau_qdd,
             tau_rho, tau_bias, tau_lo, tau_up, rho_idx, index, upper, count[0], self.max_iter, x, qdd, rho)
@@ -519,13 +510,38 @@ class ActiveSetQpSolver:
                 qp.p_qq, qp.c_q, qp.r_rr, qp.a_h, qp.g_rho, qp.b, qp.qdd_joint_lo, qp.qdd_joint_up, qp.rho_up,
                 tau_qdd, tau_rho, tau_bias, tau_lo, tau_up, rho_idx, index, upper, 0, self.max_iter, x, qdd, rho)
             iterations += more
+        if not self.record(outcome, iterations, n_out, count):  # (a non-finite solution counts as not convex)
+            return None
+        return qdd, rho
+
+    def workspace(self, rho_up: FloatArray) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_], list[int]]:
+        """The ρ in the QP (the corners in contact: ``rho_up > 0``) and the warm working set of their number
+        (:meth:`warm_set`): what a solve reads and updates."""
+        key = (rho_up > 0.0).tobytes()
+        if key != self._rho_idx_cache[0]:
+            self._rho_idx_cache = (key, np.flatnonzero(rho_up > 0.0).astype(np.int64))
+        rho_idx = self._rho_idx_cache[1]
+        index, upper, count = self.warm_set(rho_idx.size)
+        return rho_idx, index, upper, count
+
+    def warm_set(self, n_rho: int) -> tuple[NDArray[np.int64], NDArray[np.bool_], list[int]]:
+        """The warm working set of QPs with ``n_rho`` ρ: constraint indices, upper sides and a one-element list
+        holding its size."""
+        warm = self._warm.get(n_rho)
+        if warm is None:
+            size = self.nv + n_rho + 6 + self.n_tau
+            warm = self._warm[n_rho] = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.bool_), [0])
+        return warm
+
+    def record(self, outcome: int, iterations: int, n_out: int, count: list[int]) -> bool:
+        """Keep a solve's final working-set size, iterations and status; True when it is optimal."""
         count[0] = n_out
         self.iterations = iterations
-        if outcome != QP_OPTIMAL:  # (a non-finite solution counts as not convex)
+        if outcome != QP_OPTIMAL:
             self.status = f"active set outcome {outcome}"
-            return None
+            return False
         self.status = "active set optimal"
-        return qdd, rho
+        return True
 
 
 class _DaqpWorkspace:
