@@ -29,6 +29,21 @@ phase where a problem shows. Cost: ~0.1 s of CPU per sample. What it does not ch
 recorded falls of ``studio bench styles`` show what is missed): the CoM dynamics (CoP/ZMP of
 the MPC's plan, an MPC-in-the-loop check diverged open loop without the controller's
 re-anchoring) and friction.
+
+What the check cannot predict from the reference (measured 2026-11-29 on the 32 random styles of
+``studio bench styles --robot g1 --n 8 --seed S --duration 20 --extent 0.15``, S = 2…5: 13 falls,
+12 of them not flagged). Per style, the largest over the samples the sweep reaches of: the
+angular-momentum rate about the CoM of the kinematic reference in single support (limbs and
+pelvis, 96 IK solves per cycle), peak leg joint acceleration, the swing sole's orientation and
+position residuals, the stance sole's residual, the least leg-joint limit margin, swing apex,
+cycle time. For each, the threshold that marks all 13 falls also marks 14–19 of the 19 walkers
+(the least: the stance sole's residual, 14/19), so none of them is a flag here. The recordings
+show falls that begin in the closed loop, not in the reference: the CoM falls 2–4 cm behind the
+MPC's plan in the first forward steps of the command ramp (random-2-3 at 1.7 s, random-3-1 at
+1.3–1.6 s; walkers' CoM lags > 15 mm too), then the step adjustment moves the swing foot's target
+back (random-2-3: 20 cm in 50 ms at 1.71 s) and the robot walks backward under a forward command
+until it falls (random-2-3, 2-4, 4-7: the CoM 0.2–0.4 m behind where it started under 0.4 m/s
+forward; the "runaway" of README *Why the seed-2 styles fall*).
 """
 
 from __future__ import annotations
