@@ -373,6 +373,7 @@ class WalkingController:
         from_stance = (params.capture_from_stance_foot
                        and planner.t_s - self._pushed_at_s < params.stance_capture_after_push_s)
         shift_x, shift_y = self._mpc_shift.tolist()
+        reach_bounded = from_stance
         for side in SIDES:
             t_td = planner.time_to_touchdown_s(side, fb.kappa)
             if t_td is None:
@@ -406,7 +407,11 @@ class WalkingController:
             elif outward > params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
                 k = outward - params.lateral_xi_max_out_m
                 ax, ay = ax - k * ox, ay - k * oy
-            if from_stance:  # within the legs' reach of the stance foot
+            # Within the legs' reach of the stance foot: under a push, and (with a reach model) whenever the
+            # adjustment outgrows max_step_adjust_m, i.e. the nominal foothold has run away from the robot.
+            if from_stance or (params.capture_from_stance_foot
+                               and math.sqrt(ax * ax + ay * ay) > params.max_step_adjust_m):
+                reach_bounded = True
                 stance = planner.latched["right" if side == "left" else "left"]
                 rx, ry = (nominal.x - stance.x) + ax, (nominal.y - stance.y) + ay
                 along, lateral = rx * c + ry * s_, rx * -s_ + ry * c
@@ -415,7 +420,7 @@ class WalkingController:
                 d_along, d_lateral = along_c - along, lateral_c - lateral
                 ax, ay = ax + (d_along * c + d_lateral * -s_), ay + (d_along * s_ + d_lateral * c)
         norm = math.sqrt(ax * ax + ay * ay)
-        if norm > params.max_step_adjust_m and not from_stance:  # within the legs' reach
+        if norm > params.max_step_adjust_m and not reach_bounded:  # within the legs' reach
             f = params.max_step_adjust_m / norm
             ax, ay = ax * f, ay * f
         old_x, old_y = fb.step_adjust_m.tolist()

@@ -701,7 +701,8 @@ def test_gait_feedback_on_floats_equals_the_numpy_version() -> None:
 
 
 def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
-    """WalkingController._reachable_steps before the speed-up (2-vector numpy expressions)."""
+    """WalkingController._reachable_steps before the speed-up (2-vector numpy expressions), with the legs' reach
+    from the stance foot bounding an adjustment beyond max_step_adjust_m (issues 13/14)."""
     import dataclasses
 
     from engine.constants import GRAVITY_MPS2
@@ -726,6 +727,7 @@ def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
         self._pushed_at_s = planner.t_s
     from_stance = (self.params.capture_from_stance_foot
                    and planner.t_s - self._pushed_at_s < self.params.stance_capture_after_push_s)
+    reach_bounded = from_stance
     for side in SIDES:
         t_td = planner.time_to_touchdown_s(side, fb.kappa)
         if t_td is None:
@@ -751,7 +753,9 @@ def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
             adjust += (self.params.lateral_xi_inset_m - outward) * (left if side == "left" else -left)
         elif outward > self.params.lateral_xi_max_out_m:  # ξ runs toward the other foot: land near it
             adjust -= (outward - self.params.lateral_xi_max_out_m) * (left if side == "left" else -left)
-        if from_stance:  # within the legs' reach of the stance foot
+        if from_stance or (self.params.capture_from_stance_foot
+                           and vector_norm(adjust) > self.params.max_step_adjust_m):  # within the legs' reach
+            reach_bounded = True
             stance = planner.latched["right" if side == "left" else "left"]
             rel = np.array([nominal.x - stance.x, nominal.y - stance.y]) + adjust
             along, lateral = float(rel @ forward), float(rel @ left)
@@ -760,7 +764,7 @@ def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
             lateral_c = sign * min(sign * lateral, self.params.max_step_width_m)
             adjust += (along_c - along) * forward + (lateral_c - lateral) * left
     norm = vector_norm(adjust)
-    if norm > self.params.max_step_adjust_m and not from_stance:  # within the legs' reach
+    if norm > self.params.max_step_adjust_m and not reach_bounded:  # within the legs' reach
         adjust *= self.params.max_step_adjust_m / norm
     if bool((adjust == fb.step_adjust_m).all()):  # np.array_equal of two (2,) arrays
         return fb
@@ -782,7 +786,7 @@ def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
     sim = Simulation(robot, c)
     c.set_command(np.array([0.4, 0.05, 0.2]))
     rng = np.random.default_rng(7)
-    checked = changed = 0
+    checked = changed = beyond = 0
     for k in range(500):
         sim.step()
         if k < 150 or k % 4:
@@ -795,7 +799,8 @@ def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
             c.observer.force_n = rng.normal(0.0, 40.0, c.observer.force_n.shape) if pushed else \
                 np.zeros(c.observer.force_n.shape)
             c._mpc_shift = rng.normal(0.0, 0.01, 2) if trial % 2 else np.zeros(2)
-            f = dataclasses.replace(fb, step_adjust_m=rng.normal(0.0, 0.05, 2) * (trial != 0))
+            # trials 3-5: adjustments beyond max_step_adjust_m (a nominal foothold run away from the robot)
+            f = dataclasses.replace(fb, step_adjust_m=rng.normal(0.0, 0.05 if trial < 3 else 0.3, 2) * (trial != 0))
             c.params = dataclasses.replace(c.params, capture_from_stance_foot=trial % 3 != 1)
             saved = c._pushed_at_s
             got = c._reachable_steps(f)
@@ -808,9 +813,10 @@ def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
             c._com_now = (com, vel)
             checked += 1
             changed += got is not f
+            beyond += bool(np.hypot(*got.step_adjust_m) > c.params.max_step_adjust_m + 1e-9) and not pushed
         c.observer.force_n = np.zeros(c.observer.force_n.shape)
         c._mpc_shift = np.zeros(2)
-    assert checked > 300 and changed > 100, (checked, changed)  # the bounds did act
+    assert checked > 300 and changed > 100 and beyond > 3, (checked, changed, beyond)  # the bounds did act
 
 
 def hurry_beyond_reference(self, com, com_vel, z, outer):  # noqa: ANN001, ANN201

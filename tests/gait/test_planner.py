@@ -217,3 +217,46 @@ def test_preview_supports_a_heel_strike_on_the_heel_edge_only(pitch_rad, rolling
     assert double
     for p in double:
         assert len(_heel_edge_feet(p)) == rolling
+
+
+def test_stance_width_edit_mid_step_keeps_the_stance_foot_and_the_timing():
+    """The soak's live edit (issues 13/14): the in_place sample's stance width changed while stepping in
+    place, sent as a whole style mid-swing. The cross-fade must not move the foot on the ground (its latched
+    foothold, its reference and the MPC preview's support), nor the clock (contact events), and the swing
+    target may only drift toward the new width, continuously; after the edit the feet stand at the new width."""
+    from dataclasses import replace
+
+    from engine.gait.style import style_from_dict, style_to_json_dict
+
+    style = load_style(REPO / "styles/g1/neutral.json")
+    sample = style.samples["in_place"]
+    edited = style_from_dict(style_to_json_dict(style.with_sample(
+        "in_place", replace(sample, attributes=replace(sample.attributes, stance_width_m=sample.attributes.stance_width_m + 0.02)))),
+        g1_context(), expected_robot="g1")
+    plain, edit = GaitPlanner(style, g1_context(), *SOLE), GaitPlanner(style, g1_context(), *SOLE)
+    zero = np.zeros(3)
+    edited_at = None
+    stance_before = None
+    checked = 0
+    for k in range(int(6.0 / DT)):
+        swinging_left = edit.in_swing("left", edit.phi)
+        if edited_at is None and k * DT > 3.0 and swinging_left:  # mid-swing of the left foot
+            edited_at = k
+            stance_before = edit.latched["right"]
+            edit.set_style(edited)
+        a = plain.step(DT, zero)
+        b = edit.step(DT, zero)
+        assert b.phase == a.phase and (b.contact == a.contact).all(), "the edit moved the clock"
+        if edited_at is not None and k - edited_at == checked and edit.in_swing("left", edit.phi):  # that swing
+            checked += 1
+            assert edit.latched["right"] == stance_before, "the edit moved the stance foot's foothold"
+            assert np.abs(b.foot_pos[1] - a.foot_pos[1]).max() < 1e-9, "the edit moved the stance foot"
+            stance_support = b.preview[0].footholds["right"]
+            assert (stance_support.x, stance_support.y) == (stance_before.x, stance_before.y), \
+                "the MPC's support is not the foot on the ground"
+            drift = abs(edit.target["left"].y - plain.target["left"].y)
+            assert drift <= 0.5 * 0.02 + 1e-9, f"the swing target moved {drift:.4f} m"
+    assert edited_at is not None and checked > 5
+    gap = lambda p: math.hypot(p.latched["left"].x - p.latched["right"].x, p.latched["left"].y - p.latched["right"].y)  # noqa: E731
+    assert gap(plain) == pytest.approx(sample.attributes.stance_width_m, abs=2e-3)
+    assert gap(edit) == pytest.approx(sample.attributes.stance_width_m + 0.02, abs=2e-3)
