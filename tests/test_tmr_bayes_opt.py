@@ -90,13 +90,16 @@ def test_warm_start_begins_with_the_identity_and_cancel_stops() -> None:
 
 @settings(max_examples=30, deadline=None)
 @given(dims=st.integers(1, 3), bound=st.floats(0.1, 2.0), points=st.integers(1, 8), seed=st.integers(0, 99))
-def test_initial_design_starts_with_the_identity_then_the_bounds(dims, bound, points, seed) -> None:  # noqa: ANN001
+def test_initial_design_starts_with_the_identity_the_bounds_then_the_inner_probes(dims, bound, points, seed) -> None:  # noqa: ANN001
     design = initial_design(dims, bound, points, np.random.default_rng(seed))
     assert len(design) == points
-    corners = [np.zeros(dims), np.full(dims, -bound), np.full(dims, bound)]
-    for got, want in zip(design, corners):
+    probes = [np.zeros(dims), np.full(dims, -bound), np.full(dims, bound), np.full(dims, -bound / 2),
+              np.full(dims, bound / 2)]
+    for got, want in zip(design, probes):
         np.testing.assert_array_equal(got, want)
     assert all(np.all(np.abs(x) <= bound) for x in design)
+    randoms = design[len(probes):]  # the random warm start after the probes: not on the uniform diagonal
+    assert all(np.ptp(x) > 0 for x in randoms if dims > 1)
 
 
 def test_finds_an_optimum_on_the_bound_that_interior_points_miss() -> None:
@@ -130,3 +133,58 @@ def test_a_suggestion_already_evaluated_is_not_evaluated_again() -> None:
     assert np.min(np.abs(xs[:, None] - xs[None, :]) + np.eye(len(xs)) * 9, initial=9) >= 1e-3
     assert res.evaluations == len(calls) <= 30
     assert res.best_log2_alpha[0] == -1.0
+
+
+def test_reaches_an_optimum_on_a_bound_that_no_designed_point_holds() -> None:
+    """A known 2-D function whose maximum lies on the upper bound of one segment and inside the other,
+    (+1, −0.3): none of the designed points (the uniform diagonal) is there; BO gets within 0.1 of it."""
+    optimum = np.array([1.0, -0.3])
+
+    def f(x: np.ndarray) -> float:
+        return float(-np.sum(np.array([0.5, 1.0]) * (x - np.array([1.6, -0.3])) ** 2))
+
+    res = _run(f, 2, 1.0, BOSettings(budget=14, init_points=4, seed=0))
+    assert res.evaluations <= 14
+    assert not any(np.max(np.abs(x - optimum)) < 0.1 for x in initial_design(2, 1.0, 4, np.random.default_rng(0)))
+    assert np.max(np.abs(res.best_log2_alpha - optimum)) < 0.1
+
+
+def test_no_evaluation_beside_a_known_point_on_an_isolated_bound_optimum() -> None:
+    """The knife edge of go1 HopTurn: only the lower bound stands, every other α falls (later the nearer the
+    bound). BO keeps the bound and no two evaluations are within ``duplicate_log2`` of each other (EI's pull
+    towards the best point is answered by what is known there)."""
+    calls = []
+
+    def f(x: np.ndarray) -> float:
+        calls.append(float(x[0]))
+        if x[0] <= -0.995:
+            return -0.05 * x[0] ** 2
+        return -1.0 - 2.0 * (1.0 - 0.8 * (0.5 - 0.5 * x[0]))
+
+    s = BOSettings(budget=8, init_points=4, seed=0)
+    res = _run(f, 1, 1.0, s)
+    xs = np.array(calls)
+    gaps = np.abs(xs[:, None] - xs[None, :]) + np.eye(len(xs)) * 9
+    assert np.min(gaps) >= s.duplicate_log2
+    assert res.best_log2_alpha[0] == -1.0 and res.evaluations <= 8
+
+
+# go1 HopTurn's first four evaluations (log2 α, score): α = 1, 0.5, 2, 0.71 — only the bound stands
+STEP_SCORES = [(0.0, -2.54), (-1.0, -0.15), (1.0, -2.65), (-0.5, -2.52)]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_gp_interpolates_a_step_and_ei_looks_beside_the_standing_point(seed: int) -> None:
+    """On a step (one α stands, the rest fall) the library's own length-scale bound (10⁻⁵) lets the GP fit white
+    noise and EI's suggestion is any point of the box; with the floor the suggestion is beside the standing α,
+    the same whatever the random state — and without the floor it is not (the control)."""
+    from engine.retarget.quadruped.tmr.bayes_opt import _suggest
+
+    observed = [(np.array([x]), s) for x, s in STEP_SCORES]
+    floor = _suggest(1, 1.0, observed, [], BOSettings(), np.random.default_rng(seed))
+    assert -1.0 < floor[0] <= -0.85
+    first = _suggest(1, 1.0, observed, [], BOSettings(), np.random.default_rng(99))
+    np.testing.assert_allclose(floor, first, atol=1e-3)
+    raw = [_suggest(1, 1.0, observed, [], BOSettings(length_scale_min_log2=1e-5), np.random.default_rng(k))[0]
+           for k in range(5)]
+    assert not all(-1.0 < x <= -0.85 for x in raw)

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.bench.tmr import CLIP_BUDGET, CLIP_ROBOTS, CLIPS, PAPER_TABLE_II
+from engine.bench.tmr import CLIP_BUDGET, CLIP_INIT_POINTS, CLIP_ROBOTS, CLIPS, PAPER_TABLE_II
 
 ROBOTS = ("go1", "a1", "go2", "b1", "anymal_c")
 BASELESS_CLIPS = ("trot0", "trot1", "pace0", "pace1")
@@ -182,7 +182,8 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
         except RayAddressError as exc:
             print(f"bench retarget: {exc}; running the evaluations one at a time in this process", file=sys.stderr)
             parallel = 1
-    settings = TMRSettings(budget=budget, init_points=min(3, budget), parallel=parallel)
+    # the warm start: α = 1, then every segment at log2 α = −1, +1 and −0.5 (bayes_opt.initial_design); EI after
+    settings = TMRSettings(budget=budget, init_points=min(CLIP_INIT_POINTS, budget), parallel=parallel)
     rows: list[dict[str, Any]] = []
     try:
         for robot in robots:

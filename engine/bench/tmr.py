@@ -23,6 +23,7 @@ RAY_BUDGET = 4  # two batches of two on 2 workers
 CLIPS = ("trot0", "trot1", "pace0", "pace1", "sidesteps", "hopturn")
 CLIP_ROBOTS = ("go1", "a1", "anymal_c")
 CLIP_BUDGET = 6
+CLIP_INIT_POINTS = 4  # BO's warm start in tmr-clips: α = 1, log2 α = −1, +1, −0.5 (the rest EI)
 # Table II (STMR, SMR: DTW keypoint L1 %) for the flight-phase clips; Fig. 6 mean tracking error 48.7 mm
 PAPER_TABLE_II = {("go1", "sidesteps"): (1.9, 5.3), ("a1", "sidesteps"): (2.7, 5.4), ("go1", "hopturn"): (2.1, 6.4),
                   ("a1", "hopturn"): (1.6, 8.2)}

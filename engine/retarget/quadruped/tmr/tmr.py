@@ -40,7 +40,7 @@ class TMRSettings:
     segments: int = 1  # S (the paper uses 1 for short clips, 3 for long varied ones)
     log2_bound: float = DEFAULT_LOG2_BOUND  # log2 α ∈ [−B, B]
     budget: int = 8  # BO evaluations at most
-    init_points: int = 3  # warm start: the identity, log2 α = −B then +B in every segment, then random
+    init_points: int = 3  # warm start: the identity, log2 α = −B, +B, −B/2, +B/2 in every segment, then random
     parallel: int = 1  # evaluations in flight (Ray workers)
     w_contact: float = 0.2  # w_c of Eq. 15
     w_alpha: float = 0.05  # regularisation of extreme α
