@@ -377,6 +377,27 @@ class TaskSpaceInverseDynamics:
             basis=self._basis, corners_m=self._corners_m, qp=qp, horizontal_force_n=force)
         return cmd
 
+    def _build_args(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> tuple:
+        """The arguments both compiled builds start with (:func:`engine.control.wbc.kernels.build_qp` and
+        :func:`engine.control.wbc.kernels.solve_tick`): the task buffers, the snapshot, the reference and the
+        robot's constants, in the kernels' order."""
+        zeros = self._zeros_2x3
+        ext, com_z, damping = ref.external_wrench, ref.com_z_m, self._joint_damping
+        return (
+            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
+            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
+            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
+            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
+            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
+            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
+            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
+            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if com_z is None else float(com_z), com_z is not None,
+            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps,
+            self._zeros_6 if ext is None else np.asarray(ext, dtype=float), ext is not None, self._build_params,
+            self._corner_offsets_t, self._basis_xy, self._joint_lower, self._joint_upper, snap.nonlinear_effects,
+            self._no_damping if damping is None else damping, damping is not None,
+        )
+
     def _compute_one_call(self, state: RobotState, snap: DynamicsSnapshot, ref: WbcReference,
                           contact: NDArray[np.bool_], t0: float, t1: float) -> JointCommand:
         """Build, solve (the compiled active set) and finish in one compiled call
@@ -387,8 +408,6 @@ class TaskSpaceInverseDynamics:
         p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
         g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
         corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
-        zeros = self._zeros_2x3
-        ext, com_z, damping = ref.external_wrench, ref.com_z_m, self._joint_damping
         key = contact.tobytes()
         if key != self._rho_up_cache[0]:
             rho_max = self.gains.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
@@ -406,23 +425,12 @@ class TaskSpaceInverseDynamics:
         force = np.empty(2)
         g = self.gains
         assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"
-        tick, outcome, iterations, n_out = _kernels.solve_tick(
-            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
-            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
-            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
-            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
-            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
-            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
-            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
-            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if com_z is None else float(com_z), com_z is not None,
-            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps,
-            self._zeros_6 if ext is None else np.asarray(ext, dtype=float), ext is not None, self._build_params,
-            self._corner_offsets_t, self._basis_xy, self._joint_lower, self._joint_upper, snap.nonlinear_effects,
-            self._no_damping if damping is None else damping, damping is not None,
+        tick, outcome, iterations, n_out = _kernels.solve_tick(*(
+            *self._build_args(snap, ref, contact),
             p_qq, c_q, r_rr, g_rho, tau_map, corners, basis, snap.mass_matrix, rho_up, self._neg_torque_limit,
             self._torque_limit, rho_idx, index, upper, count[0], solver.max_iter, x, qdd, rho, self.q_des, self.qd_des,
             float(self.dt_s), float(g.max_position_error_rad), float(g.max_velocity_error_radps), b, lo, up, bias, tau,
-            q_des, qd_des, force)
+            q_des, qd_des, force))
         t2 = time.perf_counter()
         if tick == _kernels.TICK_INVALID_REFERENCE:
             return self._fallback(state, "fallback_invalid_reference", "reference has non-finite values", t0)
@@ -468,22 +476,8 @@ class TaskSpaceInverseDynamics:
         p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
         g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
         corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
-        zeros = self._zeros_2x3
-        ext, com_z, damping = ref.external_wrench, ref.com_z_m, self._joint_damping
         finite, b, lo, up, bias = _kernels.build_qp(
-            self._jac, self._rhs, self._w, self._task_gains, not self._jac_filled, snap.frame_position_m,
-            snap.frame_rotation, snap.frame_jacobian, snap.frame_velocity, snap.frame_drift, contact,
-            ref.foot_pos_m, ref.foot_rotation, ref.foot_lin_vel_mps, ref.foot_ang_vel_radps,
-            zeros if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2,
-            zeros if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2, snap.base_rotation, snap.q, snap.v,
-            float(ref.pelvis_height_m), float(ref.pelvis_height_rate_mps), ref.pelvis_rotation, ref.pelvis_ang_vel_radps,
-            snap.centroidal_map, snap.centroidal_drift, snap.momentum, snap.com_m, float(snap.mass_kg), ref.com_xy_m,
-            ref.com_xy_vel_mps, ref.com_xy_acc_mps2, math.nan if com_z is None else float(com_z), com_z is not None,
-            self.upper_v_indices, ref.upper_body_q_rad, ref.upper_body_qd_radps,
-            self._zeros_6 if ext is None else np.asarray(ext, dtype=float), ext is not None, self._build_params,
-            self._corner_offsets_t, self._basis_xy, self._joint_lower, self._joint_upper, snap.nonlinear_effects,
-            self._no_damping if damping is None else damping, damping is not None,
-            p_qq, c_q, r_rr, g_rho, tau_map, corners, basis)
+            *(*self._build_args(snap, ref, contact), p_qq, c_q, r_rr, g_rho, tau_map, corners, basis))
         if not finite:
             return None
         self._jac_filled = True
