@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -116,11 +118,25 @@ def run_tmr(motion, settings, address: str | None, parallel: int):  # noqa: ANN0
         from dataclasses import replace
 
         settings = replace(settings, parallel=1)
+    # Ctrl-C (SIGINT) sets a flag the search and the tracker poll, instead of a KeyboardInterrupt: one raised
+    # inside a finaliser or a library's callback is printed and swallowed, and the job would then finish and
+    # write its file (seen in CI: a cancelled `studio tmr` exiting 0).
+    interrupted = threading.Event()
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, lambda _signum, _frame: interrupted.set())
     try:
-        return temporal_retarget(motion, settings, executor=executor, progress=_progress_line(""))
+        result = temporal_retarget(motion, settings, executor=executor, progress=_progress_line(""),
+                                   cancel=interrupted.is_set)
     except (KeyboardInterrupt, Cancelled):
+        result = None
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    if result is None or interrupted.is_set():
         print("studio: cancelled; nothing written", file=sys.stderr)
         return None
+    return result
 
 
 def _quadruped(name: str, where: str = "--robot"):  # noqa: ANN202
