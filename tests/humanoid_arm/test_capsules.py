@@ -15,6 +15,10 @@ point = st.tuples(coord, coord, coord).map(np.array)
 
 
 @example(p1=np.array([0.0, 0.0, 6.103515625e-05]), q1=np.zeros(3), p2=np.zeros(3), q2=np.array([0.0, 0.015625, 0.0]))
+# nearly antiparallel segments sharing an end (q1 = p2): distance 0, not the 6e-6 m of taking s = 0
+@example(p1=np.zeros(3), q1=np.array([0.0, 1.0, 0.0]), p2=np.array([0.0, 1.0, 0.0]), q2=np.array([0.0, 0.0, 6.3e-6]))
+# two 1 m segments crossing in an X at 1.3e-5 rad: they meet, not 6e-6 m apart
+@example(p1=np.zeros(3), q1=np.array([6.3e-6, 1.0, 0.0]), p2=np.array([0.0, 1.0, 0.0]), q2=np.array([6.3e-6, 0.0, 0.0]))
 @settings(max_examples=100, deadline=None)
 @given(point, point, point, point)
 def test_segment_distance_matches_brute_force(p1, q1, p2, q2):

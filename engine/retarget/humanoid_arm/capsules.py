@@ -49,10 +49,11 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     a, e, f, c, b = dot(d1, d1), dot(d2, d2), dot(d2, r), dot(d1, r), dot(d1, d2)
     eps = 1e-12
     denom = a * e - b * b
-    # parallel (s arbitrary: 0) only when the angle between them is below ~3e-5 rad: a threshold relative to
-    # a·e, not absolute (two perpendicular segments of 6e-5 m and 1.6 cm have a·e − b² ≈ 1e-12 and met at a
-    # point, but an absolute 1e-12 took them for parallel and returned 6e-5 m)
-    skew = denom > 1e-9 * a * e
+    # parallel only when the angle between them is below ~3e-7 rad: a threshold relative to a·e, not absolute
+    # (two perpendicular segments of 6e-5 m and 1.6 cm have a·e − b² ≈ 1e-12 and met at a point, but an
+    # absolute 1e-12 took them for parallel and returned 6e-5 m), and small (at 3e-5 rad two 1 m segments
+    # crossing in an X were taken for parallel and 6e-6 m apart). a·e − b² loses ~1e-16·a·e to cancellation.
+    skew = denom > 1e-13 * a * e
     s = np.where(skew, np.clip((b * f - c * e) / np.where(skew, denom, 1.0), 0.0, 1.0), 0.0)
     t = np.where(e > eps, (b * s + f) / np.where(e > eps, e, 1.0), 0.0)
     # t outside [0, 1]: clamp t and recompute s
@@ -67,7 +68,32 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     s = np.where(a > eps, s, 0.0)
     c1 = p1 + s[..., None] * d1
     c2 = p2 + t[..., None] * d2
-    return np.linalg.norm(c1 - c2, axis=-1), c1, c2
+    dist = np.linalg.norm(c1 - c2, axis=-1)
+    if np.all(skew):
+        return dist, c1, c2
+    # (nearly) parallel pairs: s = 0 is only one of the minimisers when they overlap; when they do not, the
+    # closest pair has an end point on one side (two antiparallel segments sharing an end met at 6e-6 m from
+    # s = 0). The minimum over the four end-point-to-segment distances is exact for parallel segments.
+    candidates = [
+        (p1, _closest_on_segment(p1, p2, d2, e, eps)),
+        (q1, _closest_on_segment(q1, p2, d2, e, eps)),
+        (_closest_on_segment(p2, p1, d1, a, eps), p2),
+        (_closest_on_segment(q2, p1, d1, a, eps), q2),
+    ]
+    for x1, x2 in candidates:
+        dx = np.linalg.norm(x1 - x2, axis=-1)
+        better = ~skew & (dx < dist)
+        dist = np.where(better, dx, dist)
+        c1 = np.where(better[..., None], x1, c1)
+        c2 = np.where(better[..., None], x2, c2)
+    return dist, c1, c2
+
+
+def _closest_on_segment(x: np.ndarray, p: np.ndarray, d: np.ndarray, dd: np.ndarray, eps: float) -> np.ndarray:
+    """The point of segment p + u·d (u ∈ [0, 1], dd = d·d) closest to x, vectorised like segment_distance."""
+    u = np.clip(np.einsum("...i,...i->...", x - p, d) / np.where(dd > eps, dd, 1.0), 0.0, 1.0)
+    u = np.where(dd > eps, u, 0.0)
+    return p + u[..., None] * d
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
