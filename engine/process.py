@@ -152,6 +152,13 @@ class EngineProcess:
         self.process = subprocess.Popen(
             [sys.executable, "-m", "engine", "--robot", self.robot, "--fd", str(child_fd)],
             pass_fds=(child_fd,), env=env, cwd=str(REPO_ROOT),
+            # Its own session, hence its own scheduler autogroup on Linux (sched_autogroup_enabled, the default of
+            # desktop kernels): CPU is shared between sessions first, then between threads, so the browser's
+            # rendering threads and the studio's streaming threads no longer outnumber the one simulation thread.
+            # With a software-WebGL tab and three other jobs on 2 cores, simulated ÷ wall time 0.17-0.20 -> 0.33-0.36
+            # (`studio bench render`'s walk, alternated twice). The studio still ends it: Shutdown, the socket's
+            # EOF when the studio dies, or the orphan check; a terminal's Ctrl-C goes to the studio alone.
+            start_new_session=True,
         )
         child_sock.close()
         self.conn = Connection(parent_sock.detach())

@@ -100,6 +100,9 @@ def test_engine_process_paces_and_publishes():
         (w0, f0), (w1, f1) = frames[0], frames[-1]
         assert f1.sim_time_s - f0.sim_time_s <= (w1 - w0) + 0.1  # paced: never ahead of the wall clock
         assert [f.seq for _, f in frames] == sorted(f.seq for _, f in frames)
+        # its own session (scheduler autogroup): the browser's and the studio's threads share the CPU with it
+        # as groups, not thread by thread
+        assert engine.pid is not None and os.getsid(engine.pid) == engine.pid != os.getsid(0)
     finally:
         engine.stop()
     assert not engine.alive()
