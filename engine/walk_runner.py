@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Sequence
+from typing import Callable, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -73,11 +73,14 @@ class ContactMeter:
 def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duration_s: float,
              pushes: Sequence[PushSpec] = (), wbc: str = "paper", state_source: str = "truth",
              feedback: bool = True, record: bool = True, record_reference: bool = False,
-             command_text: str | None = None) -> tuple[dict, dict[str, np.ndarray]]:
+             command_text: str | None = None, progress: Callable[[float], None] | None = None,
+             progress_period_s: float = 0.5) -> tuple[dict, dict[str, np.ndarray]]:
     """Walk ``duration_s`` of simulated time; returns the summary and, with ``record``, the walk-run
     arrays (engine/walk_recording.py: a RobotMotion plus the analysis arrays, every 4th tick).
     ``record_reference`` adds ``reference_qpos``: the kinematic preview of the gait reference at each
-    recorded instant (whole-body IK, the studio's ghost; costs one IK solve per recorded frame)."""
+    recorded instant (whole-body IK, the studio's ghost; costs one IK solve per recorded frame).
+    ``progress(t_s)`` is called every ``progress_period_s`` of simulated time (an exception it raises stops the walk
+    and propagates: a cancelled rehearsal)."""
     controller = WalkingController(robot, style, wbc=wbc, state_source=state_source, feedback=feedback)
     sim = Simulation(robot, controller)
     if state_source == "estimated":
@@ -96,7 +99,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
                                             "sample_weights", "base_vel_body", "external_force",
                                             "pelvis_height_ref", "pelvis_height_achieved", "pelvis_yaw_ref",
                                             "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved",
-                                            "reference_qpos")}
+                                            "gait_phase", "reference_qpos")}
     preview = None
     if record and record_reference:
         from engine.gait.kinematic_preview import KinematicPreview
@@ -121,8 +124,11 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     vel_err: list[np.ndarray] = []
     com_err: list[float] = []
     wall0 = time.perf_counter()
+    progress_every = max(1, int(round(progress_period_s / dt)))
     for k in range(n):
         t = k * dt
+        if progress is not None and k % progress_every == 0:
+            progress(t)
         while pending and pending[0].t_s <= t:
             p = pending.pop(0)
             sim.push(np.array(p.force_n), p.duration_s)
@@ -207,6 +213,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["pelvis_yaw_achieved"].append(yaw)
             rec["elbow_ref"].append(float(ref.upper_q[elbow_ref_index]) if elbow_ref_index is not None else math.nan)
             rec["elbow_achieved"].append(float(data.qpos[elbow_qpos]) if elbow_qpos is not None else math.nan)
+            rec["gait_phase"].append(ref.phase)
             if preview is not None:
                 com_xy = controller.plan.com_at(ref.t_s)[0] if controller.plan is not None else data.subtree_com[root][:2]
                 rec["reference_qpos"].append(robot.mj_qpos_from_pin(preview.solve(ref, np.asarray(com_xy))))

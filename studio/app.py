@@ -31,6 +31,7 @@ from studio.thread_priority import yield_to_engine
 
 if TYPE_CHECKING:
     from studio.panels.curve_editor import CurveEditor
+    from studio.panels.rehearsal_panel import RehearsalPanel
     from studio.panels.sample_editor import SampleEditor
     from studio.panels.style_browser import StyleBrowser
 
@@ -127,6 +128,7 @@ class Studio:
         self.style_browser: StyleBrowser | None = None
         self.sample_editor: SampleEditor | None = None
         self.curve_editor: CurveEditor | None = None
+        self.rehearsal: RehearsalPanel | None = None
 
         self.link = EngineLink(robot, self._on_event, self._on_status, on_lost=self._on_engine_lost)
         self.server.on_client_connect(self._on_client)
@@ -146,6 +148,8 @@ class Studio:
         self._stop.set()
         self.drive._stop.set()
         self.retarget.stop()
+        if self.rehearsal is not None:
+            self.rehearsal.stop()
         self.link.stop()
         self.server.stop()
 
@@ -155,6 +159,9 @@ class Studio:
 
     # ------------------------------------------------------------------ robot-dependent panels
     def _build_style_panels(self, robot: str) -> None:
+        if self.rehearsal is not None:
+            self.rehearsal.stop()
+            self.rehearsal = None
         for folder in self._style_folders:
             folder.remove()
         self._style_folders.clear()
@@ -175,6 +182,7 @@ class Studio:
         opened = session.open(cfg.default_style)
         if not opened.ok:
             self._notify("error", opened.message)
+        from studio.panels.rehearsal_panel import RehearsalPanel
         from studio.panels.sample_editor import SampleEditor
         from studio.panels.style_browser import StyleBrowser
 
@@ -191,6 +199,10 @@ class Studio:
             folder = self.server.gui.add_folder("Sample")
             with folder:
                 self.sample_editor = SampleEditor(self.server, session, self._notify, on_sample=self._on_sample)
+            self._style_folders.append(folder)
+            folder = self.server.gui.add_folder("Rehearsal")
+            with folder:
+                self.rehearsal = RehearsalPanel(self.server, session)
             self._style_folders.append(folder)
         with self.tab_curves:
             folder = self.server.gui.add_folder("Function curves")

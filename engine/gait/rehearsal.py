@@ -1,0 +1,229 @@
+"""Rehearsal: walk the style through the sweep in physics, off screen, before the animator presses Test.
+
+The edit-time check (:mod:`engine.gait.feasibility`) reads the reference and is cheap, but what it cannot see —
+falls that begin in the closed loop (the CoM lagging the MPC's plan, the step adjustment running away) — only a
+simulation shows. A rehearsal is that simulation: the same closed-loop walk as ``studio bench styles`` (the
+``sweep`` command: stand, forward fast, back, strafe left/right, turn left/right, each with its ramps and pauses;
+the same controller, :func:`engine.walk_runner.run_walk`), so its verdict is the benchmark's verdict for this
+style. It costs what the walk costs (G1: about half a CPU-second per simulated second on a 2-core machine); the
+studio runs it in a separate process at low priority and shows its progress.
+
+When the walk falls, the recording says where in words an animator can act on: the sample the walk was
+following (the largest blend weight), the command, the phase of that sample's cycle (from left liftoff, as the
+edit-time check counts it), and how the fall began — the first moment in the last seconds where the body left
+the MPC's plan by :data:`DRIFT_M` (behind, ahead or beside it) or a foot on the ground started sliding. When it
+walks, the stance slip and the share of time the centre of pressure stays inside the feet (the benchmark's
+"clean" bars) are reported too.
+
+``python -m engine.gait.rehearsal --robot g1 --style FILE [--duration S]`` prints one JSON object per line:
+``{"progress_s": t}`` as the walk goes, then ``{"result": {...}}``. A bad style file: one line on stderr, exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import asdict, dataclass
+from typing import Callable
+
+import numpy as np
+
+from engine.gait.style import Style
+from engine.gait.velocity_sampler import SAMPLE_NAMES
+from engine.robot.model import RobotModel
+
+SWEEP_DURATION_S = 60.0  # `studio bench styles`' default sweep length
+CLEAN_SLIP_MM = 2.0  # issue 13's bars for a walk that is not only upright but clean
+CLEAN_COP_INSIDE = 0.995
+DRIFT_M = 0.03  # the body this far from the MPC's plan: the fall has begun
+SLIDE_M = 0.01  # a foot on the ground this far from where it landed: sliding
+LOOKBACK_S = 4.0  # how far before the fall to look for its beginning
+PROGRESS_PERIOD_S = 0.5  # simulated seconds between progress reports
+MOVING_MPS = 0.05  # a command at least this fast: drift is told along / across the direction of travel
+
+
+@dataclass(frozen=True)
+class RehearsalResult:
+    fell: bool
+    fall_time_s: float | None
+    duration_s: float
+    sample: str | None  # the sample the walk was following when it fell
+    phase_pct: float | None  # of that sample's cycle, from left liftoff
+    command: tuple[float, float, float] | None  # vx (m/s), vy (m/s), wz (rad/s) at the fall
+    onset_time_s: float | None  # when the fall began (see the module docstring)
+    max_stance_slip_mm: float
+    cop_inside_fraction: float | None
+    message: str  # what the animator reads
+
+    @property
+    def clean(self) -> bool:
+        return (not self.fell and self.max_stance_slip_mm < CLEAN_SLIP_MM
+                and self.cop_inside_fraction is not None and self.cop_inside_fraction >= CLEAN_COP_INSIDE)
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "clean": self.clean}
+
+
+def rehearse(robot: RobotModel, style: Style, duration_s: float = SWEEP_DURATION_S,
+             progress: Callable[[float], None] | None = None) -> RehearsalResult:
+    """Walk ``style`` through the sweep for ``duration_s`` in closed loop; ``progress(t_s)`` is called every
+    :data:`PROGRESS_PERIOD_S` of simulated time (raise from it to stop the rehearsal)."""
+    from engine.gait.command_schedule import parse_command
+    from engine.walk_runner import run_walk
+
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise ValueError(f"duration_s: expected a positive number of seconds, got {duration_s}")
+    schedule = parse_command("sweep", style.velocities)
+    summary, rec = run_walk(robot, style, schedule, duration_s, record=True, progress=progress,
+                            progress_period_s=PROGRESS_PERIOD_S)
+    return describe(summary, rec, duration_s)
+
+
+def describe(summary: dict, rec: dict[str, np.ndarray], duration_s: float) -> RehearsalResult:
+    """The walk's verdict in an animator's words (``summary`` and ``rec`` as :func:`run_walk` returns them)."""
+    slip = float(summary["max_stance_slip_mm"])
+    cop = summary["cop_inside_fraction"]
+    if not summary["fell"]:
+        problems = []
+        if slip >= CLEAN_SLIP_MM:
+            problems.append(f"a foot on the ground slides up to {slip:.1f} mm")
+        if cop is not None and cop < CLEAN_COP_INSIDE:
+            problems.append(f"the feet roll onto their edges {100 * (1 - cop):.1f} % of the time")
+        text = f"walks the {duration_s:.0f} s sweep without falling"
+        text += (": " + " and ".join(problems) + " (a real robot may slip or stumble)") if problems else ", cleanly"
+        return RehearsalResult(False, None, duration_s, None, None, None, None, slip, cop, text)
+    fall_t = float(summary["fall_time_s"])
+    t = np.asarray(rec["t"])
+    if len(t) == 0:  # fell before the first recorded instant
+        return RehearsalResult(True, fall_t, duration_s, None, None, None, None, slip, cop,
+                               f"falls at {fall_t:.1f} s, at once: check the stance (pelvis height, width)")
+    i = len(t) - 1
+    weights = np.asarray(rec["sample_weights"])[i]
+    sample = SAMPLE_NAMES[int(np.argmax(weights))]
+    phase_pct = float(100.0 * (np.asarray(rec["gait_phase"])[i] % 1.0))
+    vx, vy, wz = (float(x) for x in np.asarray(rec["command"])[i])
+    command = (vx, vy, wz)
+    onset, how = _onset(rec, fall_t)
+    text = (f"falls at {fall_t:.1f} s of the {duration_s:.0f} s sweep, walking **{sample}** "
+            f"({_command_words(command)}), around {phase_pct:.0f} % of its cycle")
+    if onset is not None:
+        text += f"; it began at {onset:.1f} s: {how}"
+    return RehearsalResult(True, fall_t, duration_s, sample, phase_pct, command, onset, slip, cop, text)
+
+
+def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str]:
+    """The first instant in the last :data:`LOOKBACK_S` before the fall where the body left the plan or a
+    foot on the ground slid, and what happened, in words."""
+    t = np.asarray(rec["t"])
+    window = t >= fall_t - LOOKBACK_S
+    com = np.asarray(rec["com"])[:, :2]
+    com_ref = np.asarray(rec["com_ref"])
+    drift = com - com_ref
+    yaw = np.asarray(rec["pelvis_yaw_achieved"])
+    # the drift in the robot's heading frame: + ahead / + left
+    ahead = np.cos(yaw) * drift[:, 0] + np.sin(yaw) * drift[:, 1]
+    left = -np.sin(yaw) * drift[:, 0] + np.cos(yaw) * drift[:, 1]
+    far = window & (np.hypot(ahead, left) >= DRIFT_M) & np.all(np.isfinite(com_ref), axis=1)
+    slide_t, slide_side = _first_slide(rec, window)
+    drift_t = float(t[np.argmax(far)]) if far.any() else None
+    if slide_t is not None and (drift_t is None or slide_t < drift_t):
+        return slide_t, f"the {slide_side} foot started sliding on the ground (less friction than the step needs)"
+    if drift_t is None:
+        return None, ""
+    k = int(np.argmax(far))
+    vx, vy = (float(v) for v in np.asarray(rec["command"])[k, :2])
+    speed = math.hypot(vx, vy)
+    if speed >= MOVING_MPS:  # walking: along or across the direction of travel
+        along, across = (ahead[k] * vx + left[k] * vy) / speed, (left[k] * vx - ahead[k] * vy) / speed
+        if abs(along) >= abs(across):
+            if along < 0:
+                return drift_t, (f"the body fell {100 * DRIFT_M:.0f} cm behind its plan along the walk (the steps "
+                                 "could not carry it: a shorter stride or a longer cycle gives them time)")
+            return drift_t, (f"the body ran {100 * DRIFT_M:.0f} cm ahead of its plan along the walk (it overran its "
+                             "steps: a longer stride or a shorter cycle)")
+        return drift_t, (f"the body drifted {100 * DRIFT_M:.0f} cm sideways off its path (its sideways balance did "
+                         "not hold: a wider stance or less pelvis sway)")
+    if abs(ahead[k]) >= abs(left[k]):
+        where = "behind" if ahead[k] < 0 else "in front of"
+        advice = "its balance front to back did not hold: a lower pelvis or shorter steps"
+    else:
+        where = "left of" if left[k] > 0 else "right of"
+        advice = "its sideways balance did not hold: a wider stance or less pelvis sway"
+    return drift_t, f"the body drifted {100 * DRIFT_M:.0f} cm {where} where it should stand ({advice})"
+
+
+def _first_slide(rec: dict[str, np.ndarray], window: np.ndarray) -> tuple[float | None, str]:
+    """First instant in ``window`` where a foot in its support phase is :data:`SLIDE_M` from where that support
+    phase found it."""
+    t = np.asarray(rec["t"])
+    contact = np.asarray(rec["contact"]).astype(bool)
+    feet = np.asarray(rec["foot_pos"])[:, :, :2]
+    best: tuple[float | None, str] = (None, "")
+    for side, name in enumerate(("left", "right")):
+        anchor = None
+        for k in range(len(t)):
+            if not contact[k, side]:
+                anchor = None
+                continue
+            if anchor is None:
+                anchor = feet[k, side]
+                continue
+            if window[k] and np.linalg.norm(feet[k, side] - anchor) >= SLIDE_M:
+                if best[0] is None or t[k] < best[0]:
+                    best = (float(t[k]), name)
+                break
+    return best
+
+
+def _command_words(command: tuple[float, float, float]) -> str:
+    vx, vy, wz = command
+    parts = []
+    if abs(vx) >= 0.02:
+        parts.append(f"{abs(vx):.2f} m/s {'forward' if vx > 0 else 'backward'}")
+    if abs(vy) >= 0.02:
+        parts.append(f"{abs(vy):.2f} m/s to the {'left' if vy > 0 else 'right'}")
+    if abs(wz) >= 0.02:
+        parts.append(f"turning {'left' if wz > 0 else 'right'} {abs(wz):.2f} rad/s")
+    return ", ".join(parts) if parts else "standing"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m engine.gait.rehearsal",
+                                     description="walk a style through the sweep in physics (JSON lines out)")
+    parser.add_argument("--robot", required=True)
+    parser.add_argument("--style", required=True, help="style JSON file")
+    parser.add_argument("--duration", type=float, default=SWEEP_DURATION_S, help="simulated seconds of the sweep")
+    parser.add_argument("--nice", type=int, default=0, help="raise this process's niceness by N (0-19) first")
+    args = parser.parse_args(argv)
+    if not 0 <= args.nice <= 19:
+        print(f"--nice: expected 0 <= N <= 19, got {args.nice}", file=sys.stderr)
+        return 2
+    if args.nice:
+        import os
+
+        os.nice(args.nice)
+    from engine.gait.style import StyleContext, StyleError, load_style
+    from engine.robot.model import load_robot
+
+    if not (math.isfinite(args.duration) and 0 < args.duration <= 600):
+        print(f"--duration: expected 0 < seconds <= 600, got {args.duration}", file=sys.stderr)
+        return 2
+    try:
+        robot = load_robot(args.robot)
+        style = load_style(args.style, StyleContext.for_robot(robot.name), expected_robot=robot.name)
+    except (StyleError, OSError, ValueError, KeyError) as exc:
+        print(str(exc).splitlines()[0] if str(exc) else type(exc).__name__, file=sys.stderr)
+        return 2
+
+    def report(t_s: float) -> None:
+        print(json.dumps({"progress_s": round(t_s, 2)}), flush=True)
+
+    result = rehearse(robot, style, args.duration, progress=report)
+    print(json.dumps({"result": result.to_dict()}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
