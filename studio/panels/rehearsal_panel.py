@@ -14,6 +14,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,10 +31,12 @@ REHEARSAL_NICE = 10
 START_LABEL, CANCEL_LABEL = "Rehearse the sweep", "Cancel rehearsal"
 
 
-def rehearsal_markdown(result: dict, stale: bool) -> str:
+def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None) -> str:
     """The rehearsal's verdict as the panel shows it."""
     mark = "✓" if result.get("clean") else ("⚠️" if not result.get("fell") else "✗")
     text = f"{mark} Rehearsal: {result.get('message', '')}"
+    if wall_s is not None:
+        text += f" <small>({wall_s:.0f} s to rehearse)</small>"
     if stale:
         text += "\n\n<small>(rehearsed before your last edit: rehearse again to check it)</small>"
     return text
@@ -80,7 +83,8 @@ class RehearsalPanel:
             self._process, self._cancelled = process, False
         self.button.label, self.button.icon = CANCEL_LABEL, viser.Icon.PLAYER_STOP
         self.status.content = "<small>rehearsing the sweep in physics…</small>"
-        threading.Thread(target=self._follow, args=(process, style, folder), name="rehearsal", daemon=True).start()
+        threading.Thread(target=self._follow, args=(process, style, folder, time.monotonic()), name="rehearsal",
+                         daemon=True).start()
 
     def cancel(self) -> None:
         with self._lock:
@@ -92,7 +96,7 @@ class RehearsalPanel:
         """End a running rehearsal (the studio stops or the robot changes)."""
         self.cancel()
 
-    def _follow(self, process: subprocess.Popen, style: object, folder: Path) -> None:
+    def _follow(self, process: subprocess.Popen, style: object, folder: Path, started_s: float) -> None:
         result = None
         assert process.stdout is not None and process.stderr is not None
         try:
@@ -120,7 +124,8 @@ class RehearsalPanel:
         if cancelled:
             self.status.content = "<small>rehearsal cancelled</small>"
         elif result is not None:
-            self.status.content = rehearsal_markdown(result, stale=self.session.style is not style)
+            self.status.content = rehearsal_markdown(result, stale=self.session.style is not style,
+                                                     wall_s=time.monotonic() - started_s)
         else:
             reason = error[-1] if error else f"exit status {process.returncode}"
             self.status.content = f"<small>the rehearsal failed: {reason}</small>"

@@ -193,3 +193,4 @@ def test_the_verdict_markdown_marks_clean_unclean_and_falls():
     assert rehearsal_markdown({"clean": False, "fell": False, "message": "walks"}, False).startswith("⚠️")
     assert rehearsal_markdown({"clean": False, "fell": True, "message": "falls"}, True).startswith("✗")
     assert "before your last edit" in rehearsal_markdown({"fell": True, "message": "falls"}, True)
+    assert "(95 s to rehearse)" in rehearsal_markdown({"fell": True, "message": "falls"}, False, wall_s=95.2)
