@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from typing import Callable, NoReturn
@@ -42,6 +43,10 @@ def _parser() -> argparse.ArgumentParser:
 
     check = sub.add_parser("check", help="validate style files")
     check.add_argument("files", nargs="+", help="style files (JSON)")
+    check.add_argument("--rehearse", action="store_true",
+                       help="also walk each style through the sweep in physics (as `studio bench styles` does) and say "
+                            "whether, when and where it falls (exit 1 when one falls)")
+    check.add_argument("--duration", type=float, default=60.0, help="--rehearse: seconds of the sweep")
 
     plan = sub.add_parser("plan", help="run the gait planner headless and record the reference (npz)")
     plan.add_argument("--robot", default="g1")
@@ -196,14 +201,25 @@ def cmd_robots(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     from engine.gait.style import StyleError, load_style
 
+    if args.rehearse and not (math.isfinite(args.duration) and 0 < args.duration <= 600):
+        raise CliError(f"--duration: expected 0 < seconds <= 600, got {args.duration}")
     status = 0
     for f in args.files:
         try:
-            load_style(f)
-            print(f"{f}: ok")
+            style = load_style(f)
+            print(f"{f}: ok", flush=True)
         except StyleError as exc:
             print(f"studio: error: {exc}", file=sys.stderr)
             status = EXIT_USAGE
+            continue
+        if args.rehearse:
+            from engine.gait.rehearsal import rehearse
+            from engine.robot.model import load_robot
+
+            result = rehearse(load_robot(style.robot), style, args.duration)
+            print(f"{f}: rehearsal: {result.message.replace('**', '')}", flush=True)
+            if result.fell and status == 0:
+                status = 1
     return status
 
 

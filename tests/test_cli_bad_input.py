@@ -52,3 +52,18 @@ def test_a_full_disk_while_writing_the_recording_is_one_line_and_nothing_is_left
     err = capsys.readouterr().err.strip()
     assert err == f"studio: error: --out: could not write {out}: No space left on device"
     assert list(tmp_path.iterdir()) == []  # no recording, no temporary file
+
+
+def test_check_rehearse_refuses_a_bad_duration_before_any_walk():
+    r = run_studio("check", "styles/g1/neutral.json", "--rehearse", "--duration", "-3", timeout=120)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip() == "studio: error: --duration: expected 0 < seconds <= 600, got -3.0"
+
+
+@pytest.mark.slow
+def test_check_rehearse_walks_the_style_and_prints_the_verdict():
+    r = run_studio("check", "styles/g1/neutral.json", "--rehearse", "--duration", "2", timeout=600)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert len(lines) == 2 and lines[0] == "styles/g1/neutral.json: ok"
+    assert lines[1].startswith("styles/g1/neutral.json: rehearsal: walks the 2 s sweep without falling")
