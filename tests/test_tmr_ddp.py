@@ -158,3 +158,41 @@ def test_tracking_cost_gradient_matches_finite_differences() -> None:
         g[i] = (vals[0] - vals[1]) / (2 * eps)
     # the orientation residual's Jacobian is the identity (exact at zero error): allow a small relative slack
     np.testing.assert_allclose(lx[: m.nv], g, rtol=2e-2, atol=1e-3 * np.abs(g).max())
+
+
+def test_polish_lowers_the_receding_cost_and_is_dropped_when_its_replay_falls() -> None:
+    """The full-horizon polish after the receding pass only lowers the cost of the same open-loop motion, and a
+    polished replay that falls where the receding one stood is not taken."""
+    from dataclasses import replace
+
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget
+    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.robot.model import load_robot
+
+    robot = load_robot("go1")
+    H = 20
+    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
+    q_ref[:, 0] += 0.2 * np.linspace(0.0, H * 0.01, H + 1)  # drift forward at 0.2 m/s on four feet
+    qvel = np.zeros((H + 1, robot.mj_model.nv))
+    qvel[:, 0] = 0.2
+    target = TrackingTarget(0.01, q_ref, qvel, np.ones((H + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+    receding = MotionTracker(robot, window_s=0.1, replan_s=0.05, window_iterations=2, polish_iterations=0).track(target)
+    polisher = MotionTracker(robot, window_s=0.1, replan_s=0.05, window_iterations=2, polish_iterations=3)
+    polished = polisher.track(target)
+    assert not receding.fell and not polished.fell
+    assert polished.cost < receding.cost
+    assert not np.array_equal(polished.ctrl, receding.ctrl)
+
+    real_replay = polisher.replay
+    calls = []
+
+    def second_replay_falls(qpos0: np.ndarray, qvel0: np.ndarray, U: np.ndarray):  # noqa: ANN202
+        out = real_replay(qpos0, qvel0, U)
+        calls.append(1)
+        return replace(out, fell=True, fall_fraction=0.5) if len(calls) == 2 else out
+
+    polisher.replay = second_replay_falls  # type: ignore[method-assign]
+    kept = polisher.track(target)
+    assert len(calls) == 2
+    assert not kept.fell
+    np.testing.assert_array_equal(kept.ctrl, receding.ctrl)

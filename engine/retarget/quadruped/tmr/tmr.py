@@ -54,7 +54,10 @@ class TMRSettings:
     # (go1 0.69 % DTW, 8.1 mm; a1 0.61 %, 6.5 mm) at about twice the solve time
     window_iterations: int = 4
     full_iterations: int = 30
-    polish_iterations: int = 0  # full-horizon iLQR iterations after the receding pass (flips need the whole flight)
+    # full-horizon iLQR iterations after the receding pass (skipped once the receding replay fell; kept only if
+    # its replay does not fall where the receding one stood). 5 on the four short clips, go1 and a1, α = 1 (after
+    # the terminal weight 20): mean DTW 4.37 → 3.92 %, keypoint error 26.6 → 23.6 mm, CPU 1.5× the receding pass
+    polish_iterations: int = 5
     seed: int = 0
 
 
