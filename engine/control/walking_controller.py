@@ -458,7 +458,8 @@ class WalkingController:
             self._foot_ang_acc = np.zeros((2, 3))
             return
         limit = self.params.swing_feedforward_limit_mps2
-        self._foot_acc = np.clip((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit, limit)
+        # np.clip(a, −l, l) without its Python layers: the ufunc clip is min(max(a, −l), l) (NaN kept), the same numbers
+        self._foot_acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit), limit)
         self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
         for i, in_contact in enumerate(ref.contact.tolist()):
             if in_contact:

@@ -138,12 +138,6 @@ def _remaining_ease_delay(hold_s: float) -> float:
     return START_HOLD_S * (antiderivative(1.0) - antiderivative(u0))
 
 
-@dataclass
-class _Pose:
-    pos: np.ndarray
-    rot: np.ndarray
-
-
 _NO_FEEDBACK = PlannerFeedback()
 _NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
@@ -484,8 +478,8 @@ class GaitPlanner:
         pelvis_rot, foot_rot = rots[0], rots[1:]
         pelvis_z = blend.attribute("pelvis_height_m") + cycle_vals[0]
         upper = cycle_vals[4:].copy()
-        self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper,
-                           "feet": {"left": _Pose(foot_pos[0], foot_rot[0]), "right": _Pose(foot_pos[1], foot_rot[1])}}
+        # (the soles' rotations are rots[1:], their positions foot_pos: rows left, right)
+        self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper}
         if prev is None or dt <= 0:
             z_rate = 0.0
             upper_qd = np.zeros_like(upper)
@@ -500,7 +494,8 @@ class GaitPlanner:
             contact=np.array([not swinging[0], not swinging[1]]),
             corner_contact=corners[:, :, 2] < CONTACT_TOL_M, sole_corners=corners,
             upper_q=upper, upper_qd=upper_qd,
-            footholds={s: (self.target[s] if swing else self.latched[s]) for s, swing in zip(SIDES, swinging)},
+            footholds={"left": self.target["left"] if swinging[0] else self.latched["left"],  # (SIDES' order)
+                       "right": self.target["right"] if swinging[1] else self.latched["right"]},
             cycle_s=blend.events_s[3],
             swing_progress=np.array([left_progress, right_progress]),
         )
