@@ -303,7 +303,7 @@ class WalkingController:
             # Continue the last plan (continuity of the reference), pulled a little toward the
             # estimate so the plan never drifts away from the robot.
             pull = self.params.mpc_state_pull
-            (px, py), (wx, wy), _ = (a.tolist() for a in self.plan.com_at(ref.t_s))
+            (px, py), (wx, wy), _ = self.plan.com_at_floats(ref.t_s)
             (cx, cy), (vx, vy) = com.tolist(), com_vel.tolist()
             com0 = np.array([px + pull * (cx - px), py + pull * (cy - py)])
             vel0 = np.array([wx + pull * (vx - wx), wy + pull * (vy - wy)])
@@ -389,7 +389,7 @@ class WalkingController:
             if from_stance:  # pushed: where the stance foot says ξ goes, whatever the plan says
                 dx, dy = self._xi_at_touchdown(side, com, com_vel, omega, t_td).tolist()
             else:
-                (px, py), (wx, wy), _ = (a.tolist() for a in plan.com_at(planner.t_s + t_td))
+                (px, py), (wx, wy), _ = plan.com_at_floats(planner.t_s + t_td)
                 growth = min(math.exp(omega * t_td), params.dcm_error_growth_cap)
                 dx = px + wx / omega + growth * ex - shift_x  # ξ against the real soles
                 dy = py + wy / omega + growth * ey - shift_y

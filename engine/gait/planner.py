@@ -141,6 +141,8 @@ def _remaining_ease_delay(hold_s: float) -> float:
 _NO_FEEDBACK = PlannerFeedback()
 _NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
+_NO_ADJUST = np.zeros(2)  # no step adjustment (x, y): _upcoming_foothold reads it, never writes it
+_NO_ADJUST.flags.writeable = False
 PATH_TABLE_STEP_S = 0.05
 PATH_TABLE_HORIZON_S = 3.0
 
@@ -303,7 +305,7 @@ class GaitPlanner:
             self.path.advance(self.command, rate * dt_s)
         self._path_table = self._path_rows = None
         self._handle_events(phi_old, self.phi)
-        adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
+        adjust = _NO_ADJUST if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
         for side in SIDES:
             if self.in_swing(side, self.phi):
                 self._track_target(side, self._upcoming_foothold(side, adjust))
@@ -323,7 +325,7 @@ class GaitPlanner:
 
     def nominal_target(self, side: str) -> Foothold:
         """The upcoming foothold of ``side`` without step adjustment."""
-        return self._upcoming_foothold(side, np.zeros(2))
+        return self._upcoming_foothold(side, _NO_ADJUST)
 
     def relatch(self, side: str, measured: Foothold, max_shift_m: float = 0.05) -> bool:
         """Move a support foot's latched foothold to where the foot actually landed.
@@ -427,11 +429,11 @@ class GaitPlanner:
         for _, side, kind in sorted(events):
             if kind == "liftoff":
                 self.swing_start[side] = self.latched[side]
-                self.target[side] = self._upcoming_foothold(side, np.zeros(2))
+                self.target[side] = self._upcoming_foothold(side, _NO_ADJUST)
                 self._raw_target[side] = self.target[side]
             else:
                 if self.path_follows_feet > 0.0:
-                    nominal = self._upcoming_foothold(side, np.zeros(2))
+                    nominal = self._upcoming_foothold(side, _NO_ADJUST)
                     self._shift_path(self.target[side].x - nominal.x, self.target[side].y - nominal.y)
                 self.latched[side] = self.target[side]
                 self.landed[side] = True

@@ -58,6 +58,8 @@ def test_com_at_scalar_equals_the_numpy_scalar_version() -> None:
         for t in np.r_[times, rng.uniform(times[0] - 0.5, times[-1] + 0.5, 20)].tolist():
             for got, want in zip(sol.com_at(t), com_at_scalar_reference(sol, t)):
                 np.testing.assert_array_equal(got, want)
+            floats = sol.com_at_floats(t)  # the same numbers as floats (the walking controller's planner tick)
+            assert floats == tuple(tuple(a) for a in (w.tolist() for w in com_at_scalar_reference(sol, t)))
 
 
 coord = st.floats(-2.0, 2.0, allow_nan=False)
