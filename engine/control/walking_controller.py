@@ -171,6 +171,13 @@ class WalkingController:
         self.plan = None
         self._contact_ref: GaitReference | None = None
         self._ref_contact = np.ones((2, N_CORNERS), dtype=bool)
+        # Of the planner's reference (kept until its next tick, see _reference_tables): the feet with no corner in
+        # contact whose planned vertical velocity is not upward (the only ones _with_early_touchdown looks at), the
+        # feet that turn (index, world angular velocity as floats) and the pelvis' angular velocity as floats.
+        self._ref_landing_candidates: list[int] = []
+        self._ref_turning_feet: list[tuple[int, list[float]]] = []
+        self._ref_pelvis_omega: list[float] = [0.0, 0.0, 0.0]
+        self._early_key: tuple[np.ndarray | None, np.ndarray | None, bool] = (None, None, False)
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
         self._since_touchdown = [-1, -1]
@@ -196,7 +203,7 @@ class WalkingController:
         self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self.data.vcom[0].copy())
         # Around a landing the ground force is an impact the QP did not plan: the observer holds
         # (planned landings, and a swing foot already on the ground early).
-        early = self.ref is not None and _early_touchdown(self.wbc_contact, self.ref.contact)
+        early = self.ref is not None and self._early_touchdown_now(self.wbc_contact, self.ref.contact)
         self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2],
                              None if (self._landing or early) else self._ground_force)
         t_est = time.perf_counter()
@@ -221,10 +228,9 @@ class WalkingController:
 
     def _external_wrench(self, est: RobotState) -> np.ndarray | None:
         """The observed push as a wrench about the CoM (applied at the pelvis)."""
-        f = self.observer.force_n
-        if not f.any():
+        fx, fy = self.observer.force_n.tolist()
+        if fx == 0.0 and fy == 0.0:  # not force_n.any() (a NaN counts as a force, as there), on floats
             return None
-        fx, fy = f.tolist()
         qx, qy, qz = est.q[:3].tolist()
         cx, cy, cz = self._com_now[0].tolist()
         ax, ay, az = qx - cx, qy - cy, qz - cz
@@ -297,7 +303,7 @@ class WalkingController:
             # Continue the last plan (continuity of the reference), pulled a little toward the
             # estimate so the plan never drifts away from the robot.
             pull = self.params.mpc_state_pull
-            (px, py), (wx, wy), _ = (a.tolist() for a in self.plan.com_at(ref.t_s))
+            (px, py), (wx, wy), _ = self.plan.com_at_floats(ref.t_s)
             (cx, cy), (vx, vy) = com.tolist(), com_vel.tolist()
             com0 = np.array([px + pull * (cx - px), py + pull * (cy - py)])
             vel0 = np.array([wx + pull * (vx - wx), wy + pull * (vy - wy)])
@@ -367,7 +373,7 @@ class WalkingController:
         err = math.sqrt(ex * ex + ey * ey)  # ordinary tracking error is the MPC's to handle
         f = max(err - params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
         ex, ey = ex * f, ey * f
-        pushed = bool(self.observer.force_n.any())
+        pushed = _any2(self.observer.force_n)
         if pushed:
             self._pushed_at_s = planner.t_s
         from_stance = (params.capture_from_stance_foot
@@ -383,7 +389,7 @@ class WalkingController:
             if from_stance:  # pushed: where the stance foot says ξ goes, whatever the plan says
                 dx, dy = self._xi_at_touchdown(side, com, com_vel, omega, t_td).tolist()
             else:
-                (px, py), (wx, wy), _ = (a.tolist() for a in plan.com_at(planner.t_s + t_td))
+                (px, py), (wx, wy), _ = plan.com_at_floats(planner.t_s + t_td)
                 growth = min(math.exp(omega * t_td), params.dcm_error_growth_cap)
                 dx = px + wx / omega + growth * ex - shift_x  # ξ against the real soles
                 dy = py + wy / omega + growth * ey - shift_y
@@ -452,7 +458,8 @@ class WalkingController:
             self._foot_ang_acc = np.zeros((2, 3))
             return
         limit = self.params.swing_feedforward_limit_mps2
-        self._foot_acc = np.clip((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit, limit)
+        # np.clip(a, −l, l) without its Python layers: the ufunc clip is min(max(a, −l), l) (NaN kept), the same numbers
+        self._foot_acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit), limit)
         self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
         for i, in_contact in enumerate(ref.contact.tolist()):
             if in_contact:
@@ -509,7 +516,7 @@ class WalkingController:
         (after the other foot lands) catches it: the gait should hurry, not wait. The external
         push the observer sees moves the reachable CoP (the MPC's shift) and counts too.
         """
-        if self.params.hurry_while_pushed and self.observer.force_n.any():
+        if self.params.hurry_while_pushed and _any2(self.observer.force_n):
             lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double
             return dataclasses.replace(fb, kappa=max(fb.kappa, hi))
         if not math.isfinite(self.params.lateral_capture_margin_m):
@@ -527,14 +534,30 @@ class WalkingController:
         lo, hi = self.feedback.gains.kappa_single if single else self.feedback.gains.kappa_double
         return dataclasses.replace(fb, kappa=max(fb.kappa, hi))
 
+    def _early_touchdown_now(self, wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
+        """:func:`_early_touchdown`, kept while both arrays are the same objects (between planner ticks the whole-body
+        contact is the reference's, which is not written in place)."""
+        key = self._early_key
+        if key[0] is wbc_contact and key[1] is contact:
+            return key[2]
+        early = _early_touchdown(wbc_contact, contact)
+        self._early_key = (wbc_contact, contact, early)
+        return early
+
     def _with_early_touchdown(self, est: RobotState, reference: WbcReference) -> np.ndarray:
         """Sole corners the whole-body QP may push on: the plan's, plus the corners of a landing
         foot that are already on the ground (a swing foot reaches the floor a few ms before its
         planned touchdown; pretending it is still in the air makes the QP fight the floor)."""
         contact = reference.contact
-        flags = contact.tolist()
-        landing = [i for i in range(2) if not any(flags[i])
-                   and reference.foot_pos_m[i, 2] < self.params.landing_height_m and reference.foot_lin_vel_mps[i, 2] <= 0.0]
+        height = self.params.landing_height_m
+        ref = self.ref
+        if ref is not None and contact is self._ref_contact and self._contact_ref is ref \
+                and reference.foot_lin_vel_mps is ref.foot_lin_vel:  # _wbc_reference's: the per-reference tables
+            landing = [i for i in self._ref_landing_candidates if reference.foot_pos_m[i, 2] < height]
+        else:
+            flags = contact.tolist()
+            landing = [i for i in range(2) if not any(flags[i])
+                       and reference.foot_pos_m[i, 2] < height and reference.foot_lin_vel_mps[i, 2] <= 0.0]
         if not landing:
             return contact
         pin.framesForwardKinematics(self.model, self.data, est.q)
@@ -551,23 +574,34 @@ class WalkingController:
         t = ref.t_s + dt_since
         com, com_vel, com_acc = self.plan.com_at(t)
         foot_pos = ref.foot_pos + ref.foot_lin_vel * dt_since
+        if self._contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
+            self._reference_tables(ref)
         foot_rot = ref.foot_rot.copy()
         if dt_since != 0.0:
-            for i, omega in enumerate(ref.foot_ang_vel.tolist()):
-                if omega[0] != 0.0 or omega[1] != 0.0 or omega[2] != 0.0:  # a foot at rest keeps its rotation
-                    foot_rot[i] = _rotate(foot_rot[i], omega, dt_since)
-        if self._contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
-            self._contact_ref, self._ref_contact = ref, ref.corner_contact & ref.contact[:, None]
+            for i, omega in self._ref_turning_feet:  # a foot at rest keeps its rotation
+                foot_rot[i] = _rotate(foot_rot[i], omega, dt_since)
         contact = self._ref_contact
         return WbcReference(
             com_xy_m=com, com_xy_vel_mps=com_vel, com_xy_acc_mps2=com_acc,
             pelvis_height_m=ref.pelvis_z + ref.pelvis_z_rate * dt_since, pelvis_height_rate_mps=ref.pelvis_z_rate,
-            pelvis_rotation=_rotate(ref.pelvis_rot, ref.pelvis_ang_vel, dt_since), pelvis_ang_vel_radps=ref.pelvis_ang_vel,
+            pelvis_rotation=_rotate(ref.pelvis_rot, self._ref_pelvis_omega, dt_since), pelvis_ang_vel_radps=ref.pelvis_ang_vel,
             foot_pos_m=foot_pos, foot_rotation=foot_rot, foot_lin_vel_mps=ref.foot_lin_vel,
             foot_ang_vel_radps=ref.foot_ang_vel, contact=contact,
             upper_body_q_rad=ref.upper_q + ref.upper_qd * dt_since, upper_body_qd_radps=ref.upper_qd,
             foot_lin_acc_mps2=self._foot_acc, foot_ang_acc_radps2=self._foot_ang_acc,
         )
+
+    def _reference_tables(self, ref: GaitReference) -> None:
+        """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact, the
+        feet that may be landing early (no corner in contact, not moving up), the turning feet and the pelvis'
+        angular velocity (as floats: the numbers :func:`_rotate` reads)."""
+        contact = ref.corner_contact & ref.contact[:, None]
+        flags, up = contact.tolist(), ref.foot_lin_vel[:, 2].tolist()
+        self._contact_ref, self._ref_contact = ref, contact
+        self._ref_landing_candidates = [i for i in range(2) if not any(flags[i]) and up[i] <= 0.0]
+        self._ref_turning_feet = [(i, omega) for i, omega in enumerate(ref.foot_ang_vel.tolist())
+                                  if omega[0] != 0.0 or omega[1] != 0.0 or omega[2] != 0.0]
+        self._ref_pelvis_omega = ref.pelvis_ang_vel.tolist()
 
     @property
     def telemetry(self) -> WalkingTelemetry:
@@ -671,6 +705,12 @@ def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
             e = b[f][k]
             terms[f][k] = (e[0] * w[0] + e[2] * w[2]) + (e[1] * w[1] + e[3] * w[3])
     return np.array([terms[0][0] + terms[1][0], terms[0][1] + terms[1][1]])
+
+
+def _any2(v: np.ndarray) -> bool:
+    """``bool(v.any())`` of a 2-vector on floats (a NaN counts, as there), without the array method's Python layer."""
+    x, y = v.tolist()
+    return x != 0.0 or y != 0.0
 
 
 def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:

@@ -138,15 +138,11 @@ def _remaining_ease_delay(hold_s: float) -> float:
     return START_HOLD_S * (antiderivative(1.0) - antiderivative(u0))
 
 
-@dataclass
-class _Pose:
-    pos: np.ndarray
-    rot: np.ndarray
-
-
 _NO_FEEDBACK = PlannerFeedback()
 _NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
+_NO_ADJUST = np.zeros(2)  # no step adjustment (x, y): _upcoming_foothold reads it, never writes it
+_NO_ADJUST.flags.writeable = False
 PATH_TABLE_STEP_S = 0.05
 PATH_TABLE_HORIZON_S = 3.0
 
@@ -309,7 +305,7 @@ class GaitPlanner:
             self.path.advance(self.command, rate * dt_s)
         self._path_table = self._path_rows = None
         self._handle_events(phi_old, self.phi)
-        adjust = np.zeros(2) if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
+        adjust = _NO_ADJUST if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
         for side in SIDES:
             if self.in_swing(side, self.phi):
                 self._track_target(side, self._upcoming_foothold(side, adjust))
@@ -329,7 +325,7 @@ class GaitPlanner:
 
     def nominal_target(self, side: str) -> Foothold:
         """The upcoming foothold of ``side`` without step adjustment."""
-        return self._upcoming_foothold(side, np.zeros(2))
+        return self._upcoming_foothold(side, _NO_ADJUST)
 
     def relatch(self, side: str, measured: Foothold, max_shift_m: float = 0.05) -> bool:
         """Move a support foot's latched foothold to where the foot actually landed.
@@ -433,11 +429,11 @@ class GaitPlanner:
         for _, side, kind in sorted(events):
             if kind == "liftoff":
                 self.swing_start[side] = self.latched[side]
-                self.target[side] = self._upcoming_foothold(side, np.zeros(2))
+                self.target[side] = self._upcoming_foothold(side, _NO_ADJUST)
                 self._raw_target[side] = self.target[side]
             else:
                 if self.path_follows_feet > 0.0:
-                    nominal = self._upcoming_foothold(side, np.zeros(2))
+                    nominal = self._upcoming_foothold(side, _NO_ADJUST)
                     self._shift_path(self.target[side].x - nominal.x, self.target[side].y - nominal.y)
                 self.latched[side] = self.target[side]
                 self.landed[side] = True
@@ -484,8 +480,8 @@ class GaitPlanner:
         pelvis_rot, foot_rot = rots[0], rots[1:]
         pelvis_z = blend.attribute("pelvis_height_m") + cycle_vals[0]
         upper = cycle_vals[4:].copy()
-        self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper,
-                           "feet": {"left": _Pose(foot_pos[0], foot_rot[0]), "right": _Pose(foot_pos[1], foot_rot[1])}}
+        # (the soles' rotations are rots[1:], their positions foot_pos: rows left, right)
+        self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper}
         if prev is None or dt <= 0:
             z_rate = 0.0
             upper_qd = np.zeros_like(upper)
@@ -500,7 +496,8 @@ class GaitPlanner:
             contact=np.array([not swinging[0], not swinging[1]]),
             corner_contact=corners[:, :, 2] < CONTACT_TOL_M, sole_corners=corners,
             upper_q=upper, upper_qd=upper_qd,
-            footholds={s: (self.target[s] if swing else self.latched[s]) for s, swing in zip(SIDES, swinging)},
+            footholds={"left": self.target["left"] if swinging[0] else self.latched["left"],  # (SIDES' order)
+                       "right": self.target["right"] if swinging[1] else self.latched["right"]},
             cycle_s=blend.events_s[3],
             swing_progress=np.array([left_progress, right_progress]),
         )

@@ -282,3 +282,72 @@ def test_external_wrench_equals_the_cross_product_under_a_push() -> None:
             np.testing.assert_array_equal(got, want)
             pushed += 1
     assert pushed > 20 and not sim.fallen  # the observer saw the push for a while
+
+
+def with_early_touchdown_reference(controller, est, reference):  # noqa: ANN001, ANN201
+    """WalkingController._with_early_touchdown before the per-reference tables (the flags read every tick)."""
+    import pinocchio as pin
+
+    contact = reference.contact
+    flags = contact.tolist()
+    landing = [i for i in range(2) if not any(flags[i]) and reference.foot_pos_m[i, 2] < controller.params.landing_height_m
+               and reference.foot_lin_vel_mps[i, 2] <= 0.0]
+    if not landing:
+        return contact
+    pin.framesForwardKinematics(controller.model, controller.data, est.q)
+    contact = contact.copy()
+    for i in landing:
+        m = controller.data.oMf[controller._foot_frames[i]]
+        heights = m.translation[2] + (m.rotation @ controller._corner_offsets[i].T)[2]
+        contact[i] = heights < controller.params.touchdown_height_m
+    return contact
+
+
+def test_early_touchdown_glue_equals_the_former_per_tick_version() -> None:
+    """The landing check on the per-reference tables, the kept early-touchdown flag and the swing feed-forward's
+    clip (np.minimum/np.maximum) against the former expressions, every tick of a walk with landings."""
+    from engine.control.walking_controller import PLAN_DT_S, TICKS_PER_PLAN, WalkingController, _early_touchdown
+    from engine.gait.style import load_style, styles_dir
+    from engine.sim import Simulation
+
+    robot = load_robot("g1")
+    controller = WalkingController(robot, load_style(styles_dir("g1") / "neutral.json"))
+    sim = Simulation(robot, controller)
+    landed_early = flagged = 0
+    prev_ref = None
+    for k in range(900):
+        controller.set_command(np.array([0.4, 0.0, 0.2]) if k > 100 else np.zeros(3))
+        early_then = controller._early_touchdown_now(controller.wbc_contact, controller.ref.contact) \
+            if controller.ref is not None else None
+        if early_then is not None:
+            assert early_then == _early_touchdown(controller.wbc_contact, controller.ref.contact)
+            flagged += early_then
+        sim.step()
+        ref = controller.ref
+        if prev_ref is not None and ref is not prev_ref:  # a planner tick: the feed-forward against np.clip
+            limit = controller.params.swing_feedforward_limit_mps2
+            want = np.clip((ref.foot_lin_vel - prev_ref.foot_lin_vel) / PLAN_DT_S, -limit, limit)
+            for i, down in enumerate(ref.contact.tolist()):
+                if down:
+                    want[i] = 0.0
+            np.testing.assert_array_equal(controller._foot_acc, want)
+        prev_ref = ref
+        reference = controller._wbc_reference(((controller.tick - 1) % TICKS_PER_PLAN) * 0.002)
+        got = controller._with_early_touchdown(controller.estimate, reference)
+        want = with_early_touchdown_reference(controller, controller.estimate, reference)
+        np.testing.assert_array_equal(got, want)
+        landed_early += got is not reference.contact
+    assert landed_early > 5 and flagged > 0 and not sim.fallen  # feet did reach the floor before their touchdown
+    x = np.array([0.0, -0.0, 1.0, -2.0, math.nan, math.inf, -math.inf, 5e-324])
+    limit = 1.0
+    np.testing.assert_array_equal(np.minimum(np.maximum(x, -limit), limit), np.clip(x, -limit, limit))
+
+
+def test_two_vector_any_on_floats_equals_the_array_method() -> None:
+    from engine.control.walking_controller import _any2
+
+    values = [0.0, -0.0, 1e-300, -5e-324, 2.0, math.nan, math.inf, -math.inf]
+    for a in values:
+        for b in values:
+            v = np.array([a, b])
+            assert _any2(v) == bool(v.any())

@@ -58,6 +58,8 @@ def test_com_at_scalar_equals_the_numpy_scalar_version() -> None:
         for t in np.r_[times, rng.uniform(times[0] - 0.5, times[-1] + 0.5, 20)].tolist():
             for got, want in zip(sol.com_at(t), com_at_scalar_reference(sol, t)):
                 np.testing.assert_array_equal(got, want)
+            floats = sol.com_at_floats(t)  # the same numbers as floats (the walking controller's planner tick)
+            assert floats == tuple(tuple(a) for a in (w.tolist() for w in com_at_scalar_reference(sol, t)))
 
 
 coord = st.floats(-2.0, 2.0, allow_nan=False)
@@ -505,6 +507,7 @@ def _at_event(phi: float, event_phi: float) -> bool:
 def preview_reference(planner, kappa: float = 1.0, horizon_s: float = 2.0, edges_seen: list | None = None):  # noqa: ANN001, ANN201
     """GaitPlanner.preview before the speed-up: event times from blend.event_time, one support_hull / corners
     call per interval, the rolling edge's pitch from Rz(yaw)ᵀ R, footholds from the numpy path table."""
+    from engine.constants import SIDES
     from engine.gait.blending import SWING_PHASES
     from engine.gait.footsteps import foothold_from_path, project_to_safe_region
     from engine.gait.path_frame import predict
@@ -529,7 +532,7 @@ def preview_reference(planner, kappa: float = 1.0, horizon_s: float = 2.0, edges
         lo, td = SWING_PHASES[side]
         liftoff_pitch, touchdown_pitch = self.blend.boundary_pitch[side]
         if phi_start == self.phi and self._last_pose is not None:
-            rot = self._last_pose["feet"][side].rot
+            rot = self._last_pose["rots"][1 + SIDES.index(side)]  # the sole's rotation (rows: pelvis, left, right)
             yaw = math.atan2(rot[1, 0], rot[0, 0])
             pitch = -math.asin(max(-1.0, min(1.0, (rot_z(yaw).T @ rot)[2, 0])))
             edge = _pitched_edge(min(pitch, 0.0), max(pitch, 0.0))

@@ -220,6 +220,13 @@ class ComMpcSolution:
 
     def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""
+        (px, py), (vx, vy), (ax, ay) = self.com_at_floats(t)
+        out = np.array([[px, py], [vx, vy], [ax, ay]])  # one array, its rows returned (disjoint views)
+        return out[0], out[1], out[2]
+
+    def com_at_floats(self, t: float) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+        """:meth:`com_at` of one time as floats, ((x, y), (ẋ, ẏ), (ẍ, ÿ)): the numbers of its arrays, for callers
+        that read them as floats."""
         times, wps, coms, vels, omega = self._lists()
         n_seg = len(times) - 1
         t_first, t_last = times[0], times[-1]
@@ -242,10 +249,8 @@ class ComMpcSolution:
         ex, ey = cx - px, cy - py
         dex, dey = vx - sx, vy - sy
         errx, erry = ex * ch + dex * sh / omega, ey * ch + dey * sh / omega
-        out = np.array([[px + sx * s + errx, py + sy * s + erry],  # one array, its rows returned (disjoint views)
-                        [sx + ex * omega * sh + dex * ch, sy + ey * omega * sh + dey * ch],
-                        [omega * omega * errx, omega * omega * erry]])
-        return out[0], out[1], out[2]
+        return ((px + sx * s + errx, py + sy * s + erry), (sx + ex * omega * sh + dex * ch, sy + ey * omega * sh + dey * ch),
+                (omega * omega * errx, omega * omega * erry))
 
     def com_path(self, dt_s: float = 0.02) -> tuple[FloatArray, FloatArray]:
         """Sample the planned CoM for drawing: ``(times_s (T,), com_xy_m (T, 2))``."""
