@@ -79,6 +79,14 @@ def _warm_up_planner() -> None:
         plan = mpc.solve(t_s, np.zeros(2), np.array([0.0, 0.1]), np.zeros(2), 0.6, supports)
     if not plan.ok:
         raise RuntimeError(f"kernel warm-up: CoM MPC {plan.status}: {plan.message}")
+    # and its step-by-step path (what a walk takes when the one-call plan declines: the problem build, the support
+    # geometry, the compiled solve on the built problem): without it the first decline mid-walk loaded those kernels
+    # then, a 0.1-0.15 s stall of the live simulation (seen in `studio bench stack`'s G1 sweep)
+    stepwise = ComMpc()
+    stepwise._solve_window = lambda *_, **__: None  # type: ignore[method-assign]
+    plan = stepwise.solve(0.0, np.zeros(2), np.array([0.0, 0.1]), np.zeros(2), 0.6, supports)
+    if not plan.ok:
+        raise RuntimeError(f"kernel warm-up: CoM MPC step by step {plan.status}: {plan.message}")
 
 
 def _warm_up_lwl2() -> None:
