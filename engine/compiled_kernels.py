@@ -16,7 +16,8 @@ import numpy as np
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every kernel with the argument types the controller
-    passes, by running them once: a standing G1 whole-body tick in double and partial support (with and without the task priority:
+    passes, by running them once: a standing G1 whole-body tick in double and partial support (with and without the task priority,
+    and on DAQP, the fallback:
 the one-call tick and the step-by-step kernels), a hull, and LWL2's encoder and k-NN."""
     from dataclasses import replace
 
@@ -31,7 +32,9 @@ the one-call tick and the step-by-step kernels), a hull, and LWL2's encoder and 
     plain = TaskSpaceInverseDynamics(robot)
     # and with the task priority on (WbcGains.priority_slack_mps2: its two kernels, engine/control/wbc/priority.py)
     prioritised = TaskSpaceInverseDynamics(robot, gains=replace(plain.gains, priority_slack_mps2=0.01))
-    for wbc in (plain, prioritised):
+    # and DAQP, the active set's fallback (its dense form is written by the compiled fill_daqp)
+    daqp = TaskSpaceInverseDynamics(robot, qp_backend="daqp")
+    for wbc in (plain, prioritised, daqp):
         wbc.reset(state)
         ref = wbc.hold_reference(robot.q_standing)
         for contact in (np.ones((len(SIDES), 4), dtype=bool), np.eye(len(SIDES), 4, dtype=bool)):
