@@ -121,7 +121,10 @@ def test_stand_while_walking_comes_to_rest_then_holds(robot, mode, command):
     for _ in range(int(6.0 / 0.002)):  # it stays up, near where the hold began (the last step's sway settles)
         core.tick()
         away.append(float(np.linalg.norm(core.sim.data.qpos[:2] - x0)))
-    assert not core.sim.fallen and max(away) < 0.06, max(away)
+    # the sway after the hold begins, then back: G1 (0.2, 0.1, 0.3) swayed 5.97 cm at most with the style's tasks at
+    # full weight and 6.16 cm with them at 0.1 (robots/g1.toml priority_level2_scale), 0.96 cm from the start 6 s later
+    assert not core.sim.fallen and max(away) < 0.07, max(away)
+    assert away[-1] < 0.02, away[-1]  # it settles where the hold began: a sway, not a drift
     core.handle(msg.SetMode("edit", {"sample": "in_place"}))
     for _ in range(int(3.0 / 0.002)):
         core.tick()
