@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 from typing import Callable, NoReturn
@@ -201,8 +200,12 @@ def cmd_robots(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     from engine.gait.style import StyleError, load_style
 
-    if args.rehearse and not (math.isfinite(args.duration) and 0 < args.duration <= 600):
-        raise CliError(f"--duration: expected 0 < seconds <= 600, got {args.duration}")
+    if args.rehearse:
+        from engine.gait.rehearsal import duration_problem
+
+        problem = duration_problem(args.duration)
+        if problem:
+            raise CliError(problem)
     status = 0
     for f in args.files:
         try:

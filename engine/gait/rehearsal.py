@@ -41,6 +41,7 @@ DRIFT_M = 0.03  # the body this far from the MPC's plan: the fall has begun
 SLIDE_M = 0.01  # a foot on the ground this far from where it landed: sliding
 LOOKBACK_S = 4.0  # how far before the fall to look for its beginning
 PROGRESS_PERIOD_S = 0.5  # simulated seconds between progress reports
+MAX_DURATION_S = 600.0  # the longest rehearsal the command line and the studio accept
 MOVING_MPS = 0.05  # a command at least this fast: drift is told along / across the direction of travel
 
 
@@ -73,12 +74,20 @@ def rehearse(robot: RobotModel, style: Style, duration_s: float = SWEEP_DURATION
     from engine.gait.command_schedule import parse_command
     from engine.walk_runner import run_walk
 
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise ValueError(f"duration_s: expected a positive number of seconds, got {duration_s}")
+    problem = duration_problem(duration_s, "duration_s")
+    if problem:
+        raise ValueError(problem)
     schedule = parse_command("sweep", style.velocities)
     summary, rec = run_walk(robot, style, schedule, duration_s, record=True, progress=progress,
                             progress_period_s=PROGRESS_PERIOD_S)
     return describe(summary, rec, duration_s)
+
+
+def duration_problem(duration_s: float, name: str = "--duration") -> str | None:
+    """One line saying why ``duration_s`` cannot be rehearsed, or None."""
+    if math.isfinite(duration_s) and 0 < duration_s <= MAX_DURATION_S:
+        return None
+    return f"{name}: expected 0 < seconds <= {MAX_DURATION_S:.0f}, got {duration_s}"
 
 
 def describe(summary: dict, rec: dict[str, np.ndarray], duration_s: float) -> RehearsalResult:
@@ -207,8 +216,9 @@ def main(argv: list[str] | None = None) -> int:
     from engine.gait.style import StyleContext, StyleError, load_style
     from engine.robot.model import load_robot
 
-    if not (math.isfinite(args.duration) and 0 < args.duration <= 600):
-        print(f"--duration: expected 0 < seconds <= 600, got {args.duration}", file=sys.stderr)
+    problem = duration_problem(args.duration)
+    if problem:
+        print(problem, file=sys.stderr)
         return 2
     try:
         robot = load_robot(args.robot)

@@ -10,6 +10,7 @@ style to a temporary file, starts the process and shows the lines it prints.
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -113,9 +114,7 @@ class RehearsalPanel:
             error = process.stderr.read().strip().splitlines()
             process.wait()
         finally:
-            for f in folder.iterdir():
-                f.unlink()
-            folder.rmdir()
+            shutil.rmtree(folder, ignore_errors=True)
         with self._lock:
             cancelled = self._cancelled
             if self._process is process:
