@@ -3,7 +3,8 @@
 the machine code from numba's on-disk cache (``cache=True``; ``__pycache__`` beside the sources).
 
 Kernels: :mod:`engine.control.wbc.kernels` (the whole-body tick: the feet's frames of the snapshot, the QP's rows,
-assembly, DAQP form, torques, and the one call that builds, solves and finishes a tick)
+assembly, DAQP form, torques, and the one call that builds, solves and finishes a tick), the whole-body reference
+between planner ticks (:mod:`engine.control.reference_kernels`),
 the support polygons' convex hull (:func:`engine.geometry.polygon.convex_hull_2d`) and the gait
 planner's command ramp, path table, blended channels and preview polygons (:mod:`engine.gait.planner_kernels`) and the CoM MPC's polygon geometry
 (:mod:`engine.control.mpc.kernels`).
@@ -43,8 +44,20 @@ the one-call tick and the step-by-step kernels), a hull, and LWL2's encoder and 
             if not wbc.diagnostics.ok:
                 raise RuntimeError(f"kernel warm-up: {wbc.diagnostics.status}: {wbc.diagnostics.message}")
     convex_hull_2d(np.random.default_rng(0).random((8, 2)))
+    _warm_up_reference(len(plain.upper_v_indices))
     _warm_up_planner()
     _warm_up_lwl2()
+
+
+def _warm_up_reference(n_upper: int) -> None:
+    """The whole-body reference between planner ticks (:func:`engine.control.reference_kernels.interpolate_reference`)
+    on C-contiguous float arrays, as the walking controller passes them."""
+    from engine.control.reference_kernels import interpolate_reference
+
+    eye = np.eye(3)
+    interpolate_reference(0.002, 0.05, np.array([0.0, 0.1, 0.3]), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)),
+                          3.5, np.zeros((2, 3)), np.zeros((2, 3)), np.stack([eye, eye]), np.ones((2, 3)), eye.copy(),
+                          np.ones(3), np.zeros(n_upper), np.zeros(n_upper))
 
 
 def _warm_up_planner() -> None:

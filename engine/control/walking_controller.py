@@ -19,6 +19,7 @@ import pinocchio as pin
 from engine.constants import GRAVITY_MPS2
 from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval, SupportPhase
 from engine.control.controller import JointCommand, RobotState
+from engine.control.reference_kernels import interpolate_reference
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
@@ -108,6 +109,7 @@ class WalkingController:
         self.state_source = state_source
         self.model = robot.pin_model
         self.data = self.model.createData()
+        self._vcom_view = self.data.vcom[0]  # (3,) a view of data's memory, updated in place by centerOfMass
         data = self.model.createData()
         self.com_offset_m = float(pin.centerOfMass(self.model, data, robot.q_standing)[2] - robot.q_standing[2])
         self.command = np.zeros(3)
@@ -172,11 +174,10 @@ class WalkingController:
         self._contact_ref: GaitReference | None = None
         self._ref_contact = np.ones((2, N_CORNERS), dtype=bool)
         # Of the planner's reference (kept until its next tick, see _reference_tables): the feet with no corner in
-        # contact whose planned vertical velocity is not upward (the only ones _with_early_touchdown looks at), the
-        # feet that turn (index, world angular velocity as floats) and the pelvis' angular velocity as floats.
+        # contact whose planned vertical velocity is not upward (the only ones _with_early_touchdown looks at).
         self._ref_landing_candidates: list[int] = []
-        self._ref_turning_feet: list[tuple[int, list[float]]] = []
-        self._ref_pelvis_omega: list[float] = [0.0, 0.0, 0.0]
+        # The CoM MPC plan _wbc_reference reads, its waypoint arrays and ω (kept until the next plan)
+        self._plan_arrays: tuple = (None,)
         self._early_key: tuple[np.ndarray | None, np.ndarray | None, bool] = (None, None, False)
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
@@ -199,8 +200,9 @@ class WalkingController:
         else:
             est = state
         self.estimate = est
-        # centerOfMass returns a copy of data.com[0] (each read of data.com/vcom crosses into pinocchio).
-        self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self.data.vcom[0].copy())
+        # centerOfMass returns a copy of data.com[0]; data.vcom[0] is read through a view of data's memory taken once
+        # (each read of data.com/vcom crosses into pinocchio).
+        self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self._vcom_view.copy())
         # Around a landing the ground force is an impact the QP did not plan: the observer holds
         # (planned landings, and a swing foot already on the ground early).
         early = self.ref is not None and self._early_touchdown_now(self.wbc_contact, self.ref.contact)
@@ -572,36 +574,32 @@ class WalkingController:
         ref = self.ref
         assert ref is not None and self.plan is not None
         t = ref.t_s + dt_since
-        com, com_vel, com_acc = self.plan.com_at(t)
-        foot_pos = ref.foot_pos + ref.foot_lin_vel * dt_since
         if self._contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
             self._reference_tables(ref)
-        foot_rot = ref.foot_rot.copy()
-        if dt_since != 0.0:
-            for i, omega in self._ref_turning_feet:  # a foot at rest keeps its rotation
-                foot_rot[i] = _rotate(foot_rot[i], omega, dt_since)
-        contact = self._ref_contact
+        plan = self.plan
+        if self._plan_arrays[0] is not plan:  # the plan's waypoint arrays and ω, once per plan
+            self._plan_arrays = (plan, plan.waypoint_times_s, plan.waypoints_xy_m, plan.waypoint_com_xy_m,
+                                 plan.waypoint_com_vel_xy_mps, float(plan.omega_rps))
+        _, times, wps, coms, vels, omega = self._plan_arrays
+        # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
+        # their angular velocities (_rotate), the upper body along its rates: one compiled call, the same numbers.
+        com, foot_pos, foot_rot, pelvis_rot, upper_q = interpolate_reference(
+            dt_since, t, times, wps, coms, vels, omega, ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel,
+            ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd)
+        # (positional: WbcReference's field order, com_xy_m … foot_ang_acc_radps2, external_wrench None as by default)
         return WbcReference(
-            com_xy_m=com, com_xy_vel_mps=com_vel, com_xy_acc_mps2=com_acc,
-            pelvis_height_m=ref.pelvis_z + ref.pelvis_z_rate * dt_since, pelvis_height_rate_mps=ref.pelvis_z_rate,
-            pelvis_rotation=_rotate(ref.pelvis_rot, self._ref_pelvis_omega, dt_since), pelvis_ang_vel_radps=ref.pelvis_ang_vel,
-            foot_pos_m=foot_pos, foot_rotation=foot_rot, foot_lin_vel_mps=ref.foot_lin_vel,
-            foot_ang_vel_radps=ref.foot_ang_vel, contact=contact,
-            upper_body_q_rad=ref.upper_q + ref.upper_qd * dt_since, upper_body_qd_radps=ref.upper_qd,
-            foot_lin_acc_mps2=self._foot_acc, foot_ang_acc_radps2=self._foot_ang_acc,
+            com[0], com[1], com[2], ref.pelvis_z + ref.pelvis_z_rate * dt_since, ref.pelvis_z_rate, pelvis_rot,
+            ref.pelvis_ang_vel, foot_pos, foot_rot, ref.foot_lin_vel, ref.foot_ang_vel, self._ref_contact, upper_q,
+            ref.upper_qd, None, self._foot_acc, self._foot_ang_acc,
         )
 
     def _reference_tables(self, ref: GaitReference) -> None:
-        """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact, the
-        feet that may be landing early (no corner in contact, not moving up), the turning feet and the pelvis'
-        angular velocity (as floats: the numbers :func:`_rotate` reads)."""
+        """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact and the
+        feet that may be landing early (no corner in contact, not moving up)."""
         contact = ref.corner_contact & ref.contact[:, None]
         flags, up = contact.tolist(), ref.foot_lin_vel[:, 2].tolist()
         self._contact_ref, self._ref_contact = ref, contact
         self._ref_landing_candidates = [i for i in range(2) if not any(flags[i]) and up[i] <= 0.0]
-        self._ref_turning_feet = [(i, omega) for i, omega in enumerate(ref.foot_ang_vel.tolist())
-                                  if omega[0] != 0.0 or omega[1] != 0.0 or omega[2] != 0.0]
-        self._ref_pelvis_omega = ref.pelvis_ang_vel.tolist()
 
     @property
     def telemetry(self) -> WalkingTelemetry:

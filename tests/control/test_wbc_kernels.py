@@ -142,10 +142,12 @@ def test_torques_kernel_equals_numpy(positive_definite: bool) -> None:
 def test_warm_up_compiles_every_kernel() -> None:
     """``make setup``'s warm-up runs (a whole-body tick that solves, a hull)."""
     from engine.compiled_kernels import warm_up
+    from engine.control import reference_kernels
     from engine.control.wbc import kernels
     from engine.geometry import polygon
 
     warm_up()
     # (task_rows, assemble_qp, qp_bounds, torques and horizontal_force are compiled inside build_qp and finish_tick)
-    for kernel in (kernels.build_qp, kernels.finish_tick, kernels.fill_daqp, polygon._hull_compiled):
+    for kernel in (kernels.build_qp, kernels.finish_tick, kernels.fill_daqp, polygon._hull_compiled,
+                   reference_kernels.interpolate_reference):
         assert kernel.signatures, kernel
