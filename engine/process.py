@@ -12,10 +12,12 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from pathlib import Path
 
 from engine import protocol as msg
+from engine.outbox import Outbox
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PUBLISH_HZ = 60.0
@@ -27,15 +29,21 @@ COMMAND_POLL_TICKS = 4  # read commands every planner tick, even inside a catch-
 
 def engine_main(conn: Connection, robot: str) -> None:
     """Child process entry point."""
-    from engine.core import CONTROL_RATE_HZ, EngineCore  # heavy imports happen in the child
+    outbox = Outbox(conn)  # events go out from their own thread: the simulation never waits for the studio
+    try:
+        _simulate(conn, outbox.put, robot)
+    finally:
+        outbox.close()  # what is pending still goes out (a notice before the end), for at most a second
 
-    def emit(event: msg.Event) -> None:
-        conn.send(event)
+
+def _simulate(conn: Connection, emit: Callable[[msg.Event], None], robot: str) -> None:
+    """Read commands from ``conn``, tick the simulation paced to wall time, ``emit`` frames and telemetry."""
+    from engine.core import CONTROL_RATE_HZ, EngineCore  # heavy imports happen in the child
 
     try:
         core = EngineCore(robot, emit)
     except Exception as exc:  # a broken robot must not leave the studio without an engine
-        conn.send(msg.Notice("error", f"engine could not load {robot!r}: {exc}"))
+        emit(msg.Notice("error", f"engine could not load {robot!r}: {exc}"))
         from engine.robot.config import DEFAULT_ROBOT
 
         core = EngineCore(DEFAULT_ROBOT, emit)
@@ -91,7 +99,7 @@ def engine_main(conn: Connection, robot: str) -> None:
             else:
                 wall0 = now - ticks * period
             for event in core.jobs.drain():  # job workers never write to the pipe themselves
-                conn.send(event)
+                emit(event)
             now = time.perf_counter()
             if now - rtf_wall >= 1.0:
                 core.real_time_factor = (ticks - rtf_ticks) / CONTROL_RATE_HZ / (now - rtf_wall)
@@ -99,12 +107,12 @@ def engine_main(conn: Connection, robot: str) -> None:
             if now >= next_telemetry:
                 telemetry = core.telemetry()
                 if telemetry is not None:
-                    conn.send(telemetry)
+                    emit(telemetry)
                 next_telemetry = max(next_telemetry + telemetry_period, now)
             if now >= next_publish or publish_now or core.style_revision != published_revision:
                 publish_now = False
                 published_revision = core.style_revision
-                conn.send(core.frame())
+                emit(core.frame())
                 next_publish = max(next_publish + publish_period, now)
                 if os.getppid() != parent:
                     return  # orphaned
