@@ -280,6 +280,15 @@ class BlendedGait:
         c = self.merged.n_cycle
         return v[:c], v[c:c + 7], v[c + 7:], r[:c], r[c:c + 7], r[c + 7:]
 
+    def channel_values(self, phi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`channels`' values alone (cycle, left swing, right swing): the same numbers, without the rates'
+        weighted sum, their slices and the phase map's slope dΩ/dφ (the values do not depend on it: it only scales
+        the rates)."""
+        values, _ = self.merged.evaluate_at_phase(phi - math.floor(phi), 1.0)
+        v = self.weights @ values
+        c = self.merged.n_cycle
+        return v[:c], v[c:c + 7], v[c + 7:]
+
     def swing_values(self, side: str, phi: float) -> tuple[np.ndarray, np.ndarray]:
         """Blended swing channels (x, y, z, yaw, heel_pitch, toe_pitch, roll) and their rates at φ."""
         cv, lv, rv, cr, lr, rr = self.channels(phi)

@@ -139,6 +139,7 @@ def _remaining_ease_delay(hold_s: float) -> float:
 
 
 _NO_FEEDBACK = PlannerFeedback()
+(_LEFT_LIFTOFF, _LEFT_TOUCHDOWN), (_RIGHT_LIFTOFF, _RIGHT_TOUCHDOWN) = SWING_PHASES["left"], SWING_PHASES["right"]
 _NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
 _NO_ADJUST = np.zeros(2)  # no step adjustment (x, y): _upcoming_foothold reads it, never writes it
@@ -464,9 +465,10 @@ class GaitPlanner:
         positions and corners, their rates) are one compiled call
         (:func:`engine.gait.planner_kernels.reference_frames`)."""
         blend = self.blend
-        cycle_vals, left_vals, right_vals, *_ = blend.channels(phi)
+        cycle_vals, left_vals, right_vals = blend.channel_values(phi)  # (the rates are backward differences here)
         t = blend.time_at(phi)
-        swinging = (self.in_swing("left", phi), self.in_swing("right", phi))
+        f = phi - math.floor(phi)  # in_swing of both feet
+        swinging = (_LEFT_LIFTOFF <= f < _LEFT_TOUCHDOWN, _RIGHT_LIFTOFF <= f < _RIGHT_TOUCHDOWN)
         left, left_progress = self._foot_params("left", phi, t, blend, left_vals, swinging[0])
         right, right_progress = self._foot_params("right", phi, t, blend, right_vals, swinging[1])
         pelvis_yaw, pelvis_pitch, pelvis_roll = cycle_vals[1:4].tolist()
@@ -484,7 +486,7 @@ class GaitPlanner:
         self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper}
         if prev is None or dt <= 0:
             z_rate = 0.0
-            upper_qd = np.zeros_like(upper)
+            upper_qd = np.zeros(upper.shape)  # np.zeros_like(upper) (float64 zeros) without its Python wrapper
         else:
             z_rate = (pelvis_z - prev["pelvis_z"]) / dt
             upper_qd = (upper - prev["upper"]) / dt
