@@ -59,6 +59,8 @@ def main() -> None:
     ap.add_argument("--shipped", action="store_true")
     ap.add_argument("--only", default="", help="comma-separated style names to run (default all)")
     ap.add_argument("--out-dir", default="")
+    ap.add_argument("--walking", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a [control.walking] parameter for these walks (e.g. landing_height_m=0.01)")
     args = ap.parse_args()
 
     from engine.bench.styles import style_jobs
@@ -77,6 +79,18 @@ def main() -> None:
         keep = set(args.only.split(","))
         styles = [s for s in styles if s.name in keep]
     walk_runner.StanceSlipMeter = _BothMeters  # type: ignore[misc]
+    if args.walking:
+        import dataclasses
+
+        from engine.control.walking_parameters import WalkingParameters
+
+        changes = {k: float(v) for k, v in (item.split("=", 1) for item in args.walking)}
+        base = WalkingParameters.for_robot
+
+        def for_robot(name: str) -> WalkingParameters:
+            return dataclasses.replace(base(name), **changes)  # type: ignore[arg-type]
+
+        WalkingParameters.for_robot = staticmethod(for_robot)  # type: ignore[method-assign]
     out = Path(args.out_dir) if args.out_dir else None
     if out:
         out.mkdir(parents=True, exist_ok=True)
