@@ -22,8 +22,8 @@ from engine.constants import GRAVITY_MPS2
 from engine.geometry.polygon import convex_hull_2d, point_in_polygon
 from engine.robot.model import RobotModel
 from engine.sim import Simulation
+from engine.stance_slip import StanceSlipMeter
 
-SLIP_SETTLE_S = 0.02  # ignore the first moments of a contact (the landing itself)
 COP_MARGIN_M = 0.005
 
 
@@ -48,18 +48,28 @@ class PushSpec:
 
 
 class ContactMeter:
-    """Measured CoP from MuJoCo's floor contacts."""
+    """Measured CoP and per-foot normal force from MuJoCo's floor contacts."""
 
-    def __init__(self, model: mujoco.MjModel):
+    def __init__(self, model: mujoco.MjModel, foot_bodies: Sequence[int] = ()):
         self.model = model
         self.floor = model.geom("floor").id
         self._force = np.zeros(6)
+        # geom id -> foot index, for the geoms of each foot's body (``foot_bodies[i]``)
+        self._foot_of_geom = {g: i for i, b in enumerate(foot_bodies) for g in range(model.ngeom)
+                              if int(model.geom_bodyid[g]) == b}
+        self.foot_load_n = np.zeros(len(foot_bodies))
 
     def cop(self, data: mujoco.MjData) -> tuple[np.ndarray | None, float]:
+        """(CoP or None, total normal force); also fills ``foot_load_n``: the normal force on each foot."""
         total, moment = 0.0, np.zeros(2)
+        self.foot_load_n[:] = 0.0
         for i in range(data.ncon):
             c = data.contact[i]
-            if c.geom1 != self.floor and c.geom2 != self.floor:
+            if c.geom1 == self.floor:
+                other = c.geom2
+            elif c.geom2 == self.floor:
+                other = c.geom1
+            else:
                 continue
             mujoco.mj_contactForce(self.model, data, i, self._force)
             fn = self._force[0]  # normal component in the contact frame
@@ -67,6 +77,9 @@ class ContactMeter:
                 continue
             total += fn
             moment += fn * c.pos[:2]
+            foot = self._foot_of_geom.get(int(other))
+            if foot is not None:
+                self.foot_load_n[foot] += fn
         return (moment / total if total > 1e-6 else None), total
 
 
@@ -86,7 +99,8 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     if state_source == "estimated":
         sim.enable_imu()
     sim.reset()
-    meter = ContactMeter(robot.mj_model)
+    sole_bodies = [robot.mj_model.body(robot.config.soles[s].link).id for s in SIDES]
+    meter = ContactMeter(robot.mj_model, sole_bodies)
     dt = float(robot.mj_model.opt.timestep)
     n = int(round(duration_s / dt))
     root = robot.mj_model.body(robot.config.root_link).id
@@ -111,9 +125,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
     elbow_ref_index = upper.index(elbow) if elbow is not None else None
     elbow_qpos = int(robot.mj_model.joint(elbow).qposadr[0]) if elbow is not None else None
     timings: dict[str, list[float]] = {"planner": [], "mpc": [], "wbc": [], "sim": [], "estimator": []}
-    slip_start: list[np.ndarray | None] = [None, None]
-    contact_since = [0.0, 0.0]
-    max_slip = 0.0
+    slip = StanceSlipMeter(dt, robot.mass_kg * GRAVITY_MPS2)
     cop_checks = cop_inside = 0
     fell, fall_time = False, None
     path_len, last_xy = 0.0, sim.data.qpos[:2].copy()
@@ -165,22 +177,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         # CoM tracking: measured horizontal CoM against the MPC's reference.
         if k % 4 == 0 and controller.plan is not None:
             com_err.append(float(np.linalg.norm(data.subtree_com[root][:2] - controller.plan.com_at(ref.t_s)[0])))
-        # Stance slip: sole centre drift while the reference holds the foot flat on the ground.
-        for i in range(2):
-            flat = bool(ref.contact[i] and not ref.sole_corners[i, :, 2].any())
-            pos = data.site_xpos[site_ids[i]][:2].copy()
-            if flat:
-                contact_since[i] += dt
-                if contact_since[i] >= SLIP_SETTLE_S:
-                    if slip_start[i] is None:
-                        slip_start[i] = pos
-                    max_slip = max(max_slip, float(np.linalg.norm(pos - slip_start[i])))
-            else:
-                contact_since[i] = 0.0
-                slip_start[i] = None
         # CoP inside the support polygon of the feet the controller has on the ground (the plan's,
         # plus a landing foot from the moment it touches down a few ms early).
         cop, fz = meter.cop(data)
+        # Stance slip: sole centre drift while the plan holds the foot flat and the floor carries it.
+        flat = ref.contact & ~ref.sole_corners[:, :, 2].any(axis=1)
+        slip.update(flat, data.site_xpos[site_ids][:, :2], meter.foot_load_n)
         if cop is not None and fz > 0.2 * robot.mass_kg * GRAVITY_MPS2:
             support = np.asarray(controller.wbc_contact.any(axis=1))  # the feet the controller stands on
             corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
@@ -233,7 +235,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         "velocity_rmse": [round(float(x), 4) for x in np.sqrt(np.mean(err ** 2, axis=0))],
         "com_error_mm": {"rms": round(1000 * float(np.sqrt(np.mean(np.square(com_err)))), 1) if com_err else None,
                          "max": round(1000 * max(com_err), 1) if com_err else None},
-        "max_stance_slip_mm": round(1000 * max_slip, 2),
+        "max_stance_slip_mm": round(1000 * slip.max_slip_m, 2),
         "cop_inside_fraction": round(cop_inside / cop_checks, 5) if cop_checks else None,
         "timing_us": {k: pct(v) for k, v in timings.items()},
     }
