@@ -196,3 +196,41 @@ def test_polish_lowers_the_receding_cost_and_is_dropped_when_its_replay_falls() 
     assert len(calls) == 2
     assert not kept.fell
     np.testing.assert_array_equal(kept.ctrl, receding.ctrl)
+
+
+def test_other_windows_keep_the_standing_answer_of_least_cost() -> None:
+    """With further receding windows the tracker answers with the candidate of least whole-clip cost among those
+    whose replay stands; a cheaper candidate that falls is passed over."""
+    from dataclasses import replace
+
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget
+    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.robot.model import load_robot
+
+    robot = load_robot("go1")
+    H = 20
+    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
+    q_ref[:, 0] += 0.2 * np.linspace(0.0, H * 0.01, H + 1)
+    qvel = np.zeros((H + 1, robot.mj_model.nv))
+    qvel[:, 0] = 0.2
+    target = TrackingTarget(0.01, q_ref, qvel, np.ones((H + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+    kw: dict = {"replan_s": 0.05, "window_iterations": 2, "polish_iterations": 0}
+    short = MotionTracker(robot, window_s=0.1, **kw).track(target)
+    long = MotionTracker(robot, window_s=0.2, **kw).track(target)
+    assert not short.fell and not long.fell and short.cost != long.cost
+    cheaper, dearer = (short, long) if short.cost < long.cost else (long, short)
+    both = MotionTracker(robot, window_s=0.1, other_windows_s=(0.2,), **kw)
+    best = both.track(target)
+    assert best.cost == cheaper.cost
+    np.testing.assert_array_equal(best.ctrl, cheaper.ctrl)
+
+    real_replay = both.replay
+
+    def cheaper_falls(qpos0: np.ndarray, qvel0: np.ndarray, U: np.ndarray):  # noqa: ANN202
+        out = real_replay(qpos0, qvel0, U)
+        return replace(out, fell=True, fall_fraction=0.5) if np.array_equal(U, cheaper.ctrl) else out
+
+    both.replay = cheaper_falls  # type: ignore[method-assign]
+    kept = both.track(target)
+    assert not kept.fell and kept.cost == dearer.cost
+    np.testing.assert_array_equal(kept.ctrl, dearer.ctrl)
