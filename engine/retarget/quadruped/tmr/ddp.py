@@ -518,15 +518,16 @@ class MotionTracker:
     ``timestep_s`` is the control interval, ``physics_step_s`` MuJoCo's step inside it (default: the same 10 ms,
     the step MuJoCo MPC's tasks use; the engine's 2 ms is allowed, five times dearer). ``mode`` "receding"
     (default) solves ``window_s`` windows re-planned every ``replan_s`` as MuJoCo MPC does — and once more per
-    length in ``other_windows_s``, answering with the candidate that stands (else falls latest), then of least
-    cost; "full" solves the whole horizon at once. The replay uses the very same model.
+    length in ``other_windows_s`` (and in ``fallback_windows_s``, one by one, while every answer falls), answering
+    with the candidate that stands (else falls latest), then of least cost; "full" solves the whole horizon at once. The replay uses the very same model.
     """
 
     def __init__(self, robot, timestep_s: float = DEFAULT_TIMESTEP_S, physics_step_s: float | None = None,  # noqa: ANN001
                  weights: TrackingWeights | None = None, settings: ILQRSettings | None = None,
                  torque_limit_scale: float = 1.0, mode: str = "receding", window_s: float = 0.3,
                  replan_s: float = 0.03, window_iterations: int = 3, polish_iterations: int = 0,
-                 stop_on_fall: bool = True, other_windows_s: tuple[float, ...] = ()):
+                 stop_on_fall: bool = True, other_windows_s: tuple[float, ...] = (),
+                 fallback_windows_s: tuple[float, ...] = ()):
         if mode not in ("receding", "full"):
             raise ValueError(f"mode: expected 'receding' or 'full', got {mode!r}")
         self.mode = mode
@@ -547,6 +548,8 @@ class MotionTracker:
         # receding mode: further window lengths solved from the same start; the answer is the candidate whose
         # replay stands (or falls latest), then the one of least cost (the same whole-clip objective for all)
         self.other_windows = [max(2, int(round(w / self.dt_s))) for w in other_windows_s]
+        # tried one at a time, in order, only while every answer so far falls (a fallen pass stops early: cheap)
+        self.fallback_windows = [max(2, int(round(w / self.dt_s))) for w in fallback_windows_s]
         self.replan = max(1, int(round(replan_s / self.dt_s)))
         self.window_settings = ILQRSettings(max_iterations=window_iterations, tolerance=1e-3)
         self.polish_iterations = int(polish_iterations)  # full-horizon iLQR after the receding pass
@@ -647,7 +650,10 @@ class MotionTracker:
         if self.mode == "receding":
             best: tuple[ILQRResult, TrackResult] | None = None
             wall_s = deriv_s = 0.0
-            for window in [self.window, *self.other_windows]:
+            always = 1 + len(self.other_windows)
+            for i, window in enumerate([self.window, *self.other_windows, *self.fallback_windows]):
+                if i >= always and best is not None and not best[1].fell:
+                    break
                 # each candidate polished before the choice: a receding replay that touches the floor on the way
                 # can stand once polished (go1 trot1's 0.4 s window: chosen after the polish, 3.18 → 2.88 % DTW)
                 res, out = self._receding(target, cost, x0, U0, window, cancel, progress)
