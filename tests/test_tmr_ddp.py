@@ -196,3 +196,81 @@ def test_polish_lowers_the_receding_cost_and_is_dropped_when_its_replay_falls() 
     assert len(calls) == 2
     assert not kept.fell
     np.testing.assert_array_equal(kept.ctrl, receding.ctrl)
+
+
+def test_other_windows_keep_the_standing_answer_of_least_cost() -> None:
+    """With further receding windows the tracker answers with the candidate of least whole-clip cost among those
+    whose replay stands; a cheaper candidate that falls is passed over."""
+    from dataclasses import replace
+
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget
+    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.robot.model import load_robot
+
+    robot = load_robot("go1")
+    H = 20
+    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
+    q_ref[:, 0] += 0.2 * np.linspace(0.0, H * 0.01, H + 1)
+    qvel = np.zeros((H + 1, robot.mj_model.nv))
+    qvel[:, 0] = 0.2
+    target = TrackingTarget(0.01, q_ref, qvel, np.ones((H + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+    kw: dict = {"replan_s": 0.05, "window_iterations": 2, "polish_iterations": 0}
+    short = MotionTracker(robot, window_s=0.1, **kw).track(target)
+    long = MotionTracker(robot, window_s=0.2, **kw).track(target)
+    assert not short.fell and not long.fell and short.cost != long.cost
+    cheaper, dearer = (short, long) if short.cost < long.cost else (long, short)
+    both = MotionTracker(robot, window_s=0.1, other_windows_s=(0.2,), **kw)
+    best = both.track(target)
+    assert best.cost == cheaper.cost
+    np.testing.assert_array_equal(best.ctrl, cheaper.ctrl)
+
+    real_replay = both.replay
+
+    def cheaper_falls(qpos0: np.ndarray, qvel0: np.ndarray, U: np.ndarray):  # noqa: ANN202
+        out = real_replay(qpos0, qvel0, U)
+        return replace(out, fell=True, fall_fraction=0.5) if np.array_equal(U, cheaper.ctrl) else out
+
+    both.replay = cheaper_falls  # type: ignore[method-assign]
+    kept = both.track(target)
+    assert not kept.fell and kept.cost == dearer.cost
+    np.testing.assert_array_equal(kept.ctrl, dearer.ctrl)
+
+
+def test_fallback_windows_run_only_while_every_answer_falls() -> None:
+    """A fallback window is solved only when the regular candidates all fall, and its standing answer is kept."""
+    from dataclasses import replace
+
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget
+    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.robot.model import load_robot
+
+    robot = load_robot("go1")
+    H = 20
+    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
+    target = TrackingTarget(0.01, q_ref, np.zeros((H + 1, robot.mj_model.nv)), np.ones((H + 1, 4), bool),
+                            keypoint_trajectory(robot, q_ref))
+    kw: dict = {"replan_s": 0.05, "window_iterations": 2, "polish_iterations": 0}
+    fallback_alone = MotionTracker(robot, window_s=0.2, **kw).track(target)
+    tracker = MotionTracker(robot, window_s=0.1, fallback_windows_s=(0.2,), **kw)
+    real_replay = tracker.replay
+    calls: list[bool] = []
+
+    def first_falls(qpos0: np.ndarray, qvel0: np.ndarray, U: np.ndarray):  # noqa: ANN202
+        out = real_replay(qpos0, qvel0, U)
+        calls.append(True)
+        return replace(out, fell=True, fall_fraction=0.5) if len(calls) == 1 else out
+
+    tracker.replay = first_falls  # type: ignore[method-assign]
+    kept = tracker.track(target)
+    assert len(calls) == 2 and not kept.fell
+    np.testing.assert_array_equal(kept.ctrl, fallback_alone.ctrl)
+    calls.clear()
+
+    def counted(qpos0: np.ndarray, qvel0: np.ndarray, U: np.ndarray):  # noqa: ANN202
+        calls.append(True)
+        return real_replay(qpos0, qvel0, U)
+
+    tracker.replay = counted  # type: ignore[method-assign]
+    standing = tracker.track(target)  # the first answer stands: the fallback is not solved
+    assert len(calls) == 1 and not standing.fell
+    assert not np.array_equal(standing.ctrl, fallback_alone.ctrl)

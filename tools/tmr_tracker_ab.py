@@ -2,11 +2,14 @@
 
     python tools/tmr_tracker_ab.py                                  # trot0,trot1,pace0,pace1 on go1 and a1
     python tools/tmr_tracker_ab.py --robots go1 --clips trot1 --old "final_scale=5 polish_iterations=0"
+    python tools/tmr_tracker_ab.py --clips pace0 --variant "w4=window_s=0.4 other_windows_s="   # a third variant
 
 Per clip and robot, the old and the new tracker run alternately on the same target (the SMR motion tracked as
 it is, as ``studio bench tmr-clips``'s "SMR replay" column): open-loop replay fell (and when), DTW keypoint L1 %
-against the kinematic motion, mean keypoint error mm against the target, CPU s of the solve (thread time).
-``--old`` / ``--new`` are space-separated ``name=value`` overrides of TMRSettings or TrackingWeights fields.
+against the kinematic motion, mean keypoint error mm against the target, the solver's whole-clip cost, CPU s of the
+solve (thread time).
+``--old`` / ``--new`` / ``--variant NAME=...`` are space-separated ``name=value`` overrides of TMRSettings or
+TrackingWeights fields (a tuple field takes comma-separated values, empty for none).
 Prints one JSON line per run, then a summary per variant. Paper clips are read from the shared folder.
 """
 
@@ -31,14 +34,16 @@ from engine.retarget.quadruped.tmr.scoring import dtw_keypoint_l1_pct, tracking_
 from engine.retarget.quadruped.tmr.tmr import TMRSettings, deformed_target, make_tracker  # noqa: E402
 from engine.robot.model import load_robot  # noqa: E402
 
-OLD = "final_scale=5 polish_iterations=0"  # the tracker before issue 10's tracker round
+OLD = "other_windows_s="  # the tracker before issue 10's seventh round (one 0.25 s window)
 
 
 def parse_overrides(text: str) -> tuple[dict, dict]:
     settings, weights = {}, {}
     for item in text.split():
         name, value = item.split("=")
-        if hasattr(TMRSettings, name):
+        if isinstance(getattr(TMRSettings(), name, None), tuple):
+            settings[name] = tuple(float(v) for v in value.split(",") if v)
+        elif hasattr(TMRSettings, name):
             settings[name] = type(getattr(TMRSettings(), name))(float(value))
         elif hasattr(TrackingWeights, name):
             weights[name] = float(value)
@@ -53,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--clips", default="trot0,trot1,pace0,pace1")
     parser.add_argument("--old", default=OLD)
     parser.add_argument("--new", default="")
+    parser.add_argument("--variant", action="append", default=[], metavar="NAME=OVERRIDES",
+                        help="a further variant, e.g. --variant 'long=window_s=0.4 polish_iterations=10' (repeatable)")
     args = parser.parse_args(argv)
     from engine.bench.retarget import clip_path, shared_dir
     from engine.retarget.importers import import_source
@@ -62,7 +69,11 @@ def main(argv: list[str] | None = None) -> int:
     if shared is None:
         print("shared data folder absent: set MOTION_STUDIO_SHARED", file=sys.stderr)
         return 2
-    variants = {"old": parse_overrides(args.old), "new": parse_overrides(args.new)}
+    texts = {"old": args.old, "new": args.new}
+    for item in args.variant:
+        name, _, text = item.partition("=")
+        texts[name] = text
+    variants = {name: parse_overrides(text) for name, text in texts.items()}
     rows: dict[str, list[dict]] = {name: [] for name in variants}
     for robot_name in args.robots.split(","):
         robot = load_robot(robot_name)
@@ -84,11 +95,11 @@ def main(argv: list[str] | None = None) -> int:
                        "fell_at_s": round(res.fall_fraction * target.horizon * tracker.dt_s, 2) if res.fell else None,
                        "dtw_keypoint_l1_pct": round(dtw_keypoint_l1_pct(res.keypoints, reference), 3),
                        "tracking_error_mm": round(tracking_error_mm(res.keypoints, target.keypoints), 1),
-                       "cpu_s": round(cpu_s, 1)}
+                       "cost": round(float(res.cost), 1), "cpu_s": round(cpu_s, 1)}
                 rows[name].append(row)
                 print(json.dumps(row), flush=True)
     for name, rs in rows.items():
-        print(json.dumps({"variant": name, "overrides": args.old if name == "old" else args.new,
+        print(json.dumps({"variant": name, "overrides": texts[name],
                           "falls": f"{sum(r['replay_fell'] for r in rs)}/{len(rs)}",
                           "mean_dtw_pct": round(float(np.mean([r["dtw_keypoint_l1_pct"] for r in rs])), 3),
                           "mean_tracking_error_mm": round(float(np.mean([r["tracking_error_mm"] for r in rs])), 1),
