@@ -19,7 +19,7 @@ from numba import njit
 
 @njit(cache=True, nogil=True)
 def _rotate(rot, wx_rate, wy_rate, wz_rate, dt):  # noqa: ANN001, ANN201
-    """``rot`` advanced by a world angular velocity for ``dt`` (``walking_controller._rotate``): ``rot`` itself
+    """``rot`` advanced by a world angular velocity for ``dt`` (what ``walking_controller._rotate`` computed): ``rot`` itself
     when ``dt`` is 0 or the angle below 1e-12."""
     if dt == 0.0:
         return rot

@@ -582,7 +582,7 @@ class WalkingController:
                                  plan.waypoint_com_vel_xy_mps, float(plan.omega_rps))
         _, times, wps, coms, vels, omega = self._plan_arrays
         # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
-        # their angular velocities (_rotate), the upper body along its rates: one compiled call, the same numbers.
+        # their angular velocities (Rodrigues), the upper body along its rates: one compiled call, the same numbers.
         com, foot_pos, foot_rot, pelvis_rot, upper_q = interpolate_reference(
             dt_since, t, times, wps, coms, vels, omega, ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel,
             ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd)
@@ -720,22 +720,3 @@ def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
     normals, offsets, bound = halfplanes_cached(polygon)
     return len(offsets) == 0 or bool((normals @ p <= bound).all())
-
-
-def _rotate(rot: np.ndarray, omega: Sequence[float] | np.ndarray, dt: float) -> np.ndarray:
-    """rot advanced by a world angular velocity for dt (Rodrigues, closed form on floats).
-    ``r.dot(rot)``: the BLAS product ``r @ rot`` calls, without the matmul ufunc's dispatch."""
-    if dt == 0.0:
-        return rot
-    wx, wy, wz = float(omega[0]) * dt, float(omega[1]) * dt, float(omega[2]) * dt
-    angle = math.sqrt(wx * wx + wy * wy + wz * wz)
-    if angle < 1e-12:
-        return rot
-    kx, ky, kz = wx / angle, wy / angle, wz / angle
-    s, c = math.sin(angle), 1.0 - math.cos(angle)
-    r = np.array([
-        [1 - c * (ky * ky + kz * kz), c * kx * ky - s * kz, c * kx * kz + s * ky],
-        [c * kx * ky + s * kz, 1 - c * (kx * kx + kz * kz), c * ky * kz - s * kx],
-        [c * kx * kz - s * ky, c * ky * kz + s * kx, 1 - c * (kx * kx + ky * ky)],
-    ])
-    return r.dot(rot)

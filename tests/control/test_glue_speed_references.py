@@ -157,14 +157,16 @@ def rotate_reference(rot: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarra
 
 
 def test_rotate_equals_the_matmul_version() -> None:
-    from engine.control.walking_controller import _rotate
+    """The compiled rotation the whole-body reference uses (reference_kernels._rotate, which replaced
+    walking_controller._rotate) gives the matmul version's numbers."""
+    from engine.control.reference_kernels import _rotate
 
     rng = np.random.default_rng(15)
     for _ in range(3000):
         rots = np.linalg.qr(rng.normal(size=(2, 3, 3)))[0]  # (2, 3, 3): rows of a stacked array, as the feet's
         omega = rng.normal(0, 3, 3)
         dt = float(rng.choice([0.0, 0.002, 0.004, 0.006]))
-        np.testing.assert_array_equal(_rotate(rots[1], omega.tolist(), dt), rotate_reference(rots[1], omega, dt))
+        np.testing.assert_array_equal(_rotate(rots[1], *omega.tolist(), dt), rotate_reference(rots[1], omega, dt))
 
 
 def command_filter_reference(command: np.ndarray, filtered: np.ndarray, accel_limits: np.ndarray, dt: float,

@@ -8,12 +8,13 @@ from dataclasses import fields
 import numpy as np
 
 from engine.control.reference_kernels import interpolate_reference
-from engine.control.walking_controller import WalkingController, _rotate
+from engine.control.walking_controller import WalkingController
 from engine.control.wbc import WbcReference
 from engine.gait.command_schedule import preset
 from engine.gait.style import load_style, styles_dir
 from engine.robot.model import load_robot
 from engine.sim import Simulation
+from tests.control.test_glue_speed_references import rotate_reference as _rotate  # = walking_controller._rotate, bit for bit
 
 
 def wbc_reference_before(controller: WalkingController, dt_since: float) -> WbcReference:
