@@ -117,20 +117,17 @@ def _rotates(wx_rate, wy_rate, wz_rate, dt):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def interpolate_references(n, period, t0, times, wps, coms, vels, omega, foot_pos, foot_lin_vel, foot_rot,
-                           foot_ang_vel, pelvis_rot, pelvis_ang_vel, upper_q, upper_qd):  # noqa: ANN001, ANN201
+def interpolate_references(period, t0, times, wps, coms, vels, omega, foot_pos, foot_lin_vel, foot_rot, foot_ang_vel,
+                           pelvis_rot, pelvis_ang_vel, upper_q, upper_qd, com, pos, rot, pelvis, turned,
+                           upper):  # noqa: ANN001, ANN201
     """:func:`interpolate_reference` at ``dt = k · period`` and ``t = t0 + dt`` for k = 0 … n − 1 (the ticks until the
-    planner's next one) in one call: each result stacked along a first axis of n, plus (n,) flags telling whether
-    the pelvis turned (where not, :func:`interpolate_reference` returns ``pelvis_rot`` itself; its row here is a
-    copy). The same operations per k as :func:`interpolate_reference`, so the same numbers."""
+    planner's next one) in one call, written into the caller's arrays, each stacked along a first axis of n: ``com``
+    (n, 3, 2), ``pos`` (n, 2, 3), ``rot`` (n, 2, 3, 3), ``pelvis`` (n, 3, 3), ``turned`` (n,) whether the pelvis
+    turned (where not, :func:`interpolate_reference` returns ``pelvis_rot`` itself; its row here is a copy) and
+    ``upper`` (n, K). Nothing is returned (numba boxes every returned array, which costs more than the caller's
+    ``np.empty``). The same operations per k as :func:`interpolate_reference`, so the same numbers."""
     n_upper = upper_q.shape[0]
-    com = np.empty((n, 3, 2))
-    pos = np.empty((n, 2, 3))
-    rot = np.empty((n, 2, 3, 3))
-    pelvis = np.empty((n, 3, 3))
-    turned = np.empty(n, dtype=np.bool_)
-    upper = np.empty((n, n_upper))
-    for k in range(n):
+    for k in range(com.shape[0]):
         dt = k * period
         t = t0 + dt
         _com_at(times, wps, coms, vels, omega, t, com[k])
@@ -147,4 +144,3 @@ def interpolate_references(n, period, t0, times, wps, coms, vels, omega, foot_po
         turned[k] = _rotates(pelvis_ang_vel[0], pelvis_ang_vel[1], pelvis_ang_vel[2], dt)
         for j in range(n_upper):
             upper[k, j] = upper_q[j] + upper_qd[j] * dt
-    return com, pos, rot, pelvis, turned, upper

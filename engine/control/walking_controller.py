@@ -213,7 +213,7 @@ class WalkingController:
         self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2],
                              None if (self._landing or early) else self._ground_force)
         t_est = time.perf_counter()
-        self.timings = StepTimings(estimator=t_est - t_start)
+        self.timings = StepTimings(None, None, None, t_est - t_start)  # (positional: planner, mpc, wbc, estimator)
         if self.tick % TICKS_PER_PLAN == 0:
             self._plan_tick(est)
         dt_since = (self.tick % TICKS_PER_PLAN) * CONTROL_PERIOD_S
@@ -326,7 +326,7 @@ class WalkingController:
         # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
         # continued with the CoP ramping off the trailing foot throws it further.
         xi_robot = com + com_vel / math.sqrt(omega2)
-        thrown = (self.params.restart_when_thrown and bool(ref.contact.all())
+        thrown = (self.params.restart_when_thrown and all(ref.contact.tolist())  # bool(contact.all()), on a list
                   and not _inside_polygon(xi_robot, supports[0].polygon))
         if not plan.ok or lost or thrown:
             # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
@@ -607,13 +607,18 @@ class WalkingController:
         )
 
     def _interpolate_ticks(self, ref: GaitReference, plan: ComMpcSolution) -> tuple:
-        """(ref, plan, then :func:`interpolate_references`' arrays) for the ticks ``k · CONTROL_PERIOD_S`` after the
+        """(ref, plan, then :func:`interpolate_references`' arrays: CoM, feet, feet's rotations, pelvis, whether it
+        turned, upper body) for the ticks ``k · CONTROL_PERIOD_S`` after the
         planner's, k < TICKS_PER_PLAN: one compiled call per planner tick instead of one per control tick (the same
         operations per tick as :func:`interpolate_reference`, so the same numbers)."""
-        return (ref, plan, *interpolate_references(
-            TICKS_PER_PLAN, CONTROL_PERIOD_S, ref.t_s, plan.waypoint_times_s, plan.waypoints_xy_m,
-            plan.waypoint_com_xy_m, plan.waypoint_com_vel_xy_mps, float(plan.omega_rps), ref.foot_pos, ref.foot_lin_vel,
-            ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd))
+        n = TICKS_PER_PLAN
+        batch = (ref, plan, np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
+                 np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0])))
+        interpolate_references(CONTROL_PERIOD_S, ref.t_s, plan.waypoint_times_s, plan.waypoints_xy_m,
+                               plan.waypoint_com_xy_m, plan.waypoint_com_vel_xy_mps, float(plan.omega_rps),
+                               ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot,
+                               ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, *batch[2:])
+        return batch
 
     def _reference_tables(self, ref: GaitReference) -> None:
         """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact and the
@@ -741,4 +746,5 @@ def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
     normals, offsets, bound = halfplanes_cached(polygon)
-    return len(offsets) == 0 or bool((normals @ p <= bound).all())
+    # bool((normals @ p <= bound).all()) on the list of flags (without ndarray.all's Python layer; NaN compares False)
+    return len(offsets) == 0 or all((normals @ p <= bound).tolist())

@@ -119,7 +119,11 @@ def test_interpolate_references_equals_one_call_per_tick() -> None:
         upper_q, upper_qd = rng.standard_normal(n_upper), rng.standard_normal(n_upper)
         t0 = float(rng.uniform(times[0] - 0.05, times[-1] + 0.05))  # before, inside and after the waypoints
         args = (times, wps, coms, vels, omega, foot_pos, foot_vel, feet, omegas[1:], pelvis, omegas[0], upper_q, upper_qd)
-        coms_k, pos_k, rot_k, pelvis_k, turned_k, upper_k = interpolate_references(TICKS_PER_PLAN, period, t0, *args)
+        n = TICKS_PER_PLAN
+        coms_k, pos_k, rot_k, pelvis_k, turned_k, upper_k = out = (
+            np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
+            np.empty(n, dtype=np.bool_), np.empty((n, n_upper)))
+        interpolate_references(period, t0, *args, *out)
         for k in range(TICKS_PER_PLAN):
             dt = k * period  # as WalkingController.compute's dt_since
             com, pos, rot, pelvis_rot, upper = interpolate_reference(dt, t0 + dt, *args)
