@@ -7,6 +7,8 @@ along their velocities, the turning feet's and the pelvis' rotations along their
 then ``r @ rot``) and the upper body along its joint rates. :func:`interpolate_reference` computes all of them in
 one call, with the same operations in the same order (the rotation product is BLAS's ``dgemm``, as numpy's
 ``dot``): the same numbers as the Python it replaces (``tests/control/test_reference_kernels.py`` compares them).
+:func:`interpolate_references` does the same for all the control ticks until the planner's next one at once (what the
+controller calls, once per planner tick).
 """
 
 from __future__ import annotations

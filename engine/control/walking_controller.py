@@ -608,9 +608,10 @@ class WalkingController:
 
     def _interpolate_ticks(self, ref: GaitReference, plan: ComMpcSolution) -> tuple:
         """(ref, plan, then :func:`interpolate_references`' arrays: CoM, feet, feet's rotations, pelvis, whether it
-        turned, upper body) for the ticks ``k · CONTROL_PERIOD_S`` after the
-        planner's, k < TICKS_PER_PLAN: one compiled call per planner tick instead of one per control tick (the same
-        operations per tick as :func:`interpolate_reference`, so the same numbers)."""
+        turned, upper body) for the ticks ``k · CONTROL_PERIOD_S`` after the planner's, k < TICKS_PER_PLAN: one
+        compiled call per planner tick instead of one per control tick (the same operations per tick as
+        :func:`interpolate_reference`, so the same numbers). The arrays are new per planner tick (a reference handed
+        out earlier keeps its own)."""
         n = TICKS_PER_PLAN
         batch = (ref, plan, np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
                  np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0])))
