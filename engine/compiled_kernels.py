@@ -50,14 +50,21 @@ the one-call tick and the step-by-step kernels), a hull, and LWL2's encoder and 
 
 
 def _warm_up_reference(n_upper: int) -> None:
-    """The whole-body reference between planner ticks (:func:`engine.control.reference_kernels.interpolate_reference`)
-    on C-contiguous float arrays, as the walking controller passes them."""
-    from engine.control.reference_kernels import interpolate_reference
+    """The whole-body reference between planner ticks (:func:`engine.control.reference_kernels.interpolate_reference`,
+    and :func:`~engine.control.reference_kernels.interpolate_references` for all of them) on C-contiguous float
+    arrays, as the walking controller passes them."""
+    from engine.control.reference_kernels import interpolate_reference, interpolate_references
 
     eye = np.eye(3)
     interpolate_reference(0.002, 0.05, np.array([0.0, 0.1, 0.3]), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)),
                           3.5, np.zeros((2, 3)), np.zeros((2, 3)), np.stack([eye, eye]), np.ones((2, 3)), eye.copy(),
                           np.ones(3), np.zeros(n_upper), np.zeros(n_upper))
+    n = 4
+    interpolate_references(0.002, 0.05, np.array([0.0, 0.1, 0.3]), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)),
+                           3.5, np.zeros((2, 3)), np.zeros((2, 3)), np.stack([eye, eye]), np.ones((2, 3)), eye.copy(),
+                           np.ones(3), np.zeros(n_upper), np.zeros(n_upper), np.empty((n, 3, 2)), np.empty((n, 2, 3)),
+                           np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)), np.empty(n, dtype=np.bool_),
+                           np.empty((n, n_upper)))
 
 
 def _warm_up_planner() -> None:

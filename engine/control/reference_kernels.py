@@ -7,6 +7,8 @@ along their velocities, the turning feet's and the pelvis' rotations along their
 then ``r @ rot``) and the upper body along its joint rates. :func:`interpolate_reference` computes all of them in
 one call, with the same operations in the same order (the rotation product is BLAS's ``dgemm``, as numpy's
 ``dot``): the same numbers as the Python it replaces (``tests/control/test_reference_kernels.py`` compares them).
+:func:`interpolate_references` does the same for all the control ticks until the planner's next one at once (what the
+controller calls, once per planner tick).
 """
 
 from __future__ import annotations
@@ -104,3 +106,43 @@ def interpolate_reference(dt, t, times, wps, coms, vels, omega, foot_pos, foot_l
     for k in range(upper_q.shape[0]):
         upper[k] = upper_q[k] + upper_qd[k] * dt
     return com, pos, rot, pelvis, upper
+
+
+@njit(cache=True, nogil=True)
+def _rotates(wx_rate, wy_rate, wz_rate, dt):  # noqa: ANN001, ANN201
+    """Whether :func:`_rotate` computes a new rotation (not ``rot`` itself): its two early returns' tests."""
+    if dt == 0.0:
+        return False
+    wx, wy, wz = wx_rate * dt, wy_rate * dt, wz_rate * dt
+    angle = math.sqrt(wx * wx + wy * wy + wz * wz)
+    return not angle < 1e-12
+
+
+@njit(cache=True, nogil=True)
+def interpolate_references(period, t0, times, wps, coms, vels, omega, foot_pos, foot_lin_vel, foot_rot, foot_ang_vel,
+                           pelvis_rot, pelvis_ang_vel, upper_q, upper_qd, com, pos, rot, pelvis, turned,
+                           upper):  # noqa: ANN001, ANN201
+    """:func:`interpolate_reference` at ``dt = k · period`` and ``t = t0 + dt`` for k = 0 … n − 1 (the ticks until the
+    planner's next one) in one call, written into the caller's arrays, each stacked along a first axis of n: ``com``
+    (n, 3, 2), ``pos`` (n, 2, 3), ``rot`` (n, 2, 3, 3), ``pelvis`` (n, 3, 3), ``turned`` (n,) whether the pelvis
+    turned (where not, :func:`interpolate_reference` returns ``pelvis_rot`` itself; its row here is a copy) and
+    ``upper`` (n, K). Nothing is returned (numba boxes every returned array, which costs more than the caller's
+    ``np.empty``). The same operations per k as :func:`interpolate_reference`, so the same numbers."""
+    n_upper = upper_q.shape[0]
+    for k in range(com.shape[0]):
+        dt = k * period
+        t = t0 + dt
+        _com_at(times, wps, coms, vels, omega, t, com[k])
+        for i in range(2):
+            for j in range(3):
+                pos[k, i, j] = foot_pos[i, j] + foot_lin_vel[i, j] * dt
+        rot[k] = foot_rot
+        if dt != 0.0:
+            for i in range(2):
+                w = foot_ang_vel[i]
+                if w[0] != 0.0 or w[1] != 0.0 or w[2] != 0.0:
+                    rot[k, i] = _rotate(rot[k, i], w[0], w[1], w[2], dt)
+        pelvis[k] = _rotate(pelvis_rot, pelvis_ang_vel[0], pelvis_ang_vel[1], pelvis_ang_vel[2], dt)
+        turned[k] = _rotates(pelvis_ang_vel[0], pelvis_ang_vel[1], pelvis_ang_vel[2], dt)
+        for j in range(n_upper):
+            upper[k, j] = upper_q[j] + upper_qd[j] * dt

@@ -19,7 +19,7 @@ import pinocchio as pin
 from engine.constants import GRAVITY_MPS2
 from engine.control.mpc import ComMpc, ComMpcSolution, SupportInterval, SupportPhase
 from engine.control.controller import JointCommand, RobotState
-from engine.control.reference_kernels import interpolate_reference
+from engine.control.reference_kernels import interpolate_reference, interpolate_references
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
@@ -37,6 +37,8 @@ from engine.sim import CONTROL_PERIOD_S
 
 TICKS_PER_PLAN = int(round(1.0 / (PLANNER_RATE_HZ * CONTROL_PERIOD_S)))  # 4
 PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
+# The time since the planner's tick of each control tick until its next (compute's dt_since) → the tick's index k
+_TICK_OF_DT = {k * CONTROL_PERIOD_S: k for k in range(TICKS_PER_PLAN)}
 
 
 @dataclass(slots=True)
@@ -178,6 +180,8 @@ class WalkingController:
         self._ref_landing_candidates: list[int] = []
         # The CoM MPC plan _wbc_reference reads, its waypoint arrays and ω (kept until the next plan)
         self._plan_arrays: tuple = (None,)
+        # The references of the control ticks until the planner's next one (_interpolate_ticks), per (ref, plan)
+        self._reference_batch: tuple = (None, None)
         self._early_key: tuple[np.ndarray | None, np.ndarray | None, bool] = (None, None, False)
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
@@ -209,7 +213,7 @@ class WalkingController:
         self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2],
                              None if (self._landing or early) else self._ground_force)
         t_est = time.perf_counter()
-        self.timings = StepTimings(estimator=t_est - t_start)
+        self.timings = StepTimings(None, None, None, t_est - t_start)  # (positional: planner, mpc, wbc, estimator)
         if self.tick % TICKS_PER_PLAN == 0:
             self._plan_tick(est)
         dt_since = (self.tick % TICKS_PER_PLAN) * CONTROL_PERIOD_S
@@ -322,7 +326,7 @@ class WalkingController:
         # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
         # continued with the CoP ramping off the trailing foot throws it further.
         xi_robot = com + com_vel / math.sqrt(omega2)
-        thrown = (self.params.restart_when_thrown and bool(ref.contact.all())
+        thrown = (self.params.restart_when_thrown and all(ref.contact.tolist())  # bool(contact.all()), on a list
                   and not _inside_polygon(xi_robot, supports[0].polygon))
         if not plan.ok or lost or thrown:
             # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
@@ -573,25 +577,49 @@ class WalkingController:
     def _wbc_reference(self, dt_since: float) -> WbcReference:
         ref = self.ref
         assert ref is not None and self.plan is not None
-        t = ref.t_s + dt_since
         if self._contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
             self._reference_tables(ref)
         plan = self.plan
-        if self._plan_arrays[0] is not plan:  # the plan's waypoint arrays and ω, once per plan
-            self._plan_arrays = (plan, plan.waypoint_times_s, plan.waypoints_xy_m, plan.waypoint_com_xy_m,
-                                 plan.waypoint_com_vel_xy_mps, float(plan.omega_rps))
-        _, times, wps, coms, vels, omega = self._plan_arrays
-        # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
-        # their angular velocities (Rodrigues), the upper body along its rates: one compiled call, the same numbers.
-        com, foot_pos, foot_rot, pelvis_rot, upper_q = interpolate_reference(
-            dt_since, t, times, wps, coms, vels, omega, ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel,
-            ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd)
+        batch = self._reference_batch
+        if batch[0] is not ref or batch[1] is not plan:  # the references of the ticks until the planner's next
+            batch = self._reference_batch = self._interpolate_ticks(ref, plan)
+        k = _TICK_OF_DT.get(dt_since)
+        if k is not None:  # dt_since = k · CONTROL_PERIOD_S, k < TICKS_PER_PLAN: the batch's k-th row
+            _, _, coms, feet_pos, feet_rot, pelvis_rots, turned, uppers = batch
+            com = coms[k]
+            pelvis_rot = pelvis_rots[k] if turned[k] else ref.pelvis_rot
+            foot_pos, foot_rot, upper_q = feet_pos[k], feet_rot[k], uppers[k]
+        else:  # another time (not a control tick's): one compiled call
+            if self._plan_arrays[0] is not plan:  # the plan's waypoint arrays and ω, once per plan
+                self._plan_arrays = (plan, plan.waypoint_times_s, plan.waypoints_xy_m, plan.waypoint_com_xy_m,
+                                     plan.waypoint_com_vel_xy_mps, float(plan.omega_rps))
+            _, times, wps, com_wps, vels, omega = self._plan_arrays
+            # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
+            # their angular velocities (Rodrigues), the upper body along its rates: one compiled call, the same numbers.
+            com, foot_pos, foot_rot, pelvis_rot, upper_q = interpolate_reference(
+                dt_since, ref.t_s + dt_since, times, wps, com_wps, vels, omega, ref.foot_pos, ref.foot_lin_vel,
+                ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd)
         # (positional: WbcReference's field order, com_xy_m … foot_ang_acc_radps2, external_wrench None as by default)
         return WbcReference(
             com[0], com[1], com[2], ref.pelvis_z + ref.pelvis_z_rate * dt_since, ref.pelvis_z_rate, pelvis_rot,
             ref.pelvis_ang_vel, foot_pos, foot_rot, ref.foot_lin_vel, ref.foot_ang_vel, self._ref_contact, upper_q,
             ref.upper_qd, None, self._foot_acc, self._foot_ang_acc,
         )
+
+    def _interpolate_ticks(self, ref: GaitReference, plan: ComMpcSolution) -> tuple:
+        """(ref, plan, then :func:`interpolate_references`' arrays: CoM, feet, feet's rotations, pelvis, whether it
+        turned, upper body) for the ticks ``k · CONTROL_PERIOD_S`` after the planner's, k < TICKS_PER_PLAN: one
+        compiled call per planner tick instead of one per control tick (the same operations per tick as
+        :func:`interpolate_reference`, so the same numbers). The arrays are new per planner tick (a reference handed
+        out earlier keeps its own)."""
+        n = TICKS_PER_PLAN
+        batch = (ref, plan, np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
+                 np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0])))
+        interpolate_references(CONTROL_PERIOD_S, ref.t_s, plan.waypoint_times_s, plan.waypoints_xy_m,
+                               plan.waypoint_com_xy_m, plan.waypoint_com_vel_xy_mps, float(plan.omega_rps),
+                               ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot,
+                               ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, *batch[2:])
+        return batch
 
     def _reference_tables(self, ref: GaitReference) -> None:
         """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact and the
@@ -719,4 +747,5 @@ def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:
     normals, offsets, bound = halfplanes_cached(polygon)
-    return len(offsets) == 0 or bool((normals @ p <= bound).all())
+    # bool((normals @ p <= bound).all()) on the list of flags (without ndarray.all's Python layer; NaN compares False)
+    return len(offsets) == 0 or all((normals @ p <= bound).tolist())

@@ -6,9 +6,11 @@ from __future__ import annotations
 from dataclasses import fields
 
 import numpy as np
+import pytest
 
-from engine.control.reference_kernels import interpolate_reference
-from engine.control.walking_controller import WalkingController
+from engine.control import walking_controller
+from engine.control.reference_kernels import interpolate_reference, interpolate_references
+from engine.control.walking_controller import TICKS_PER_PLAN, WalkingController
 from engine.control.wbc import WbcReference
 from engine.gait.command_schedule import preset
 from engine.gait.style import load_style, styles_dir
@@ -94,3 +96,79 @@ def test_rotations_match_rotate_on_random_rates() -> None:
             turning = bool((omegas[1 + i] != 0.0).any())
             expected = _rotate(feet[i], omegas[1 + i].tolist(), dt) if turning and dt != 0.0 else feet[i]
             np.testing.assert_array_equal(rot[i], expected)
+
+
+def test_interpolate_references_equals_one_call_per_tick() -> None:
+    """The references of the ticks until the planner's next one in one call (interpolate_references, what
+    WalkingController._wbc_reference reads) against interpolate_reference at each tick, bit for bit, on random plans,
+    rotations and rates (among them zero rates and angles below 1e-12 rad), including whether the pelvis turned
+    (where interpolate_reference hands back the planner's array itself)."""
+    rng = np.random.default_rng(11)
+    period = 0.002
+    pelvis_still = pelvis_turned = 0
+    for trial in range(300):
+        n_wp = int(rng.integers(2, 8))
+        times = np.cumsum(rng.uniform(0.01, 0.2, n_wp)) - 0.1
+        wps, coms, vels = (rng.standard_normal((n_wp, 2)) for _ in range(3))
+        omega = float(rng.uniform(2.0, 5.0))
+        q, _ = np.linalg.qr(rng.standard_normal((3, 3, 3)))
+        pelvis, feet = q[0], np.ascontiguousarray(q[1:])
+        omegas = rng.standard_normal((3, 3)) * rng.choice([0.0, 1e-15, 1.0, 5.0], size=(3, 1))
+        foot_pos, foot_vel = rng.standard_normal((2, 3)), rng.standard_normal((2, 3))
+        n_upper = int(rng.integers(0, 9))
+        upper_q, upper_qd = rng.standard_normal(n_upper), rng.standard_normal(n_upper)
+        t0 = float(rng.uniform(times[0] - 0.05, times[-1] + 0.05))  # before, inside and after the waypoints
+        args = (times, wps, coms, vels, omega, foot_pos, foot_vel, feet, omegas[1:], pelvis, omegas[0], upper_q, upper_qd)
+        n = TICKS_PER_PLAN
+        coms_k, pos_k, rot_k, pelvis_k, turned_k, upper_k = out = (
+            np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
+            np.empty(n, dtype=np.bool_), np.empty((n, n_upper)))
+        interpolate_references(period, t0, *args, *out)
+        for k in range(TICKS_PER_PLAN):
+            dt = k * period  # as WalkingController.compute's dt_since
+            com, pos, rot, pelvis_rot, upper = interpolate_reference(dt, t0 + dt, *args)
+            np.testing.assert_array_equal(coms_k[k], com)
+            np.testing.assert_array_equal(pos_k[k], pos)
+            np.testing.assert_array_equal(rot_k[k], rot)
+            np.testing.assert_array_equal(pelvis_k[k], pelvis_rot)
+            np.testing.assert_array_equal(upper_k[k], upper)
+            assert bool(turned_k[k]) == (pelvis_rot is not pelvis)
+            pelvis_still += pelvis_rot is pelvis
+            pelvis_turned += pelvis_rot is not pelvis
+    assert pelvis_still > 100 and pelvis_turned > 100
+
+
+def test_wbc_reference_of_a_control_tick_equals_the_one_call_version(monkeypatch: pytest.MonkeyPatch) -> None:
+    """WalkingController._wbc_reference at each control tick's dt_since (the batch of interpolate_references) against
+    the same controller's one-call path (interpolate_reference, taken when dt_since is no control tick's) on a sweep,
+    every field bit for bit, and the pelvis' identity where it does not turn."""
+    robot = load_robot("g1")
+    style = load_style(styles_dir("g1") / "neutral.json")
+    schedule = preset("sweep", style.velocities)
+    controller = WalkingController(robot, style)
+    sim = Simulation(robot, controller)
+    dt = float(sim.model.opt.timestep)
+    compared = 0
+    for k in range(1200):
+        controller.set_command(schedule(k * dt))
+        sim.step()
+        if k % 5:
+            continue
+        ref, plan = controller.ref, controller.plan
+        assert ref is not None and plan is not None
+        for j in range(TICKS_PER_PLAN):
+            dt_since = j * 0.002
+            got = controller._wbc_reference(dt_since)
+            assert controller._reference_batch[0] is ref and controller._reference_batch[1] is plan
+            with monkeypatch.context() as patch:  # no time is a control tick's: the one-call path
+                patch.setattr(walking_controller, "_TICK_OF_DT", {})
+                want = controller._wbc_reference(dt_since)
+            for f in fields(WbcReference):
+                a, b = getattr(got, f.name), getattr(want, f.name)
+                if b is None:
+                    assert a is None, f.name
+                else:
+                    np.testing.assert_array_equal(a, b, err_msg=f"{f.name} at tick {k}, {dt_since} s after")
+            assert (got.pelvis_rotation is ref.pelvis_rot) == (want.pelvis_rotation is ref.pelvis_rot)
+            compared += 1
+    assert compared > 900 and not sim.fallen
