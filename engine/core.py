@@ -34,7 +34,8 @@ if TYPE_CHECKING:
 FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) before the reset
 MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
-GHOST_EVERY_TICKS = 16  # the kinematic ghost is solved at ~31 Hz
+# The kinematic ghost is solved when telemetry goes out (20 Hz), the only time it is shown; it was solved every
+# 16 ticks (31 Hz), 10 % of the engine's CPU on G1 for poses nobody saw (issue 12: the status line's real-time factor).
 RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
 #: Stand asked of a walking robot: it first comes to rest under the walking controller (zero command: its
 #: rate-limited command ramps down, then it steps in place) and holds its joints only once that command has
@@ -69,6 +70,7 @@ class EngineCore:
         self.puppet: PuppetSession | None = None  # in puppet mode
         self._ghost_data: mujoco.MjData | None = None
         self._ticks = 0
+        self._ghost_tick = -1  # the tick the ghost was solved at
         self.style_revision = 0
         self._pending_revision: int | None = None
         self.recorder: WalkRecorder | None = None  # while the Record button is on
@@ -334,9 +336,8 @@ class EngineCore:
         if self._pending_revision is not None and self.walker is not None and self.walker.tick % 4 == 1:
             self.style_revision, self._pending_revision = self._pending_revision, None
         recording = self.recorder is not None and self.walker is not None and self._ticks % RECORD_EVERY_TICKS == 0
-        if self.walker is not None and (self._ticks % GHOST_EVERY_TICKS == 0 or recording):
-            self._update_ghost()
         if recording:
+            self._update_ghost()
             self._record_frame()
         if self.sim.fallen:
             if self._fallen_at_s is None:
@@ -349,6 +350,7 @@ class EngineCore:
         walker, ghost = self.walker, self.ghost
         if walker is None or ghost is None or walker.ref is None or walker.plan is None:
             return
+        self._ghost_tick = self._ticks
         com = walker.plan.com_at(walker.ref.t_s)[0]
         self.ghost_q = ghost.solve(walker.ref, com)
         if self._ghost_data is None:
@@ -447,6 +449,8 @@ class EngineCore:
                 signals["arm_joint"] = np.array([ref.upper_q[j], q[idx]])
             if self.puppet is not None:
                 self._puppet_signals(signals, q)
+            if self._ghost_tick != self._ticks:
+                self._update_ghost()
             if self.ghost_q is not None and self._ghost_data is not None:
                 signals["ghost_body_pos"] = self._ghost_data.xpos[1:].copy()
                 signals["ghost_body_quat"] = self._ghost_data.xquat[1:].copy()

@@ -134,3 +134,33 @@ def test_stand_while_walking_comes_to_rest_then_holds(robot, mode, command):
     assert core.walker is None and core._stand_by_s is None
     np.testing.assert_allclose(core.sim.controller.q_joints, core.robot.q_standing[7:])
     assert not [e for e in events if isinstance(e, msg.Notice) and "fell" in e.message]
+
+
+def test_the_ghost_is_solved_when_telemetry_shows_it_at_the_current_reference():
+    """The kinematic ghost costs an IK solve: it is solved only when telemetry goes out (once per tick at most),
+    for the reference of that instant — not every few ticks for poses nobody sees (issue 12)."""
+    core, _ = core_for()
+    core.handle(msg.SetMode("test"))
+    core.handle(msg.SetVelocityCommand(0.2, 0.0, 0.0))
+    solves: list[float] = []
+    solve = core.ghost.solve
+
+    def counting(ref, com_xy, q_init=None):
+        solves.append(ref.t_s)
+        return solve(ref, com_xy, q_init)
+
+    core.ghost.solve = counting
+    for _ in range(101):
+        core.tick()
+    assert solves == []  # 101 ticks, nothing shown: nothing solved
+    tel = core.telemetry().signals
+    assert solves == [core.walker.ref.t_s]
+    core.telemetry()
+    assert len(solves) == 1  # the same tick: the same ghost
+    # the ghost drawn is the pose solved for the reference of this tick
+    expected = core.robot.mj_qpos_from_pin(core.ghost_q)
+    np.testing.assert_array_equal(core._ghost_data.qpos, expected)
+    np.testing.assert_allclose(tel["ghost_body_pos"], core._ghost_data.xpos[1:], atol=1e-6)
+    core.tick()
+    core.telemetry()
+    assert len(solves) == 2
