@@ -202,11 +202,13 @@ class BlendedGait:
 
     def __init__(self, members: Sequence[tuple[float, SampleBanks]], merged: MergedBank | None = None):
         members = [(float(w), b) for w, b in members if w > 1e-9]
-        total = sum(w for w, _ in members)
+        raw = [w for w, _ in members]
+        total = sum(raw)  # (left to right from 0, as over the members)
         if not members or total <= 0:
             raise ValueError("a blend needs at least one sample with positive weight")
-        self.members = [(w / total, b) for w, b in members]
-        self.weights = np.array([w for w, _ in self.members])
+        normed = [w / total for w in raw]
+        self.members = [(w, b) for w, (_, b) in zip(normed, members)]
+        self.weights = np.array(normed)
         self.merged = merged if merged is not None else MergedBank([b for _, b in self.members])
         m = self.merged
         t_ltd, t_rlo, t_rtd, cycle = (self.weights @ m.events).tolist()

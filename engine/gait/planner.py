@@ -47,7 +47,7 @@ from engine.gait.planner_kernels import (
     reference_frames,
 )
 from engine.gait.swing import nominal_swing
-from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weights
+from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weight_list
 
 PLANNER_RATE_HZ = 125.0
 PREVIEW_S = 2.0
@@ -64,7 +64,7 @@ TARGET_SETTLE_FRACTION = 0.4
 TRANSITION_SMOOTHING_S = 0.01
 
 
-@dataclass
+@dataclass(slots=True)
 class ContactPhase:
     """A support interval of the preview: which feet are down where, and the support polygon."""
 
@@ -139,6 +139,7 @@ def _remaining_ease_delay(hold_s: float) -> float:
 
 
 _NO_FEEDBACK = PlannerFeedback()
+_ROLL_SMOOTHING_SQ = ROLL_SMOOTHING ** 2  # (reference_frames' parameter: Python's ** 2, once)
 (_LEFT_LIFTOFF, _LEFT_TOUCHDOWN), (_RIGHT_LIFTOFF, _RIGHT_TOUCHDOWN) = SWING_PHASES["left"], SWING_PHASES["right"]
 _NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
@@ -184,6 +185,7 @@ class GaitPlanner:
         self.command = np.zeros(3)
         self.command_clamped = False
         self.weights = np.zeros(len(SAMPLE_NAMES))
+        self._weight_list: list[float] = self.weights.tolist()  # self.weights as floats (compared each tick)
         self.latched: dict[str, Foothold] = {}
         self.swing_start: dict[str, Foothold] = {}
         self.target: dict[str, Foothold] = {}
@@ -204,7 +206,8 @@ class GaitPlanner:
         self.t_s = 0.0
         self.phi = START_PHASE
         self.command = np.zeros(3)
-        self.weights = sample_weights((0.0, 0.0, 0.0), self.style.velocities, self.style.blend_eta)
+        self._weight_list = sample_weight_list((0.0, 0.0, 0.0), self.style.velocities, self.style.blend_eta)
+        self.weights = np.array(self._weight_list)
         self.blend = self._blend()
         self._blend_stale = True
         a = self.blend.attributes
@@ -229,7 +232,7 @@ class GaitPlanner:
 
     # ------------------------------------------------------------------ helpers
     def _blend(self) -> BlendedGait:
-        weights = self.weights.tolist()
+        weights = self._weight_list
         members = [(w, self.banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
         if self._fade_from is not None:
             f = smoothstep(self._fade_elapsed_s / STYLE_FADE_S)
@@ -239,16 +242,29 @@ class GaitPlanner:
 
     def clamp_command(self, v: np.ndarray) -> np.ndarray:
         """The command limited to the style's sample velocities (``command_clamped`` tells)."""
-        vel = self.style.velocities
-        out, clamped = [], False
-        for value, lim in zip((float(v[0]), float(v[1]), float(v[2])), (vel.x_max_mps, vel.y_max_mps, vel.yaw_max_radps)):
-            if not math.isfinite(value):
-                value, clamped = 0.0, True
-            c = lim if value > lim else (-lim if value < -lim else value)
-            clamped |= c != value
-            out.append(c)
-        self.command_clamped = clamped
+        out, self.command_clamped = self._clamped(v)
         return np.array(out)
+
+    def _clamped(self, v: np.ndarray) -> tuple[list[float], bool]:
+        """:meth:`clamp_command`'s floats (x, y, yaw) and whether any was clamped, per axis unrolled."""
+        vel = self.style.velocities
+        clamped = False
+        value, lim = float(v[0]), vel.x_max_mps
+        if not math.isfinite(value):
+            value, clamped = 0.0, True
+        x = lim if value > lim else (-lim if value < -lim else value)
+        clamped |= x != value
+        value, lim = float(v[1]), vel.y_max_mps
+        if not math.isfinite(value):
+            value, clamped = 0.0, True
+        y = lim if value > lim else (-lim if value < -lim else value)
+        clamped |= y != value
+        value, lim = float(v[2]), vel.yaw_max_radps
+        if not math.isfinite(value):
+            value, clamped = 0.0, True
+        yaw = lim if value > lim else (-lim if value < -lim else value)
+        clamped |= yaw != value
+        return [x, y, yaw], clamped
 
     def stance(self, side: str, blend: BlendedGait | None = None) -> np.ndarray:
         b = blend or self.blend
@@ -279,15 +295,18 @@ class GaitPlanner:
         fb = feedback or _NO_FEEDBACK
         kappa, step_adjustment_xy = fb.time_scaling, fb.step_adjustment_xy_m
         self.command_goal, self.command_rate_limits = fb.command_goal, fb.command_rate_limits
-        self.command = self.clamp_command(command)
-        weights = sample_weights(self.command, self.style.velocities, self.style.blend_eta)
+        clamped, self.command_clamped = self._clamped(command)
+        self.command = np.array(clamped)
+        style = self.style
+        weights = sample_weight_list(clamped, style.velocities, style.blend_eta)  # (the command's floats)
         fading = self._fade_from is not None
         if fading:
             self._fade_elapsed_s += dt_s
             if self._fade_elapsed_s >= STYLE_FADE_S:
                 self._fade_from = None
-        if fading or self._blend_stale or not bool((weights == self.weights).all()):  # np.array_equal of (9,) arrays
-            self.weights = weights
+        if fading or self._blend_stale or weights != self._weight_list:  # (9 floats: np.array_equal's test)
+            self._weight_list = weights
+            self.weights = np.array(weights)
             self.blend = self._blend()
             self._blend_stale = False
         blend = self.blend
@@ -307,9 +326,11 @@ class GaitPlanner:
         self._path_table = self._path_rows = None
         self._handle_events(phi_old, self.phi)
         adjust = _NO_ADJUST if step_adjustment_xy is None else np.asarray(step_adjustment_xy, dtype=float)
-        for side in SIDES:
-            if self.in_swing(side, self.phi):
-                self._track_target(side, self._upcoming_foothold(side, adjust))
+        f = self.phi - math.floor(self.phi)  # in_swing of both feet
+        if _LEFT_LIFTOFF <= f < _LEFT_TOUCHDOWN:
+            self._track_target("left", self._upcoming_foothold("left", adjust))
+        if _RIGHT_LIFTOFF <= f < _RIGHT_TOUCHDOWN:
+            self._track_target("right", self._upcoming_foothold("right", adjust))
         ref = self.evaluate(self.phi)
         if with_preview:
             ref.preview = self.preview(kappa)
@@ -382,7 +403,8 @@ class GaitPlanner:
         clamped = self.command_clamped  # clamping the goal must not change what the command reports
         goal = self.clamp_command(command_goal)
         self.command_clamped = clamped
-        poses, vels = path_table(float(self.path.x), float(self.path.y), float(self.path.yaw),
+        path = self.path
+        poses, vels = path_table(float(path.x), float(path.y), float(path.yaw),
                                  np.asarray(self.command, dtype=float), goal,
                                  np.asarray(command_rate_limits, dtype=float), PATH_TABLE_STEP_S, _PATH_TABLE_SIZE)
         return _PATH_TABLE_TIMES, poses, vels
@@ -473,7 +495,7 @@ class GaitPlanner:
         right, right_progress = self._foot_params("right", phi, t, blend, right_vals, swinging[1])
         pelvis_yaw, pelvis_pitch, pelvis_roll = cycle_vals[1:4].tolist()
         params = np.array([float(self.path.yaw), pelvis_yaw, pelvis_pitch, pelvis_roll, self.sole_length_m,
-                           self.sole_width_m, ROLL_SMOOTHING, ROLL_SMOOTHING ** 2, *left, *right])
+                           self.sole_width_m, ROLL_SMOOTHING, _ROLL_SMOOTHING_SQ, *left, *right])
         prev = self._last_pose
         dt = self.t_s - prev["t"] if prev is not None else 0.0
         rots, foot_pos, corners, ang, lin = reference_frames(
@@ -554,8 +576,11 @@ class GaitPlanner:
         edge's strip. Compiled (:func:`engine.gait.planner_kernels.preview_intervals`)."""
         blend = self.blend
         phi = self.phi
-        swinging = [self.in_swing(s, phi) for s in SIDES]
-        start = [self.target[s] if swing else self.latched[s] for s, swing in zip(SIDES, swinging)]
+        f = phi - math.floor(phi)  # in_swing of both feet
+        swing_left, swing_right = _LEFT_LIFTOFF <= f < _LEFT_TOUCHDOWN, _RIGHT_LIFTOFF <= f < _RIGHT_TOUCHDOWN
+        left = self.target["left"] if swing_left else self.latched["left"]
+        right = self.target["right"] if swing_right else self.latched["right"]
+        landed = self.landed
         stances, touchdown_edges, liftoff_edges, events = self._blend_constants()
         if self.command_goal is None or self.command_rate_limits is None:  # the command holds: one piece
             path = self.path
@@ -568,19 +593,22 @@ class GaitPlanner:
             self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
         times, rows, holds, polygons = preview_intervals(
             float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
-            events, np.array([[h.x, h.y, h.yaw] for h in start], dtype=float), np.array(swinging),
-            self._edges_now(), np.array([self.landed[s] for s in SIDES]), touchdown_edges, liftoff_edges, stances,
+            events, np.array([[left.x, left.y, left.yaw], [right.x, right.y, right.yaw]], dtype=float),
+            np.array([swing_left, swing_right]), self._edges_now(), np.array([landed["left"], landed["right"]]),
+            touchdown_edges, liftoff_edges, stances,
             *table, PATH_TABLE_STEP_S, self._region_array[1],
             self.sole_length_m - 2.0 * self.preview_margin_m, self.sole_width_m - 2.0 * self.preview_margin_m,
             self.preview_toe_trim_m, EDGE_SUPPORT_DEPTH_M, 2.0)
-        footholds = start + [Foothold(*row) for row in holds[2:].tolist()]
+        footholds = [left, right] + [Foothold(x, y, yaw) for x, y, yaw in holds[2:].tolist()]
         polygons.flags.writeable = False  # the phases' polygons are views of it
         t_s = self.t_s
-        phases = []
-        for i, ((t0, t1), (left, right, i_left, i_right, m)) in enumerate(zip(times.tolist(), rows.tolist())):
-            on = {"left": footholds[i_left], "right": footholds[i_right]} if left and right else (
-                {"left": footholds[i_left]} if left else {"right": footholds[i_right]})
-            phases.append(ContactPhase(t_s + t0, t_s + t1, on, polygons[i, :m]))
+        phases: list[ContactPhase] = []
+        append = phases.append
+        for (t0, t1), (down_left, down_right, i_left, i_right, m), polygon in zip(times.tolist(), rows.tolist(),
+                                                                                   polygons):
+            on = {"left": footholds[i_left], "right": footholds[i_right]} if down_left and down_right else (
+                {"left": footholds[i_left]} if down_left else {"right": footholds[i_right]})
+            append(ContactPhase(t_s + t0, t_s + t1, on, polygon[:m]))
         return phases
 
     def _edges_now(self) -> np.ndarray:

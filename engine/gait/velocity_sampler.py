@@ -43,6 +43,7 @@ __all__ = [
     "SampleBlend",
     "f_soft",
     "sample_weights",
+    "sample_weight_list",
     "sample_blend",
 ]
 
@@ -114,6 +115,12 @@ def f_soft(a: float | np.ndarray) -> float | np.ndarray:
     x = np.clip(np.asarray(a, dtype=float), 0.0, 1.0)
     out = x * x * (3.0 - 2.0 * x)
     return out if out.ndim else float(out)
+
+
+def _f_soft_float(a: float) -> float:
+    """:func:`f_soft` of a float (its float branch, without the type test)."""
+    a = 0.0 if a <= 0.0 else 1.0 if a >= 1.0 else a
+    return a * a * (3.0 - 2.0 * a)
 
 
 @dataclass(frozen=True)
@@ -280,7 +287,7 @@ def _blend_terms(v: Any, vel: SampleVelocities, eta: float) -> tuple:
         i_fr, xa, xb = 2, 0.0, xs
     else:
         i_fr, xa, xb = 3, xs, xm
-    alpha_x = f_soft((x - xa) / (xb - xa))
+    alpha_x = _f_soft_float((x - xa) / (xb - xa))
 
     # Step 2 (Eq. 9): polar angle in the normalised (yaw, y) plane.  The angle
     # within the quadrant is measured from the quadrant's start axis so that
@@ -301,11 +308,11 @@ def _blend_terms(v: Any, vel: SampleVelocities, eta: float) -> tuple:
     else:
         q, local = 3, math.atan2(yaw_n, -y_n)
     local = 0.0 if local < 0.0 else _HALF_PI if local > _HALF_PI else local
-    alpha_beta = f_soft(local / _HALF_PI)
+    alpha_beta = _f_soft_float(local / _HALF_PI)
 
     # Step 3 (Eq. 10).
     x_n = x / xm
-    alpha_ts = f_soft(rho_n * (1.0 - eta * f_soft(abs(x_n))))
+    alpha_ts = _f_soft_float(rho_n * (1.0 - eta * _f_soft_float(abs(x_n))))
     return i_fr, alpha_x, q, alpha_beta, alpha_ts, x_n, y_n, yaw_n, local, rho_n
 
 
@@ -328,6 +335,13 @@ def sample_weights(
     np.ndarray
         ``(9,)`` weights in :data:`SAMPLE_NAMES` order, ≥ 0, summing to 1.
     """
+    return np.array(sample_weight_list(v, velocities, eta))
+
+
+def sample_weight_list(
+    v: tuple[float, float, float] | list[float] | np.ndarray, velocities: SampleVelocities, eta: float = 0.5
+) -> list[float]:
+    """:func:`sample_weights` as a list of floats (the planner compares them with its last ones)."""
     eta = _check_eta(eta)
     i_fr, ax, q, ab, ats, *_ = _blend_terms(v, velocities, eta)
     w = [0.0] * 9
@@ -337,7 +351,7 @@ def sample_weights(
     if ats > 0.0:
         w[_TS_IDX[q]] += ats * (1.0 - ab)
         w[_TS_IDX[(q + 1) % 4]] += ats * ab
-    return np.array(w)
+    return w
 
 
 def sample_blend(
