@@ -112,6 +112,8 @@ class WalkingController:
         self.model = robot.pin_model
         self.data = self.model.createData()
         self._vcom_view = self.data.vcom[0]  # (3,) a view of data's memory, updated in place by centerOfMass
+        # the whole-body controller's dynamics pass, shared with this tick's CoM (TaskSpaceInverseDynamics.snapshot)
+        self._wbc_snapshot = getattr(self.wbc, "snapshot", None)
         data = self.model.createData()
         self.com_offset_m = float(pin.centerOfMass(self.model, data, robot.q_standing)[2] - robot.q_standing[2])
         self.command = np.zeros(3)
@@ -204,9 +206,14 @@ class WalkingController:
         else:
             est = state
         self.estimate = est
-        # centerOfMass returns a copy of data.com[0]; data.vcom[0] is read through a view of data's memory taken once
-        # (each read of data.com/vcom crosses into pinocchio).
-        self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self._vcom_view.copy())
+        # The CoM and its velocity of this state: from the whole-body controller's dynamics pass of this tick when it
+        # has one (CCRBA's CoM and momentum; its compute() below reuses the pass), else pinocchio's centerOfMass
+        # (a copy of data.com[0]; data.vcom[0] read through a view of data's memory taken once).
+        snapshot = self._wbc_snapshot(est.q, est.v) if self._wbc_snapshot is not None else None
+        if snapshot is not None:
+            self._com_now = (snapshot.com_m.copy(), snapshot.momentum[:3] / snapshot.mass_kg)
+        else:
+            self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self._vcom_view.copy())
         # Around a landing the ground force is an impact the QP did not plan: the observer holds
         # (planned landings, and a swing foot already on the ground early).
         early = self.ref is not None and self._early_touchdown_now(self.wbc_contact, self.ref.contact)

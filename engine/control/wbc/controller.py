@@ -107,6 +107,7 @@ class TaskSpaceInverseDynamics:
         self.mass_kg = robot.mass_kg
         self.foot_frame_ids = [self.model.getFrameId(f"{s}_foot") for s in SIDES]
         self._snapshot = SnapshotReader(self.model, self.data, self.foot_frame_ids)  # the compiled tick's
+        self._prepared: tuple[FloatArray, FloatArray, DynamicsSnapshot] | None = None  # see snapshot()
         # Corner offsets in the foot frame (sole centre, sole plane): (2, 4, 3).
         self.corner_offsets_m = np.array([[np.subtract(c, robot.config.soles[s].center)
                                            for c in robot.config.soles[s].corners()] for s in SIDES])
@@ -205,8 +206,26 @@ class TaskSpaceInverseDynamics:
         self.qd_des = np.array(state.v[6:], dtype=float)
         self.last_tau = np.zeros(self.n_joints)
 
+    def snapshot(self, q: FloatArray, v: FloatArray) -> DynamicsSnapshot | None:
+        """The dynamics pass of the tick about to be computed for ``(q, v)``, computed now: a caller that needs this
+        state's CoM or momentum (the walking controller) reads it here, and the next :meth:`compute` with the same
+        ``q`` and ``v`` arrays (unchanged in between) reuses it instead of a second pass. Its arrays are views of
+        this controller's buffers, valid until that tick. None where the compiled tick does not run (numpy kernels,
+        a model with mimic joints) or the state is not a finite ``(q, v)`` (the tick then falls back as before)."""
+        self._prepared = None
+        if self.kernels != "numba" or not self._snapshot.exact:
+            return None
+        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or q.dtype != np.float64 or v.dtype != np.float64:
+            return None
+        if not math.isfinite(self._state_sum(q, v)):
+            return None
+        snap = self._snapshot.compute(q, v)
+        self._prepared = (q, v, snap)
+        return snap
+
     def hold_reference(self, q: FloatArray) -> WbcReference:
         """A standing reference that holds configuration ``q``: both feet flat and in contact."""
+        self._prepared = None  # (the pass below overwrites the buffers a prepared snapshot views)
         snap = DynamicsSnapshot.compute(self.model, self.data, q, np.zeros(self.nv), self.foot_frame_ids)
         return WbcReference(
             com_xy_m=snap.com_m[:2].copy(), com_xy_vel_mps=np.zeros(2), com_xy_acc_mps2=np.zeros(2),
@@ -325,7 +344,11 @@ class TaskSpaceInverseDynamics:
         set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers. With the
         default solver and no task priority, build, solve and finish are one call (:meth:`_compute_one_call`)."""
         contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
-        snap = self._snapshot.compute(q, v)
+        prepared, self._prepared = self._prepared, None
+        if prepared is not None and prepared[0] is q and prepared[1] is v:
+            snap = prepared[2]  # computed by snapshot() for this state (the same pass)
+        else:
+            snap = self._snapshot.compute(q, v)
         t1 = time.perf_counter()
         if self.one_call and self.priority is None and self.qp_backend == "active_set":
             return self._compute_one_call(state, snap, ref, contact, t0, t1)
