@@ -212,9 +212,11 @@ def main() -> None:
                                   for k in ("z_ref_mm", "z_err_mm", "corner_ref_mm", "corner_mm", "pelvis_err_mm", "knee_margin_rad",
                                             "task_minus_qp_60ms", "qp_minus_sim_60ms", "a_ff_60ms",
                                             "z_err_60ms_ago_mm")}
-        report["strike_extremes"] = {"corner_ref_mm_max": max(d["corner_ref_mm"] for d in detail),
-                                     "z_err_mm_min": min(d["z_err_mm"] for d in detail),
-                                     "load_bw_max": max(d["load_bw"] for d in detail)}
+        def values(key: str) -> list[float]:
+            return [float(d[key]) for d in detail]  # type: ignore[arg-type]
+
+        report["strike_extremes"] = {"corner_ref_mm_max": max(values("corner_ref_mm")),
+                                     "z_err_mm_min": min(values("z_err_mm")), "load_bw_max": max(values("load_bw"))}
     print(json.dumps(report))
 
 
