@@ -566,11 +566,11 @@ class WalkingController:
         ref = self.ref
         if ref is not None and contact is self._ref_contact and self._contact_ref is ref \
                 and reference.foot_lin_vel_mps is ref.foot_lin_vel:  # _wbc_reference's: the per-reference tables
-            landing = [i for i in self._ref_landing_candidates if reference.foot_pos_m[i, 2] < height]
+            landing = [i for i in self._ref_landing_candidates if self._planned_low(reference, i, height)]
         else:
             flags = contact.tolist()
             landing = [i for i in range(2) if not any(flags[i])
-                       and reference.foot_pos_m[i, 2] < height and reference.foot_lin_vel_mps[i, 2] <= 0.0]
+                       and self._planned_low(reference, i, height) and reference.foot_lin_vel_mps[i, 2] <= 0.0]
         if not landing:
             return contact
         pin.framesForwardKinematics(self.model, self.data, est.q)
@@ -580,6 +580,14 @@ class WalkingController:
             heights = m.translation[2] + (m.rotation @ self._corner_offsets[i].T)[2]
             contact[i] = heights < self.params.touchdown_height_m
         return contact
+
+    def _planned_low(self, reference: WbcReference, i: int, height: float) -> bool:
+        """Foot ``i``'s planned sole centre below ``height``, or its lowest planned corner below ``landing_corner_height_m``."""
+        z = float(reference.foot_pos_m[i, 2])
+        if z < height:
+            return True
+        corner = self.params.landing_corner_height_m
+        return corner > 0.0 and z + float((reference.foot_rotation[i][2] @ self._corner_offsets[i].T).min()) < corner
 
     def _wbc_reference(self, dt_since: float) -> WbcReference:
         ref = self.ref

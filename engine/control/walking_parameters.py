@@ -79,6 +79,9 @@ class WalkingParameters:
     # A descending swing foot this low may touch down early, and its corners this close to the floor carry load.
     landing_height_m: float = 0.01
     touchdown_height_m: float = 0.001
+    # ... and so may one whose planned sole's lowest corner is below this (0: off): a foot planned heel- or toe-down
+    # reaches the floor with its centre still 10-20 mm up (issue 13, README "Early touchdowns").
+    landing_corner_height_m: float = 0.0
     # Vertical load (× m g) a single-support ankle must hold the CoP under (the MPC's toe trim).
     ankle_load_factor: float = 1.15
     # Per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0).

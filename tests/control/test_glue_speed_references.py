@@ -292,8 +292,12 @@ def with_early_touchdown_reference(controller, est, reference):  # noqa: ANN001,
 
     contact = reference.contact
     flags = contact.tolist()
-    landing = [i for i in range(2) if not any(flags[i]) and reference.foot_pos_m[i, 2] < controller.params.landing_height_m
-               and reference.foot_lin_vel_mps[i, 2] <= 0.0]
+    params = controller.params
+    corner = [reference.foot_pos_m[i, 2] + (reference.foot_rotation[i] @ controller._corner_offsets[i].T)[2].min()
+              for i in range(2)]  # the planned sole's lowest corner
+    low = [reference.foot_pos_m[i, 2] < params.landing_height_m
+           or (params.landing_corner_height_m > 0.0 and corner[i] < params.landing_corner_height_m) for i in range(2)]
+    landing = [i for i in range(2) if not any(flags[i]) and low[i] and reference.foot_lin_vel_mps[i, 2] <= 0.0]
     if not landing:
         return contact
     pin.framesForwardKinematics(controller.model, controller.data, est.q)
