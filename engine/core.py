@@ -35,7 +35,7 @@ FALL_RESET_DELAY_S = 1.5  # a fallen robot lies this long (so the user sees it) 
 MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms from LWL2 (humanoid_arm)
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 # The kinematic ghost is solved when telemetry goes out (20 Hz), the only time it is shown; it was solved every
-# 16 ticks (31 Hz), 10 % of the engine's CPU on G1 for poses nobody saw (issue 12: the status line's real-time factor).
+# 16 ticks (31 Hz): ≈ 10 % of the engine's CPU on G1, ≈ 6 % now (issue 12: the status line's real-time factor).
 RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
 #: Stand asked of a walking robot: it first comes to rest under the walking controller (zero command: its
 #: rate-limited command ramps down, then it steps in place) and holds its joints only once that command has

@@ -208,7 +208,8 @@ class WalkingController:
         self.estimate = est
         # The CoM and its velocity of this state: from the whole-body controller's dynamics pass of this tick when it
         # has one (CCRBA's CoM and momentum; its compute() below reuses the pass), else pinocchio's centerOfMass
-        # (a copy of data.com[0]; data.vcom[0] read through a view of data's memory taken once).
+        # (a copy of data.com[0]; data.vcom[0] read through a view of data's memory taken once). The pass's time
+        # counts in timings.estimator, and the whole-body controller's pinocchio_s reads ≈ 0 when it is reused.
         snapshot = self._wbc_snapshot(est.q, est.v) if self._wbc_snapshot is not None else None
         if snapshot is not None:
             self._com_now = (snapshot.com_m.copy(), snapshot.momentum[:3] / snapshot.mass_kg)

@@ -80,7 +80,7 @@ class WalkingParameters:
     landing_height_m: float = 0.01
     touchdown_height_m: float = 0.001
     # ... and so may one whose planned sole's lowest corner is below this (0: off): a foot planned heel- or toe-down
-    # reaches the floor with its centre still 10-20 mm up (issue 13, README "Early touchdowns").
+    # reaches the floor with its centre still 10-20 mm up (issue 13, README "Why the swing foot meets the floor early").
     landing_corner_height_m: float = 0.0
     # Vertical load (× m g) a single-support ankle must hold the CoP under (the MPC's toe trim).
     ankle_load_factor: float = 1.15

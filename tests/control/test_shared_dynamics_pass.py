@@ -54,22 +54,43 @@ def test_one_dynamics_pass_per_tick_and_the_com_matches_center_of_mass(monkeypat
     assert controller.wbc.diagnostics.status == "solved"
 
 
-def test_a_changed_state_is_not_served_the_prepared_pass() -> None:
-    """snapshot() prepares the pass for those (q, v) arrays; compute() with other arrays computes its own."""
+def test_a_changed_state_is_not_served_the_prepared_pass(monkeypatch) -> None:
+    """snapshot() prepares the pass for those (q, v) arrays; compute() with other arrays, or with the same arrays
+    changed in place, computes its own pass; with the same unchanged arrays it reuses the prepared one."""
+    from engine.control.controller import RobotState
+
     robot = load_robot("g1")
     style = load_style(styles_dir("g1") / "neutral.json")
     controller = WalkingController(robot, style)
     wbc = controller.wbc
     q = robot.q_standing.copy()
     v = np.zeros(robot.pin_model.nv)
+    ref = wbc.hold_reference(q)
+    wbc.reset(RobotState(0.0, q, v))
+    passes: list[float] = []
+    compute = SnapshotReader.compute
+
+    def counting(self, q_, v_):
+        passes.append(float(q_[0]))
+        return compute(self, q_, v_)
+
+    monkeypatch.setattr(SnapshotReader, "compute", counting)
     snap = wbc.snapshot(q, v)
-    assert snap is not None
+    assert snap is not None and len(passes) == 1
     com_standing = snap.com_m.copy()
+    wbc.compute(RobotState(0.0, q, v), ref)  # the same arrays, unchanged: the prepared pass
+    assert len(passes) == 1 and wbc.diagnostics.status == "solved"
     q2 = q.copy()
     q2[0] += 0.1
-    assert wbc._prepared is not None and wbc._prepared[0] is q
-    snap2 = wbc.snapshot(q2, v)  # a new state replaces the prepared one
-    assert snap2 is not None and wbc._prepared[0] is q2
+    wbc.snapshot(q, v)
+    wbc.compute(RobotState(0.0, q2, v), ref)  # other arrays: a pass of their own
+    assert passes[1:] == [q[0], q2[0]]
+    wbc.snapshot(q, v)
+    x_prepared = float(q[0])
+    q[0] += 0.1  # the prepared arrays changed in place before compute: not the prepared pass
+    wbc.compute(RobotState(0.0, q, v), ref)
+    assert passes[3:] == [x_prepared, float(q[0])]
+    snap2 = wbc.snapshot(q2, v)
     np.testing.assert_allclose(snap2.com_m[0] - com_standing[0], 0.1, atol=1e-12)
     bad = q.copy()
     bad[3] = np.nan

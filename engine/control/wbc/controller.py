@@ -107,7 +107,9 @@ class TaskSpaceInverseDynamics:
         self.mass_kg = robot.mass_kg
         self.foot_frame_ids = [self.model.getFrameId(f"{s}_foot") for s in SIDES]
         self._snapshot = SnapshotReader(self.model, self.data, self.foot_frame_ids)  # the compiled tick's
-        self._prepared: tuple[FloatArray, FloatArray, DynamicsSnapshot] | None = None  # see snapshot()
+        # see snapshot(): (q, v, q.sum() + v.sum() when prepared, the pass)
+        self._prepared: tuple[FloatArray, FloatArray, float, DynamicsSnapshot] | None = None
+        self._state_total = math.nan  # _compute's q.sum() + v.sum() of the tick being computed
         # Corner offsets in the foot frame (sole centre, sole plane): (2, 4, 3).
         self.corner_offsets_m = np.array([[np.subtract(c, robot.config.soles[s].center)
                                            for c in robot.config.soles[s].corners()] for s in SIDES])
@@ -217,10 +219,14 @@ class TaskSpaceInverseDynamics:
             return None
         if q.shape != (self.model.nq,) or v.shape != (self.nv,) or q.dtype != np.float64 or v.dtype != np.float64:
             return None
-        if not math.isfinite(self._state_sum(q, v)):
+        total = self._state_sum(q, v)
+        if not math.isfinite(total):
             return None
-        snap = self._snapshot.compute(q, v)
-        self._prepared = (q, v, snap)
+        try:  # (compute() never raises: a failed pass here leaves the tick to compute its own, and fall back there)
+            snap = self._snapshot.compute(q, v)
+        except Exception:  # noqa: BLE001
+            return None
+        self._prepared = (q, v, total, snap)
         return snap
 
     def hold_reference(self, q: FloatArray) -> WbcReference:
@@ -256,7 +262,8 @@ class TaskSpaceInverseDynamics:
     def _compute(self, state: RobotState, ref: WbcReference, t0: float) -> JointCommand:
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or not math.isfinite(self._state_sum(q, v)):
+        self._state_total = self._state_sum(q, v) if q.shape == (self.model.nq,) and v.shape == (self.nv,) else math.nan
+        if not math.isfinite(self._state_total):
             return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
         if self.q_des is None:
             self.reset(state)
@@ -345,8 +352,8 @@ class TaskSpaceInverseDynamics:
         default solver and no task priority, build, solve and finish are one call (:meth:`_compute_one_call`)."""
         contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
         prepared, self._prepared = self._prepared, None
-        if prepared is not None and prepared[0] is q and prepared[1] is v:
-            snap = prepared[2]  # computed by snapshot() for this state (the same pass)
+        if prepared is not None and prepared[0] is q and prepared[1] is v and prepared[2] == self._state_total:
+            snap = prepared[3]  # computed by snapshot() for this state (the same arrays, unchanged: the same pass)
         else:
             snap = self._snapshot.compute(q, v)
         t1 = time.perf_counter()
