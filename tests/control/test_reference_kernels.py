@@ -12,7 +12,7 @@ from engine.control import walking_controller
 from engine.control.reference_kernels import interpolate_reference, interpolate_references
 from engine.control.walking_controller import TICKS_PER_PLAN, WalkingController
 from engine.control.wbc import WbcReference
-from engine.gait.command_schedule import preset
+from engine.gait.command_schedule import CommandSchedule, preset
 from engine.gait.style import load_style, styles_dir
 from engine.robot.model import load_robot
 from engine.sim import Simulation
@@ -44,13 +44,17 @@ def wbc_reference_before(controller: WalkingController, dt_since: float) -> WbcR
     )
 
 
-def test_wbc_reference_matches_the_python_it_replaced() -> None:
+def _neutral_sweep() -> tuple[WalkingController, Simulation, CommandSchedule, float]:
+    """G1's neutral style in closed loop, with the sweep's command schedule and the simulation's time step."""
     robot = load_robot("g1")
     style = load_style(styles_dir("g1") / "neutral.json")
-    schedule = preset("sweep", style.velocities)
     controller = WalkingController(robot, style)
     sim = Simulation(robot, controller)
-    dt = float(sim.model.opt.timestep)
+    return controller, sim, preset("sweep", style.velocities), float(sim.model.opt.timestep)
+
+
+def test_wbc_reference_matches_the_python_it_replaced() -> None:
+    controller, sim, schedule, dt = _neutral_sweep()
     feet_turned = compared = 0
     for k in range(1500):  # 3 s of the sweep: standing, walking, turning
         controller.set_command(schedule(k * dt))
@@ -142,12 +146,7 @@ def test_wbc_reference_of_a_control_tick_equals_the_one_call_version(monkeypatch
     """WalkingController._wbc_reference at each control tick's dt_since (the batch of interpolate_references) against
     the same controller's one-call path (interpolate_reference, taken when dt_since is no control tick's) on a sweep,
     every field bit for bit, and the pelvis' identity where it does not turn."""
-    robot = load_robot("g1")
-    style = load_style(styles_dir("g1") / "neutral.json")
-    schedule = preset("sweep", style.velocities)
-    controller = WalkingController(robot, style)
-    sim = Simulation(robot, controller)
-    dt = float(sim.model.opt.timestep)
+    controller, sim, schedule, dt = _neutral_sweep()
     compared = 0
     for k in range(1200):
         controller.set_command(schedule(k * dt))
