@@ -180,8 +180,6 @@ class WalkingController:
         # Of the planner's reference (kept until its next tick, see _reference_tables): the feet with no corner in
         # contact whose planned vertical velocity is not upward (the only ones _with_early_touchdown looks at).
         self._ref_landing_candidates: list[int] = []
-        # The CoM MPC plan _wbc_reference reads, its waypoint arrays and ω (kept until the next plan)
-        self._plan_arrays: tuple = (None,)
         # The references of the control ticks until the planner's next one (_interpolate_ticks), per (ref, plan)
         self._reference_batch: tuple = (None, None)
         self._early_key: tuple[np.ndarray | None, np.ndarray | None, bool] = (None, None, False)
@@ -605,16 +603,13 @@ class WalkingController:
             com = coms[k]
             pelvis_rot = pelvis_rots[k] if turned[k] else ref.pelvis_rot
             foot_pos, foot_rot, upper_q = feet_pos[k], feet_rot[k], uppers[k]
-        else:  # another time (not a control tick's): one compiled call
-            if self._plan_arrays[0] is not plan:  # the plan's waypoint arrays and ω, once per plan
-                self._plan_arrays = (plan, plan.waypoint_times_s, plan.waypoints_xy_m, plan.waypoint_com_xy_m,
-                                     plan.waypoint_com_vel_xy_mps, float(plan.omega_rps))
-            _, times, wps, com_wps, vels, omega = self._plan_arrays
+        else:  # another time (not a control tick's; compute() never asks one): one compiled call
             # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
-            # their angular velocities (Rodrigues), the upper body along its rates: one compiled call, the same numbers.
+            # their angular velocities (Rodrigues), the upper body along its rates: the same numbers as the batch.
             com, foot_pos, foot_rot, pelvis_rot, upper_q = interpolate_reference(
-                dt_since, ref.t_s + dt_since, times, wps, com_wps, vels, omega, ref.foot_pos, ref.foot_lin_vel,
-                ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd)
+                dt_since, ref.t_s + dt_since, plan.waypoint_times_s, plan.waypoints_xy_m, plan.waypoint_com_xy_m,
+                plan.waypoint_com_vel_xy_mps, float(plan.omega_rps), ref.foot_pos, ref.foot_lin_vel, ref.foot_rot,
+                ref.foot_ang_vel, ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd)
         # (positional: WbcReference's field order, com_xy_m … foot_ang_acc_radps2, external_wrench None as by default)
         return WbcReference(
             com[0], com[1], com[2], ref.pelvis_z + ref.pelvis_z_rate * dt_since, ref.pelvis_z_rate, pelvis_rot,
