@@ -110,15 +110,14 @@ def soft_unit_clip(r: float) -> float:
 def f_soft(a: float | np.ndarray) -> float | np.ndarray:
     """Smoothstep ``-2a³ + 3a²`` on [0, 1] (input clipped), zero slope at both ends."""
     if isinstance(a, (float, int)):
-        a = 0.0 if a <= 0.0 else 1.0 if a >= 1.0 else float(a)
-        return a * a * (3.0 - 2.0 * a)
+        return _f_soft_float(float(a))
     x = np.clip(np.asarray(a, dtype=float), 0.0, 1.0)
     out = x * x * (3.0 - 2.0 * x)
     return out if out.ndim else float(out)
 
 
 def _f_soft_float(a: float) -> float:
-    """:func:`f_soft` of a float (its float branch, without the type test)."""
+    """:func:`f_soft` of a float (its float branch; the sampler's weights call it without the type test)."""
     a = 0.0 if a <= 0.0 else 1.0 if a >= 1.0 else a
     return a * a * (3.0 - 2.0 * a)
 
