@@ -164,3 +164,36 @@ def test_the_ghost_is_solved_when_telemetry_shows_it_at_the_current_reference():
     core.tick()
     core.telemetry()
     assert len(solves) == 2
+
+
+def test_the_drawn_ghost_meets_the_reference_to_a_tenth_of_a_millimetre():
+    """The ghost stops its Gauss-Newton at ``GHOST_TOLERANCE`` (drawn, not measured): over a second of walking its
+    soles and pelvis height still sit on the reference within 0.3 mm, and its joints within 2 mrad of a solve to
+    KinematicPreview's own 1e-7."""
+    import pinocchio as pin
+
+    from engine.core import GHOST_TOLERANCE
+    from engine.gait.kinematic_preview import KinematicPreview
+
+    core, _ = core_for()
+    core.handle(msg.SetMode("test"))
+    core.handle(msg.SetVelocityCommand(0.3, 0.0, 0.0))
+    assert core.ghost.tolerance == GHOST_TOLERANCE > 1e-7
+    tight = KinematicPreview(core.robot, core.ctx.upper_joints)
+    model = core.robot.pin_model
+    data = model.createData()
+    solved = 0
+    for k in range(600):
+        core.tick()
+        if k % 25 == 24:
+            core.telemetry()
+            ref = core.walker.ref
+            q = core.ghost_q
+            pin.framesForwardKinematics(model, data, q)
+            for i, fid in enumerate(core.ghost.foot_ids):
+                assert np.linalg.norm(data.oMf[fid].translation - ref.foot_pos[i]) < 3e-4
+            assert abs(data.oMf[core.ghost.root_id].translation[2] - ref.pelvis_z) < 3e-4
+            q_tight = tight.solve(ref, core.walker.plan.com_at(ref.t_s)[0], q_init=q)
+            assert np.abs(q_tight[7:] - q[7:]).max() < 2e-3
+            solved += 1
+    assert solved == 24
