@@ -230,7 +230,7 @@ class Studio:
             editor.root_frame.visible = True
 
         editor.before_look_at_graph = bring_graph_beside_robot
-        editor.after_look_at_graph = self.drive.camera.adopt
+        editor.place_camera = self.drive.camera.place
         editor.on_sample_picked = self.select_sample
         editor.set_sample(self.sample_editor.sample_name if self.sample_editor else "in_place")
         return editor

@@ -22,20 +22,54 @@ LOOK_HEIGHT_M = 0.6
 ECHO_TOL_M = 5e-3  # a reported camera this close to one the studio sent is that send's echo
 USER_HOLD_S = 0.6  # after the user moves the camera, following waits this long (the gesture may go on)
 MIN_STEP_M = 2e-3  # smaller robot motions are not sent
+#: A browser's camera reports can trail what the studio sent by seconds (a software-WebGL tab on a slow, loaded
+#: machine): every send of this long ago still counts for recognising its echo. Counted by sends (60 of them, one
+#: second at 60 Hz) a late echo of a walking robot's camera was taken for the user's own move and adopted,
+#: and the camera went back where it had been (the e2e test's "camera on the graph" timed out once in CI).
+ECHO_WINDOW_S = 10.0
+
+
+class _SentHistory:
+    """Vectors the studio sent, kept ``ECHO_WINDOW_S``; is a reported vector one of them (within ``ECHO_TOL_M``)?"""
+
+    def __init__(self) -> None:
+        self._times: collections.deque[float] = collections.deque()
+        self._vectors: collections.deque[np.ndarray] = collections.deque()
+        self._stacked: np.ndarray | None = None
+
+    def append(self, vector: np.ndarray, now_s: float | None = None) -> None:
+        now = time.monotonic() if now_s is None else now_s
+        self._times.append(now)
+        self._vectors.append(np.asarray(vector, float).copy())
+        while self._times and self._times[0] < now - ECHO_WINDOW_S:
+            self._times.popleft()
+            self._vectors.popleft()
+        self._stacked = None
+
+    def near(self, vector: np.ndarray, *others: np.ndarray) -> bool:
+        if self._vectors and self._stacked is None:
+            self._stacked = np.array(self._vectors)
+        rows = [self._stacked] if self._stacked is not None else []
+        rows += [np.asarray(o, float)[None, :] for o in others]
+        if not rows:
+            return False
+        return bool(np.min(np.linalg.norm(np.concatenate(rows) - vector, axis=1)) < ECHO_TOL_M)
+
+    def __len__(self) -> int:
+        return len(self._vectors)
+
+    def __getitem__(self, index: int) -> np.ndarray:
+        return self._vectors[index]
 
 
 @dataclass
 class _ClientFollow:
     look_rel: np.ndarray  # look-at point minus the robot's ground position (z: absolute height)
     offset: np.ndarray | None = None  # camera position minus look-at (None: take the browser's)
-    sent_looks: collections.deque = field(default_factory=lambda: collections.deque(maxlen=60))
-    sent_offsets: collections.deque = field(default_factory=lambda: collections.deque(maxlen=60))
+    sent_looks: _SentHistory = field(default_factory=_SentHistory)
+    sent_offsets: _SentHistory = field(default_factory=_SentHistory)
     user_until: float = 0.0
     robot: np.ndarray = field(default_factory=lambda: np.zeros(3))
-
-
-def _near(v: np.ndarray, seen) -> bool:
-    return any(float(np.linalg.norm(v - s)) < ECHO_TOL_M for s in seen)
 
 
 class CameraFollow:
@@ -57,12 +91,20 @@ class CameraFollow:
                 st.look_rel = np.array([0.0, 0.0, LOOK_HEIGHT_M])
                 st.user_until = 0.0
 
-    def adopt(self, client: Any) -> None:
-        """The studio itself placed ``client``'s camera (e.g. "Camera to graph"): follow from there."""
+    def place(self, client: Any, position, look_at, up_direction=None) -> None:
+        """The studio itself points ``client``'s camera (e.g. "Camera to graph") and following goes on from there.
+
+        One step under the follow's lock: a follow step on the drive panel's thread can neither overwrite the new
+        camera with the old follow pose in between, nor have that overwrite adopted as the place to follow."""
         cam = client.camera
+        look, pos = np.asarray(look_at, float), np.asarray(position, float)
         with self._lock:
+            with client.atomic():
+                if up_direction is not None:
+                    cam.up_direction = tuple(up_direction)
+                cam.position = tuple(pos)  # translates look_at too …
+                cam.look_at = tuple(look)  # … then pin it exactly
             st = self._state.setdefault(client.client_id, _ClientFollow(np.array([0.0, 0.0, LOOK_HEIGHT_M])))
-            look, pos = np.asarray(cam.look_at, float), np.asarray(cam.position, float)
             st.look_rel = look - self.robot_ground
             st.offset = pos - look
             st.sent_looks.append(look)
@@ -79,10 +121,10 @@ class CameraFollow:
             look, pos = np.asarray(cam.look_at, float), np.asarray(cam.position, float)
             offset = pos - look
             user = False
-            if st.offset is not None and not _near(offset, [st.offset, *st.sent_offsets]):
+            if st.offset is not None and not st.sent_offsets.near(offset, st.offset):
                 st.offset = offset
                 user = True
-            if st.sent_looks and not _near(look, st.sent_looks):
+            if len(st.sent_looks) and not st.sent_looks.near(look):
                 st.look_rel = look - self.robot_ground
                 user = True
             if user:
@@ -92,7 +134,8 @@ class CameraFollow:
         """Move every browser's camera with the robot; returns the robot's ground position followed
         (None when nothing follows: disabled, or ``frozen`` during a drag)."""
         ground = self._ground(robot_position)
-        self.robot_ground = ground
+        with self._lock:  # a place() in progress measures the look from the ground it started with
+            self.robot_ground = ground
         if not enabled or frozen:
             return None
         now = time.monotonic()
@@ -113,12 +156,13 @@ class CameraFollow:
                 if st.offset is None:
                     st.offset = pos_now - look_now
                 look = ground + st.look_rel
-                if float(np.linalg.norm(look - look_now)) < MIN_STEP_M and _near(pos_now - look_now, [st.offset]):
+                if (float(np.linalg.norm(look - look_now)) < MIN_STEP_M
+                        and float(np.linalg.norm(pos_now - look_now - st.offset)) < ECHO_TOL_M):
                     continue
                 position = look + st.offset
-                st.sent_looks.append(look)
-                st.sent_offsets.append(st.offset.copy())
-            with client.atomic():
-                cam.position = tuple(position)  # translates look_at too …
-                cam.look_at = tuple(look)  # … then pin it exactly
+                st.sent_looks.append(look, now)
+                st.sent_offsets.append(st.offset, now)
+                with client.atomic():  # under the lock: a place() cannot land between this pose and its record
+                    cam.position = tuple(position)  # translates look_at too …
+                    cam.look_at = tuple(look)  # … then pin it exactly
         return ground

@@ -71,9 +71,72 @@ def test_nothing_moves_while_frozen_or_disabled():
 
 def test_a_camera_placed_by_the_studio_is_followed_from_there():
     cam = FakeCamera((2.0, -2.0, 1.2), (0.0, 0.0, 0.6))
-    follow = CameraFollow(_server(cam))
+    server = _server(cam)
+    follow = CameraFollow(server)
     follow.step((0.0, 0.0, 0.75), enabled=True, frozen=False)
-    cam.position, cam.__dict__["look_at"] = np.array([-1.6, -1.5, 0.6]), np.array([-1.6, 0.6, 0.6])  # "to graph"
-    follow.adopt(SimpleNamespace(client_id=1, camera=cam))
+    follow.place(server.get_clients()[1], (-1.6, -1.5, 0.6), (-1.6, 0.6, 0.6), (0.0, 0.0, 1.0))  # "to graph"
+    assert np.allclose(cam.look_at, (-1.6, 0.6, 0.6)) and np.allclose(cam.up_direction, (0.0, 0.0, 1.0))
     follow.step((0.3, 0.0, 0.75), enabled=True, frozen=False)
     assert np.allclose(cam.look_at, (-1.3, 0.6, 0.6)) and np.allclose(cam.position, (-1.3, -1.5, 0.6))
+
+
+def test_a_follow_step_on_another_thread_cannot_undo_a_placed_camera():
+    """The drive panel's thread steps the follow while a button's thread points the camera at the graph: the step
+    waits for the placement and then follows from the graph (it used to overwrite the new camera with the old follow
+    pose in between, and that pose was adopted as the place to follow)."""
+    import threading
+
+    cam = FakeCamera((2.0, -2.0, 1.2), (0.0, 0.0, 0.6))
+    server = _server(cam)
+    follow = CameraFollow(server)
+    follow.step((0.0, 0.0, 0.75), enabled=True, frozen=False)
+    stepper: list[threading.Thread] = []
+
+    def step_meanwhile(value) -> None:  # the robot walks on while the placement is half written
+        if not stepper:
+            stepper.append(threading.Thread(target=follow.step, args=((0.3, 0.0, 0.75), True, False)))
+            stepper[0].start()
+            stepper[0].join(0.2)
+
+    original = FakeCamera.__setattr__
+
+    def setattr_with_step(self, name, value):
+        if name == "position":
+            step_meanwhile(value)
+        original(self, name, value)
+
+    FakeCamera.__setattr__ = setattr_with_step
+    try:
+        follow.place(server.get_clients()[1], (-1.6, -1.5, 0.6), (-1.6, 0.6, 0.6))
+    finally:
+        FakeCamera.__setattr__ = original
+    stepper[0].join(2.0)
+    assert not stepper[0].is_alive()
+    # following from the graph (y 0.6), not from the old follow pose (y 0): the step came after the placement
+    assert np.allclose(cam.look_at, (-1.3, 0.6, 0.6)) and np.allclose(cam.position, (-1.3, -1.5, 0.6))
+
+
+def test_a_late_echo_from_seconds_ago_is_not_taken_for_the_users_move(monkeypatch):
+    """A slow tab reports cameras the studio sent seconds earlier (hundreds of sends back): still an echo."""
+    monkeypatch.setattr(cf, "USER_HOLD_S", 0.0)
+    cam = FakeCamera((2.0, -2.0, 1.2), (0.0, 0.0, 0.6))
+    follow = CameraFollow(_server(cam))
+    for k in range(301):  # 5 s at 60 Hz, 5 mm a frame (a robot at 0.3 m/s)
+        follow.step((0.005 * k, 0.0, 0.75), enabled=True, frozen=False)
+    offset = cam.position - cam.look_at
+    cam.__dict__["look_at"] = np.array([0.01, 0.0, 0.6])  # what the tab shows now: the camera of 5 s ago
+    cam.__dict__["position"] = cam.look_at + offset
+    cam.report()
+    follow.step((1.51, 0.0, 0.75), enabled=True, frozen=False)
+    assert np.allclose(cam.look_at, (1.51, 0.0, 0.6))  # still following the robot, not held 1.5 m behind it
+
+
+def test_the_sent_history_forgets_after_its_window():
+    history = cf._SentHistory()
+    history.append(np.array([0.0, 0.0, 0.6]), now_s=100.0)
+    history.append(np.array([1.0, 0.0, 0.6]), now_s=100.0 + cf.ECHO_WINDOW_S / 2)
+    assert history.near(np.array([0.001, 0.0, 0.6])) and not history.near(np.array([0.5, 0.0, 0.6]))
+    assert history.near(np.array([0.5, 0.0, 0.6]), np.array([0.5, 0.0, 0.6]))  # an extra candidate counts too
+    history.append(np.array([2.0, 0.0, 0.6]), now_s=100.0 + cf.ECHO_WINDOW_S + 1.0)
+    assert len(history) == 2 and not history.near(np.array([0.0, 0.0, 0.6]))
+    assert np.allclose(history[-1], (2.0, 0.0, 0.6))

@@ -82,7 +82,8 @@ class CurveEditor(GraphView, DragInteraction, EditorWidgets):
         self.on_sample_picked: Callable[[str], None] | None = None
         #: run before / after the camera is pointed at the graph (the app brings the graph beside the robot)
         self.before_look_at_graph: Callable[[Any], None] | None = None
-        self.after_look_at_graph: Callable[[Any], None] | None = None
+        #: (client, position, look_at, up): points a browser's camera (None: set it directly)
+        self.place_camera: Callable[[Any, Any, Any, Any], None] | None = None
 
         self.root_frame = server.scene.add_frame(self.root, show_axes=False)
         self._build_scene()

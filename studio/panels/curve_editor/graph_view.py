@@ -129,7 +129,8 @@ class GraphView(EditorBase):
     def look_at_graph(self, client: Any, right_inset_px: float | None = None) -> None:
         """Point ``client``'s camera at the graph (``right_inset_px``: canvas pixels under the panel;
         default: viser's medium control panel, 330 px, on canvases wider than 800 px). The app's
-        :attr:`before_look_at_graph` / :attr:`after_look_at_graph` hooks run around it."""
+        :attr:`before_look_at_graph` hook runs first; :attr:`place_camera`, when set, points the camera (the app's
+        follow camera, so following goes on from the graph)."""
         if self.before_look_at_graph is not None:
             self.before_look_at_graph(client)
         cam = client.camera
@@ -143,12 +144,13 @@ class GraphView(EditorBase):
             right_inset_px = 330.0 if width > 800 else 0.0
         inset = right_inset_px / width if width > 0 else 0.0
         position, look_at, up = self.camera_pose(fov, aspect, right_inset=inset)
+        if self.place_camera is not None:
+            self.place_camera(client, position, look_at, up)
+            return
         with client.atomic():
             cam.up_direction = up
             cam.position = position
             cam.look_at = look_at
-        if self.after_look_at_graph is not None:
-            self.after_look_at_graph(client)
 
     def color_of(self, channel: str) -> tuple[tuple[int, int, int], str]:
         """(rgb, emoji) a channel is drawn with: fixed for swing/pelvis channels; a shown joint keeps

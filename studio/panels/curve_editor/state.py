@@ -35,7 +35,7 @@ class EditorBase:
     root_frame: Any
     on_sample_picked: Callable[[str], None] | None
     before_look_at_graph: Callable[[Any], None] | None
-    after_look_at_graph: Callable[[Any], None] | None
+    place_camera: Callable[[Any, Any, Any, Any], None] | None
     _lock: threading.RLock
     _local: threading.local
     _worker: SerialWorker
