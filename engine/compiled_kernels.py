@@ -85,7 +85,7 @@ def _warm_up_planner() -> None:
     from engine.gait.style import StyleContext, load_style, styles_dir
 
     planner = planner_for(load_robot("g1"), load_style(styles_dir("g1") / "neutral.json"), StyleContext.for_robot("g1"))
-    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the blended gait's channels (MergedBank), the preview
+    planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the reference in one call (evaluate_reference_into), the preview
     from engine.gait.planner import PlannerFeedback
 
     planner.step(0.008, np.array([0.2, 0.0, 0.0]), PlannerFeedback(  # the preview on a (read-only) path table

@@ -211,14 +211,18 @@ class BlendedGait:
         self.weights = np.array(normed)
         self.merged = merged if merged is not None else MergedBank([b for _, b in self.members])
         m = self.merged
-        t_ltd, t_rlo, t_rtd, cycle = (self.weights @ m.events).tolist()
+        self.events_array = self.weights @ m.events  # (4,) t_LTD, t_RLO, t_RTD, cycle: events_s as an array
+        t_ltd, t_rlo, t_rtd, cycle = self.events_array.tolist()
         self.events_s = (t_ltd, t_rlo, t_rtd, cycle)
         self.attribute_values = self.weights @ m.attributes
         self._attribute_list: list[float] = self.attribute_values.tolist()  # read one by one, as floats
         self.phase_map = PhaseMap(t_ltd, t_rlo, t_rtd, cycle)
         self._last_time_at: tuple[float, float] | None = None  # (φ, time_at(φ)) of the last call
         # np.tensordot(weights, boundary_pitch, axes=1) without its Python overhead: the same (1, n) · (n, 8) dot
-        bp = np.dot(self.weights.reshape(1, -1), m.boundary_pitch_rows).reshape(m.boundary_pitch.shape[1:]).tolist()
+        # (boundary_pitch_array: (2, 2, 2) per side (liftoff, touchdown) (heel, toe), boundary_pitch's numbers)
+        self.boundary_pitch_array = np.dot(self.weights.reshape(1, -1), m.boundary_pitch_rows).reshape(
+            m.boundary_pitch.shape[1:])
+        bp = self.boundary_pitch_array.tolist()
         self.boundary_pitch = {side: (tuple(bp[i][0]), tuple(bp[i][1])) for i, side in enumerate(SIDES)}
 
     @cached_property

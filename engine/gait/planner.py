@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.geometry import quat_from_matrix, smooth_max, smooth_min, smoothstep
+from engine.geometry import quat_from_matrix, smoothstep
 from engine.gait.blending import HEEL, SWING_PHASES, TOE, BlendedGait, ChannelLayout, StyleBanks
 from engine.gait.footsteps import (
     Foothold,
@@ -32,21 +32,24 @@ from engine.gait.footsteps import (
     stance_offset,
     stance_offset_xy_yaw,
 )
-from engine.gait.heel_toe import ROLL_SMOOTHING, stance_pitch
+from engine.gait.heel_toe import ROLL_SMOOTHING
 from engine.gait.path_frame import PathFrame, predict_xy_yaw
-from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
+from engine.gait.phase_map import PHASE_WAYPOINTS, PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.gait.planner_kernels import (
     EDGE_CODES,
     FOOT_FLAT,
     FOOT_ROLLED,
     FOOT_SWING,
+    MIN_HEEL_TOE_TRANSITION_S,
     PREVIEW_EVENT_PHASES,
+    SWING_HEEL,
+    SWING_TOE,
+    TRANSITION_SMOOTHING_S,
+    evaluate_reference_into,
     path_table,
     preview_intervals,
-    reference_frames,
 )
-from engine.gait.swing import nominal_swing
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weight_list
 
 PLANNER_RATE_HZ = 125.0
@@ -55,13 +58,11 @@ STYLE_FADE_S = 0.3
 START_PHASE = PHI_RTD  # start in double support, right foot just down: the left lifts first
 START_HOLD_S = 0.6  # the clock eases in over this time: a longer first double support to shift the weight
 CONTACT_TOL_M = 1e-3
-MIN_HEEL_TOE_TRANSITION_S = 0.08
 #: A stance foot pitched beyond this at a touchdown/liftoff transition rolls on its heel or toe edge [rad].
 EDGE_CONTACT_PITCH_RAD = 0.02
 #: Depth of the strip along a rolling sole edge that the MPC may plan the CoP on [m].
 EDGE_SUPPORT_DEPTH_M = 0.02
 TARGET_SETTLE_FRACTION = 0.4
-TRANSITION_SMOOTHING_S = 0.01
 
 
 @dataclass(slots=True)
@@ -139,10 +140,11 @@ def _remaining_ease_delay(hold_s: float) -> float:
 
 
 _NO_FEEDBACK = PlannerFeedback()
-_ROLL_SMOOTHING_SQ = ROLL_SMOOTHING ** 2  # (reference_frames' parameter: Python's ** 2, once)
+_ROLL_SMOOTHING_SQ = ROLL_SMOOTHING ** 2  # (evaluate_reference_into's frame: Python's ** 2, once)
 (_LEFT_LIFTOFF, _LEFT_TOUCHDOWN), (_RIGHT_LIFTOFF, _RIGHT_TOUCHDOWN) = SWING_PHASES["left"], SWING_PHASES["right"]
-_NO_ROTS = np.zeros((3, 3, 3))  # reference_frames' previous frames before the first tick (no rates)
+_NO_ROTS = np.zeros((3, 3, 3))  # evaluate's previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
+_PHASE_WAYPOINTS = np.array(PHASE_WAYPOINTS)  # the phase maps' waypoint phases (merged_bank_at_phase's)
 _NO_ADJUST = np.zeros(2)  # no step adjustment (x, y): _upcoming_foothold reads it, never writes it
 _NO_ADJUST.flags.writeable = False
 PATH_TABLE_STEP_S = 0.05
@@ -175,6 +177,8 @@ class GaitPlanner:
         self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
         self._preview_constants: tuple[BlendedGait, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._region_array: tuple[SafeRegion, np.ndarray] | None = None  # the preview's (side, front, cross, max yaw)
+        self._frame: tuple[tuple[float, float], np.ndarray] | None = None  # evaluate's sole constants
+        self._attribute_row: tuple[BlendedGait, np.ndarray] | None = None  # evaluate's blend attributes
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -483,86 +487,76 @@ class GaitPlanner:
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, phi: float) -> GaitReference:
         """r at phase φ for the current state. Rates are backward differences over the last tick
-        (the controller interpolates between ticks with them). The frames (pelvis and sole rotations, sole
-        positions and corners, their rates) are one compiled call
-        (:func:`engine.gait.planner_kernels.reference_frames`)."""
+        (the controller interpolates between ticks with them). The blended channels, the soles' swing or stance
+        parameters and the frames (pelvis and sole rotations, sole positions and corners, their rates) are one
+        compiled call (:func:`engine.gait.planner_kernels.evaluate_reference_into`) writing into new arrays."""
         blend = self.blend
-        cycle_vals, left_vals, right_vals = blend.channel_values(phi)  # (the rates are backward differences here)
+        merged = blend.merged
         t = blend.time_at(phi)
         f = phi - math.floor(phi)  # in_swing of both feet
-        swinging = (_LEFT_LIFTOFF <= f < _LEFT_TOUCHDOWN, _RIGHT_LIFTOFF <= f < _RIGHT_TOUCHDOWN)
-        left, left_progress = self._foot_params("left", phi, t, blend, left_vals, swinging[0])
-        right, right_progress = self._foot_params("right", phi, t, blend, right_vals, swinging[1])
-        pelvis_yaw, pelvis_pitch, pelvis_roll = cycle_vals[1:4].tolist()
-        params = np.array([float(self.path.yaw), pelvis_yaw, pelvis_pitch, pelvis_roll, self.sole_length_m,
-                           self.sole_width_m, ROLL_SMOOTHING, _ROLL_SMOOTHING_SQ, *left, *right])
+        swing_left, swing_right = _LEFT_LIFTOFF <= f < _LEFT_TOUCHDOWN, _RIGHT_LIFTOFF <= f < _RIGHT_TOUCHDOWN
+        feet = np.empty((2, 2, 3))  # per side (swing start, target) while swinging, else (latched, latched)
+        for j, side, swinging in ((0, "left", swing_left), (1, "right", swing_right)):
+            a, b = (self.swing_start[side], self.target[side]) if swinging else (self.latched[side],) * 2
+            feet[j, 0, 0], feet[j, 0, 1], feet[j, 0, 2] = a.x, a.y, a.yaw
+            feet[j, 1, 0], feet[j, 1, 1], feet[j, 1, 2] = b.x, b.y, b.yaw
         prev = self._last_pose
-        dt = self.t_s - prev["t"] if prev is not None else 0.0
-        rots, foot_pos, corners, ang, lin = reference_frames(
-            params, self.sole_corners_local, prev["rots"] if prev is not None else _NO_ROTS,
-            prev["foot_pos"] if prev is not None else _NO_POS, dt if prev is not None and dt > 0 else 0.0)
-        pelvis_rot, foot_rot = rots[0], rots[1:]
-        pelvis_z = blend.attribute("pelvis_height_m") + cycle_vals[0]
-        upper = cycle_vals[4:].copy()
+        if prev is not None:
+            dt = self.t_s - prev["t"]
+            prev_rots, prev_foot_pos, prev_pelvis_z, prev_upper = (prev["rots"], prev["foot_pos"], prev["pelvis_z"],
+                                                                   prev["upper"])
+        else:
+            dt, prev_rots, prev_foot_pos, prev_pelvis_z, prev_upper = 0.0, _NO_ROTS, _NO_POS, 0.0, None
+        n_upper = merged.n_cycle - 4
+        if prev_upper is None or prev_upper.shape[0] != n_upper:
+            prev_upper = np.zeros(n_upper)
+        rots, foot_pos, corners = np.empty((3, 3, 3)), np.empty((2, 3)), np.empty((2, 4, 3))
+        corner_contact, ang, lin = np.empty((2, 4), dtype=np.bool_), np.empty((3, 3)), np.empty((2, 3))
+        upper, upper_qd, progress, scalars = np.empty(n_upper), np.empty(n_upper), np.empty(2), np.empty(2)
+        evaluate_reference_into(
+            float(phi), t, blend.events_array, blend.weights, _PHASE_WAYPOINTS, merged.phase_segments, merged.cycles,
+            merged.member_of_row, merged.offset, merged.periodic, merged.period, merged.hi, merged.search, merged.t0,
+            merged.coef, merged.n_cycle, float(self.path.yaw), self._frame_constants(), feet,
+            np.array([swing_left, swing_right]), np.array([self.landed["left"], self.landed["right"]]),
+            blend.boundary_pitch_array, self._blend_attributes(), self.sole_corners_local, prev is not None, dt,
+            prev_rots, prev_foot_pos, prev_pelvis_z, prev_upper, 2.0, rots, foot_pos, corners, corner_contact, ang,
+            lin, upper, upper_qd, progress, scalars)
+        pelvis_z = scalars[0]
         # (the soles' rotations are rots[1:], their positions foot_pos: rows left, right)
         self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper}
-        if prev is None or dt <= 0:
-            z_rate = 0.0
-            upper_qd = np.zeros(upper.shape)  # np.zeros_like(upper) (float64 zeros) without its Python wrapper
-        else:
-            z_rate = (pelvis_z - prev["pelvis_z"]) / dt
-            upper_qd = (upper - prev["upper"]) / dt
         return GaitReference(
             t_s=self.t_s, phase=phi, command=self.command.copy(),
             sample_weights=self.weights.copy(), path_pose=self.path.pose(),
-            pelvis_z=pelvis_z, pelvis_z_rate=z_rate, pelvis_rot=pelvis_rot, pelvis_ang_vel=ang[0],
-            foot_pos=foot_pos.copy(), foot_rot=foot_rot, foot_lin_vel=lin, foot_ang_vel=ang[1:],
-            contact=np.array([not swinging[0], not swinging[1]]),
-            corner_contact=corners[:, :, 2] < CONTACT_TOL_M, sole_corners=corners,
+            pelvis_z=pelvis_z, pelvis_z_rate=0.0 if prev is None or dt <= 0 else scalars[1], pelvis_rot=rots[0],
+            pelvis_ang_vel=ang[0], foot_pos=foot_pos.copy(), foot_rot=rots[1:], foot_lin_vel=lin, foot_ang_vel=ang[1:],
+            contact=np.array([not swing_left, not swing_right]),
+            corner_contact=corner_contact, sole_corners=corners,
             upper_q=upper, upper_qd=upper_qd,
-            footholds={"left": self.target["left"] if swinging[0] else self.latched["left"],  # (SIDES' order)
-                       "right": self.target["right"] if swinging[1] else self.latched["right"]},
+            footholds={"left": self.target["left"] if swing_left else self.latched["left"],  # (SIDES' order)
+                       "right": self.target["right"] if swing_right else self.latched["right"]},
             cycle_s=blend.events_s[3],
-            swing_progress=np.array([left_progress, right_progress]),
+            swing_progress=progress,
         )
 
-    def _foot_params(self, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray,
-                     swinging: bool) -> tuple[tuple[float, ...], float]:
-        """The sole's part of :func:`engine.gait.planner_kernels.reference_frames`' parameters (FOOT_PARAMS: mode,
-        x, y, yaw, rig yaw, heel and toe pitch, roll, offset) and its swing progress.
+    def _frame_constants(self) -> np.ndarray:
+        """:func:`evaluate_reference_into`'s ``frame``: the sole's length and width, ROLL_SMOOTHING, its square
+        (Python's ** 2) and CONTACT_TOL_M, kept while the sole's size is."""
+        cached = self._frame
+        if cached is None or cached[0] != (self.sole_length_m, self.sole_width_m):
+            cached = self._frame = ((self.sole_length_m, self.sole_width_m), np.array(
+                [self.sole_length_m, self.sole_width_m, ROLL_SMOOTHING, _ROLL_SMOOTHING_SQ, CONTACT_TOL_M]))
+        return cached[1]
 
-        Swinging: the nominal swing (Eqs. 5–6) at its progress ⊕ the style's rig and offset. Standing: the
-        latched foothold with the heel/toe transitions after touchdown / before liftoff."""
-        lo, td = SWING_PHASES[side]
-        k = math.floor(phi - lo)
-        if swinging:
-            t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
-            s = min(max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
-            x, y, yaw, _ = nominal_swing(self.swing_start[side], self.target[side], s)
-            v = vals.tolist()  # the rig's angles as floats (the same numbers, without numpy scalars)
-            return (FOOT_SWING, x, y, yaw, v[3], v[HEEL], v[TOE], v[6], v[0], v[1], v[2]), s
-        hold = self.latched[side]
-        t_td = blend.event_time(k + td)  # last touchdown (k indexes the swing that ended)
-        t_next_lo = blend.event_time(k + 1 + lo)
-        foothold_s = t_next_lo - t_td
-        t_ltd, t_rlo, t_rtd, cycle = blend.events_s
-        ds = (t_rlo - t_ltd, cycle - t_rtd)
-        ds_after_td, ds_before_lo = ds if side == "left" else ds[::-1]
-        # A pitched foot at liftoff/touchdown needs time to roll from/to flat: never less than
-        # MIN_HEEL_TOE_TRANSITION_S (else the foot would snap), never more than the double support.
-        # Smooth min/max: durations vary with the blend weights, and a hard switch of the
-        # binding limit would put a kink in the foot's pitch.
-        eps = TRANSITION_SMOOTHING_S
-        d_td = smooth_min(smooth_min(smooth_max(blend.attribute("touchdown_transition_s"), MIN_HEEL_TOE_TRANSITION_S, eps),
-                                     0.5 * foothold_s, eps), ds_after_td, eps)
-        d_lo = smooth_min(smooth_min(smooth_max(blend.attribute("liftoff_transition_s"), MIN_HEEL_TOE_TRANSITION_S, eps),
-                                     0.5 * foothold_s, eps), ds_before_lo, eps)
-        liftoff_pitch, touchdown_pitch = blend.boundary_pitch[side]
-        if not self.landed[side]:
-            d_td = 0.0
-        heel, toe = stance_pitch(t - t_td, t_next_lo - t, touchdown_pitch, liftoff_pitch, d_td, d_lo)
-        mode = FOOT_FLAT if heel == 0.0 and toe == 0.0 else FOOT_ROLLED
-        return (mode, hold.x, hold.y, hold.yaw, 0.0, heel, toe, 0.0, 0.0, 0.0, 0.0), 1.0
+    def _blend_attributes(self) -> np.ndarray:
+        """:func:`evaluate_reference_into`'s ``attributes`` of the current blend (pelvis height, touchdown and
+        liftoff transitions [s]), kept while the blend is."""
+        cached = self._attribute_row
+        if cached is None or cached[0] is not self.blend:
+            b = self.blend
+            cached = self._attribute_row = (b, np.array([b.attribute("pelvis_height_m"),
+                                                         b.attribute("touchdown_transition_s"),
+                                                         b.attribute("liftoff_transition_s")]))
+        return cached[1]
 
     # ------------------------------------------------------------------ preview for the MPC
     def preview(self, kappa: float = 1.0, horizon_s: float = PREVIEW_S) -> list[ContactPhase]:
@@ -641,6 +635,7 @@ _PATH_TABLE_TIMES_LIST = _PATH_TABLE_TIMES.tolist()
 _PATH_TABLE_SIZE = len(_PATH_TABLE_TIMES_LIST)
 _ONE_PIECE_TIMES = np.zeros(1)  # the preview's path table while the command holds
 assert tuple(PREVIEW_EVENT_PHASES) == (0.0, PHI_LTD, PHI_RLO, PHI_RTD)
+assert (SWING_HEEL, SWING_TOE) == (HEEL, TOE)
 
 
 def _pitched_edge(heel_pitch: float, toe_pitch: float) -> str | None:

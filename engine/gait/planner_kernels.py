@@ -421,7 +421,7 @@ def preview_intervals(phi, t_now, kappa, hold_s, horizon_s, events, holds, swing
 
 
 # ------------------------------------------------------------------------------------------ the reference's frames
-#: Layout of :func:`reference_frames`' ``params``: the path yaw, the pelvis yaw/pitch/roll curves, the sole's
+#: Layout of :func:`reference_frames_into`'s ``params``: the path yaw, the pelvis yaw/pitch/roll curves, the sole's
 #: length and width, heel_toe.ROLL_SMOOTHING and its square (Python's ** 2), then per foot (left, right)
 #: FOOT_PARAMS values from FOOT_PARAMS_AT.
 FOOT_PARAMS_AT = 8
@@ -522,28 +522,28 @@ def _foot_rig_into(rot, trans, length_m, yaw, heel_pitch, toe_pitch, roll, width
 
 
 @njit(cache=True, nogil=True)
-def reference_frames(params, corners_local, prev_rots, prev_foot_pos, dt):  # noqa: ANN001, ANN201
+def reference_frames_into(params, corners_local, prev_rots, prev_foot_pos, dt, rots, foot_pos, corners, ang,  # noqa: ANN001, ANN201, PLR0913
+                          lin):
     """The rotations and positions of GaitPlanner.evaluate in one call: the pelvis rotation Rz(path yaw) ·
     Rzyx(pelvis curves); each sole's pose (``params``' FOOT_PARAMS: a swinging foot at the nominal swing's
     (x, y, yaw) with the style's rig (foot_rig) and offset, a standing foot on its latched foothold, rolled by the
     heel/toe rig or flat), its corners, and, with ``dt`` > 0, the backward-difference rates from the previous
     tick's rotations ``prev_rots`` (pelvis, left, right) and sole positions.
 
-    Returns the rotations (3, 3, 3) (pelvis, left sole, right sole), the sole positions (2, 3), their corners
-    (2, 4, 3), the angular velocities (3, 3) (pelvis, left, right) and the sole velocities (2, 3). The 3 × 3 products
+    Writes the rotations ``rots`` (3, 3, 3) (pelvis, left sole, right sole), the sole positions ``foot_pos`` (2, 3),
+    their ``corners`` (2, 4, 3), the angular velocities ``ang`` (3, 3) (pelvis, left, right) and the sole velocities
+    ``lin`` (2, 3) (zeros without rates). The 3 × 3 products
     are multiplied out in the order numpy's matmul computes them through OpenBLAS with FMA (dgemm, dgemv): the same
     numbers where numpy does, equal to rounding elsewhere (tests/gait/test_planner_speed_references.py keeps the
     replaced code)."""
     length_m, width_m, roll_smoothing, roll_sq = params[4], params[5], params[6], params[7]
     base = np.empty((3, 3))
     rig = np.empty((3, 3))
-    rots = np.empty((3, 3, 3))
     pelvis = rots[0]
     foot_rot = rots[1:]
     _rot_z_into(base, params[0])
     _rot_zyx_into(rig, params[1], params[2], params[3])
     _mat3_into(pelvis, base, rig)
-    foot_pos = np.empty((2, 3))
     trans = np.empty(3)
     for j in range(2):
         p = params[FOOT_PARAMS_AT + FOOT_PARAMS * j: FOOT_PARAMS_AT + FOOT_PARAMS * (j + 1)]
@@ -562,18 +562,148 @@ def reference_frames(params, corners_local, prev_rots, prev_foot_pos, dt):  # no
             foot_pos[j, i] = (x if i == 0 else (y if i == 1 else 0.0)) + _dot3_gemv(
                 base[i, 0], base[i, 1], base[i, 2], trans[0], trans[1], trans[2])
         _mat3_into(foot_rot[j], base, rig)
-    corners = np.empty((2, 4, 3))
     for j in range(2):
         for c in range(4):
             for i in range(3):
                 corners[j, c, i] = _dot3_gemm(foot_rot[j, i, 0], foot_rot[j, i, 1], foot_rot[j, i, 2], corners_local[c, 0],
                                               corners_local[c, 1], corners_local[c, 2]) + foot_pos[j, i]
-    ang = np.zeros((3, 3))
-    lin = np.zeros((2, 3))
+    ang[:] = 0.0
+    lin[:] = 0.0
     if dt > 0.0:
         _angular_velocity_into(ang[0], prev_rots[0], pelvis, dt)
         for j in range(2):
             _angular_velocity_into(ang[1 + j], prev_rots[1 + j], foot_rot[j], dt)
             for i in range(3):
                 lin[j, i] = (foot_pos[j, i] - prev_foot_pos[j, i]) / dt
-    return rots, foot_pos, corners, ang, lin
+
+
+# ---------------------------------------------------------------------------------------- the planner tick's reference
+# GaitPlanner.evaluate in one call: the blended channels' values (BlendedGait.channel_values), each sole's part of
+# reference_frames_into's parameters (what GaitPlanner._foot_params computed: the nominal swing, or the latched
+# foothold with the heel/toe transitions) and reference_frames_into, written into the caller's arrays. Python's float
+# semantics as in the preview above: min/max keep their first argument on ties, squares go through libm's pow
+# (``two``).
+
+#: Heel/toe transition smoothing and floor of GaitPlanner._foot_params [s] (planner.TRANSITION_SMOOTHING_S,
+#: planner.MIN_HEEL_TOE_TRANSITION_S), and the swing bank's heel_pitch / toe_pitch indices (blending.HEEL, TOE).
+TRANSITION_SMOOTHING_S = 0.01
+MIN_HEEL_TOE_TRANSITION_S = 0.08
+SWING_HEEL, SWING_TOE = 4, 5
+
+
+@njit(cache=True, nogil=True)
+def _smoothstep(s):  # noqa: ANN001, ANN202
+    """engine.geometry.smoothstep: 3s² − 2s³ on [0, 1], its expressions."""
+    s = 0.0 if s < 0 else (1.0 if s > 1 else s)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@njit(cache=True, nogil=True)
+def _smooth_min(a, b, eps, two):  # noqa: ANN001, ANN202
+    """engine.geometry.smooth_min (its (a − b) ** 2 through pow)."""
+    return 0.5 * (a + b - math.sqrt((a - b) ** two + eps * eps))
+
+
+@njit(cache=True, nogil=True)
+def _smooth_max(a, b, eps, two):  # noqa: ANN001, ANN202
+    """engine.geometry.smooth_max (its (a − b) ** 2 through pow)."""
+    return 0.5 * (a + b + math.sqrt((a - b) ** two + eps * eps))
+
+
+@njit(cache=True, nogil=True)
+def _foot_params_into(p, side, phi, t, events, vals, swinging, start, target, landed, pitch, touchdown_transition_s,  # noqa: ANN001, ANN202, PLR0913
+                      liftoff_transition_s, two):
+    """GaitPlanner._foot_params: the sole's FOOT_PARAMS into ``p`` and its swing progress (returned). Swinging:
+    the nominal swing (swing.nominal_swing) from ``start`` to ``target`` (x, y, yaw) at its progress ⊕ the style's
+    rig and offset (``vals``: the side's blended swing channels). Standing: on ``start`` (the latched foothold) with
+    the heel/toe transitions (heel_toe.stance_pitch) after touchdown / before liftoff; ``pitch`` (2, 2): the blend's
+    (liftoff, touchdown) (heel, toe) pitches of the side."""
+    lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
+    td = PREVIEW_EVENT_PHASES[1] if side == 0 else PREVIEW_EVENT_PHASES[3]
+    k = math.floor(phi - lo)
+    if swinging:
+        t_lo, t_td = _event_time(k + lo, events), _event_time(k + td, events)
+        s = _first_min(_first_max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
+        a = _smoothstep(s)
+        p[0] = FOOT_SWING
+        p[1] = (1.0 - a) * start[0] + a * target[0]
+        p[2] = (1.0 - a) * start[1] + a * target[1]
+        p[3] = start[2] + a * ((target[2] - start[2] + math.pi) % (2 * math.pi) - math.pi)  # wrap_angle
+        p[4], p[5], p[6], p[7] = vals[3], vals[SWING_HEEL], vals[SWING_TOE], vals[6]
+        p[8], p[9], p[10] = vals[0], vals[1], vals[2]
+        return s
+    t_td = _event_time(k + td, events)  # last touchdown (k indexes the swing that ended)
+    t_next_lo = _event_time(k + 1 + lo, events)
+    foothold_s = t_next_lo - t_td
+    if side == 0:
+        ds_after_td, ds_before_lo = events[1] - events[0], events[3] - events[2]
+    else:
+        ds_after_td, ds_before_lo = events[3] - events[2], events[1] - events[0]
+    eps = TRANSITION_SMOOTHING_S
+    d_td = _smooth_min(_smooth_min(_smooth_max(touchdown_transition_s, MIN_HEEL_TOE_TRANSITION_S, eps, two),
+                                   0.5 * foothold_s, eps, two), ds_after_td, eps, two)
+    d_lo = _smooth_min(_smooth_min(_smooth_max(liftoff_transition_s, MIN_HEEL_TOE_TRANSITION_S, eps, two),
+                                   0.5 * foothold_s, eps, two), ds_before_lo, eps, two)
+    if not landed:
+        d_td = 0.0
+    heel, toe = 0.0, 0.0  # heel_toe.stance_pitch
+    since_td, until_lo = t - t_td, t_next_lo - t
+    if d_td > 0 and since_td < d_td:
+        w = 1.0 - _smoothstep(since_td / d_td)
+        heel += w * pitch[1, 0]
+        toe += w * pitch[1, 1]
+    if d_lo > 0 and until_lo < d_lo:
+        w = 1.0 - _smoothstep(until_lo / d_lo)
+        heel += w * pitch[0, 0]
+        toe += w * pitch[0, 1]
+    p[0] = FOOT_FLAT if heel == 0.0 and toe == 0.0 else FOOT_ROLLED
+    p[1], p[2], p[3] = start[0], start[1], start[2]
+    p[4], p[5], p[6] = 0.0, heel, toe
+    p[7] = p[8] = p[9] = p[10] = 0.0
+    return 1.0
+
+
+@njit(cache=True, nogil=True)
+def evaluate_reference_into(phi, t, events, weights, waypoints, segments, cycles, member_of_row, offset, periodic,  # noqa: ANN001, ANN201, PLR0913
+                            period, hi, search, t0, coef, n_cycle, path_yaw, frame, feet, swinging, landed, pitch,
+                            attributes, corners_local, has_prev, dt, prev_rots, prev_foot_pos, prev_pelvis_z,
+                            prev_upper, two, rots, foot_pos, corners, corner_contact, ang, lin, upper, upper_qd,
+                            progress, scalars):
+    """GaitPlanner.evaluate's numbers at phase ``phi`` (gait time ``t``) in one call, into the caller's arrays.
+
+    The blend: its ``events`` (t_LTD, t_RLO, t_RTD, cycle), ``weights`` and merged bank (``waypoints`` … ``coef``:
+    :func:`merged_bank_at_phase`'s, ``n_cycle`` cycle channels per member), ``pitch`` (2, 2, 2): per side the
+    (liftoff, touchdown) (heel, toe) pitches, ``attributes``: pelvis height, touchdown and liftoff transitions.
+    ``frame``: the sole's length and width, heel_toe.ROLL_SMOOTHING and its square, planner.CONTACT_TOL_M.
+    ``feet`` (2, 2, 3): per side (swing start, target) while ``swinging``, else (latched, latched); ``landed`` (2,). The last tick's
+    frames (``has_prev``, ``dt`` since it, ``prev_*``) give the backward-difference rates.
+
+    Writes :func:`reference_frames_into`'s ``rots`` … ``lin``, ``corner_contact`` (2, 4) (a corner below
+    ``frame[4]``), the upper-body joints ``upper`` and rates ``upper_qd`` (K,), the feet's
+    swing ``progress`` (2,) and ``scalars`` (2,): the pelvis height and its rate (0 without rates). The channels' blend
+    is numpy's ``weights @ values`` (BLAS's dgemv, as there): the same numbers as the Python it replaces
+    (tests/gait/test_planner_evaluate_reference.py keeps it)."""
+    values, _ = merged_bank_at_phase(phi - math.floor(phi), 1.0, waypoints, segments, cycles, member_of_row, offset,
+                                     periodic, period, hi, search, t0, coef)
+    v = np.dot(weights, values.reshape((weights.shape[0], values.shape[0] // weights.shape[0])))
+    params = np.empty(FOOT_PARAMS_AT + 2 * FOOT_PARAMS)
+    params[0], params[1], params[2], params[3] = path_yaw, v[1], v[2], v[3]
+    params[4], params[5], params[6], params[7] = frame[0], frame[1], frame[2], frame[3]
+    for j in range(2):
+        at = FOOT_PARAMS_AT + FOOT_PARAMS * j
+        vals = v[n_cycle + 7 * j: n_cycle + 7 * (j + 1)]
+        progress[j] = _foot_params_into(params[at: at + FOOT_PARAMS], j, phi, t, events, vals, swinging[j],
+                                        feet[j, 0], feet[j, 1], landed[j], pitch[j], attributes[1], attributes[2],
+                                        two)
+    rates = has_prev and not dt <= 0
+    reference_frames_into(params, corners_local, prev_rots, prev_foot_pos, dt if has_prev and dt > 0 else 0.0, rots,
+                          foot_pos, corners, ang, lin)
+    for j in range(2):
+        for c in range(4):
+            corner_contact[j, c] = corners[j, c, 2] < frame[4]
+    pelvis_z = attributes[0] + v[0]
+    scalars[0] = pelvis_z
+    scalars[1] = (pelvis_z - prev_pelvis_z) / dt if rates else 0.0
+    for i in range(upper.shape[0]):
+        upper[i] = v[4 + i]
+        upper_qd[i] = (upper[i] - prev_upper[i]) / dt if rates else 0.0

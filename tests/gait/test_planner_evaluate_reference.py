@@ -1,24 +1,35 @@
 """GaitPlanner.evaluate computes the same reference, bit for bit, as the code it replaced (kept here): the blended
-channels' values without their rates (BlendedGait.channel_values), both feet's swing test on one phase."""
+channels' values without their rates (BlendedGait.channel_values), both feet's swing test on one phase, and then the
+channels, the soles' parameters (GaitPlanner._foot_params, kept here as foot_params_before) and the frames in one
+compiled call (planner_kernels.evaluate_reference_into)."""
 
 from __future__ import annotations
 
 from dataclasses import fields
 
+import math
+
 import numpy as np
 
 from engine.control.walking_controller import WalkingController
+from engine.gait.blending import HEEL, SWING_PHASES, TOE, BlendedGait
 from engine.gait.command_schedule import preset
+from engine.gait.heel_toe import stance_pitch
 from engine.gait.planner import (
     _NO_POS,
     _NO_ROTS,
     CONTACT_TOL_M,
+    MIN_HEEL_TOE_TRANSITION_S,
     ROLL_SMOOTHING,
+    TRANSITION_SMOOTHING_S,
     GaitPlanner,
     GaitReference,
-    reference_frames,
+    PlannerFeedback,
 )
+from engine.gait.planner_kernels import FOOT_FLAT, FOOT_ROLLED, FOOT_SWING, reference_frames_into
 from engine.gait.style import load_style, styles_dir
+from engine.gait.swing import nominal_swing
+from engine.geometry import smooth_max, smooth_min
 from engine.robot.model import load_robot
 from engine.sim import Simulation
 
@@ -29,16 +40,20 @@ def evaluate_before(self: GaitPlanner, phi: float) -> GaitReference:
     cycle_vals, left_vals, right_vals, *_ = blend.channels(phi)
     t = blend.time_at(phi)
     swinging = (self.in_swing("left", phi), self.in_swing("right", phi))
-    left, left_progress = self._foot_params("left", phi, t, blend, left_vals, swinging[0])
-    right, right_progress = self._foot_params("right", phi, t, blend, right_vals, swinging[1])
+    left, left_progress = foot_params_before(self, "left", phi, t, blend, left_vals, swinging[0])
+    right, right_progress = foot_params_before(self, "right", phi, t, blend, right_vals, swinging[1])
     pelvis_yaw, pelvis_pitch, pelvis_roll = cycle_vals[1:4].tolist()
     params = np.array([float(self.path.yaw), pelvis_yaw, pelvis_pitch, pelvis_roll, self.sole_length_m,
                        self.sole_width_m, ROLL_SMOOTHING, ROLL_SMOOTHING ** 2, *left, *right])
     prev = self._last_pose
     dt = self.t_s - prev["t"] if prev is not None else 0.0
-    rots, foot_pos, corners, ang, lin = reference_frames(
+    # (reference_frames before it wrote into the caller's arrays: its own arrays, the same numbers)
+    rots, foot_pos, corners = np.empty((3, 3, 3)), np.empty((2, 3)), np.empty((2, 4, 3))
+    ang, lin = np.empty((3, 3)), np.empty((2, 3))
+    reference_frames_into(
         params, self.sole_corners_local, prev["rots"] if prev is not None else _NO_ROTS,
-        prev["foot_pos"] if prev is not None else _NO_POS, dt if prev is not None and dt > 0 else 0.0)
+        prev["foot_pos"] if prev is not None else _NO_POS, dt if prev is not None and dt > 0 else 0.0, rots, foot_pos,
+        corners, ang, lin)
     pelvis_rot, foot_rot = rots[0], rots[1:]
     pelvis_z = blend.attribute("pelvis_height_m") + cycle_vals[0]
     upper = cycle_vals[4:].copy()
@@ -63,6 +78,46 @@ def evaluate_before(self: GaitPlanner, phi: float) -> GaitReference:
         cycle_s=blend.events_s[3],
         swing_progress=np.array([left_progress, right_progress]),
     )
+
+
+def foot_params_before(self: GaitPlanner, side: str, phi: float, t: float, blend: BlendedGait, vals: np.ndarray,
+                       swinging: bool) -> tuple[tuple[float, ...], float]:
+    """GaitPlanner._foot_params before evaluate was one compiled call (commit 3390552), as it was: the sole's part
+    of :func:`engine.gait.planner_kernels.reference_frames_into`' parameters (FOOT_PARAMS: mode, x, y, yaw, rig yaw,
+    heel and toe pitch, roll, offset) and its swing progress.
+
+    Swinging: the nominal swing (Eqs. 5–6) at its progress ⊕ the style's rig and offset. Standing: the
+    latched foothold with the heel/toe transitions after touchdown / before liftoff."""
+    lo, td = SWING_PHASES[side]
+    k = math.floor(phi - lo)
+    if swinging:
+        t_lo, t_td = blend.event_time(k + lo), blend.event_time(k + td)
+        s = min(max((t - t_lo) / (t_td - t_lo), 0.0), 1.0)
+        x, y, yaw, _ = nominal_swing(self.swing_start[side], self.target[side], s)
+        v = vals.tolist()  # the rig's angles as floats (the same numbers, without numpy scalars)
+        return (FOOT_SWING, x, y, yaw, v[3], v[HEEL], v[TOE], v[6], v[0], v[1], v[2]), s
+    hold = self.latched[side]
+    t_td = blend.event_time(k + td)  # last touchdown (k indexes the swing that ended)
+    t_next_lo = blend.event_time(k + 1 + lo)
+    foothold_s = t_next_lo - t_td
+    t_ltd, t_rlo, t_rtd, cycle = blend.events_s
+    ds = (t_rlo - t_ltd, cycle - t_rtd)
+    ds_after_td, ds_before_lo = ds if side == "left" else ds[::-1]
+    # A pitched foot at liftoff/touchdown needs time to roll from/to flat: never less than
+    # MIN_HEEL_TOE_TRANSITION_S (else the foot would snap), never more than the double support.
+    # Smooth min/max: durations vary with the blend weights, and a hard switch of the
+    # binding limit would put a kink in the foot's pitch.
+    eps = TRANSITION_SMOOTHING_S
+    d_td = smooth_min(smooth_min(smooth_max(blend.attribute("touchdown_transition_s"), MIN_HEEL_TOE_TRANSITION_S, eps),
+                                 0.5 * foothold_s, eps), ds_after_td, eps)
+    d_lo = smooth_min(smooth_min(smooth_max(blend.attribute("liftoff_transition_s"), MIN_HEEL_TOE_TRANSITION_S, eps),
+                                 0.5 * foothold_s, eps), ds_before_lo, eps)
+    liftoff_pitch, touchdown_pitch = blend.boundary_pitch[side]
+    if not self.landed[side]:
+        d_td = 0.0
+    heel, toe = stance_pitch(t - t_td, t_next_lo - t, touchdown_pitch, liftoff_pitch, d_td, d_lo)
+    mode = FOOT_FLAT if heel == 0.0 and toe == 0.0 else FOOT_ROLLED
+    return (mode, hold.x, hold.y, hold.yaw, 0.0, heel, toe, 0.0, 0.0, 0.0, 0.0), 1.0
 
 
 def _assert_same(a: object, b: object, what: str) -> None:
@@ -121,3 +176,49 @@ def test_evaluate_matches_the_python_it_replaced() -> None:
         sim.step()
         assert not sim.fallen
     assert compared >= 490 and min(swinging) > 50  # every planner tick; both feet swung and stood
+
+
+def _compare_evaluate(planner: GaitPlanner, phi: float, what: str) -> GaitReference:
+    """evaluate(φ) and evaluate_before(φ) from the same state: the same reference and _last_pose, field by field
+    (the new code's state goes on)."""
+    prev = planner._last_pose
+    now = GaitPlanner.evaluate(planner, phi)
+    after_now = planner._last_pose
+    planner._last_pose = prev
+    before = evaluate_before(planner, phi)
+    for f in fields(GaitReference):
+        _assert_same(getattr(now, f.name), getattr(before, f.name), f"{f.name} {what}")
+    _assert_same(after_now, planner._last_pose, f"_last_pose {what}")
+    planner._last_pose = after_now
+    return now
+
+
+def test_evaluate_matches_the_python_it_replaced_with_heel_toe_rolls() -> None:
+    """The planner alone (no robot) on the rigged style (toe-off and heel-strike pitches, a yawed and rolled swing
+    foot, a swaying pelvis) under ramping commands, random time scaling and step adjustments, with ticks without
+    time (no rates): every branch of the soles' parameters (swinging, standing flat and rolled, before the first
+    landing) gives the old numbers, bit for bit."""
+    from engine.gait.offline_plan import planner_for
+    from engine.gait.style import StyleContext
+    from tests.gait.test_planner_speed_references import _rigged_style
+
+    robot = load_robot("g1")
+    rng = np.random.default_rng(12)
+    modes = {FOOT_SWING: 0, FOOT_ROLLED: 0, FOOT_FLAT: 0}
+    planner = planner_for(robot, _rigged_style(), StyleContext.for_robot("g1"))
+    planner.path_follows_feet = 0.5
+    step = GaitPlanner.step
+    command, goal = np.zeros(3), np.array([0.4, 0.1, 0.3])
+    for k in range(600):
+        if k % 120 == 0:
+            goal = rng.uniform([-0.3, -0.2, -0.6], [0.5, 0.2, 0.6])
+        command = command + np.clip(goal - command, -0.01, 0.01)
+        fb = PlannerFeedback(float(rng.uniform(0.7, 1.4)), rng.normal(0.0, 0.02, 2) if k % 3 else None)
+        ref = step(planner, 0.008 if k % 50 else 0.0, command, fb, with_preview=False)
+        _compare_evaluate(planner, ref.phase, f"at k = {k}")
+        t = planner.blend.time_at(ref.phase)
+        for i, side in enumerate(("left", "right")):
+            vals = planner.blend.channel_values(ref.phase)[1 + i]
+            params, _ = foot_params_before(planner, side, ref.phase, t, planner.blend, vals, not bool(ref.contact[i]))
+            modes[params[0]] += 1
+    assert min(modes.values()) > 50, modes  # every mode of the soles' parameters came up
