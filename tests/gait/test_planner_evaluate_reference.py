@@ -1,7 +1,7 @@
 """GaitPlanner.evaluate computes the same reference, to ``MAX_ULP`` (bit for bit on this machine), as the code it
 replaced (kept here): the blended channels' values without their rates (BlendedGait.channel_values), both feet's
-swing test on one phase, and then the channels, the soles' parameters (GaitPlanner._foot_params, kept here as foot_params_before) and the frames in one
-compiled call (planner_kernels.evaluate_reference_into)."""
+swing test on one phase, and then the channels, the soles' parameters (GaitPlanner._foot_params, kept here as
+foot_params_before) and the frames in one compiled call (planner_kernels.evaluate_reference_into)."""
 
 from __future__ import annotations
 
