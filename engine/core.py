@@ -36,10 +36,11 @@ MODES = ("stand", "test", "edit", "puppet")  # puppet: stand under the WBC, arms
 JOINT_LIMIT_WARNING_RAD = 0.15  # links shade red within this distance of a joint limit
 # The kinematic ghost is solved when telemetry goes out (20 Hz), the only time it is shown; it was solved every
 # 16 ticks (31 Hz): ≈ 10 % of the engine's CPU on G1, ≈ 6 % now (issue 12: the status line's real-time factor).
-#: The ghost is drawn, not measured: its Gauss-Newton stops at a weighted residual of 1e-4 (about 0.1 mm at the
-#: soles; joints within 0.4 mrad of a 1e-7 solve) instead of KinematicPreview's 1e-7. On a G1 walk at 0.3 m/s,
-#: 20 Hz: 3.6 passes instead of 4.7, 0.82 ms per solve instead of 1.40 (/tmp script timing both on the same
-#: references; about 2 % of the engine's CPU).
+#: The ghost is drawn (and kept as a recording's reference pose), not used to control: its Gauss-Newton stops at
+#: a weighted residual of 1e-4 instead of KinematicPreview's 1e-7. Over 10 s of a G1 walk at 0.3 m/s, 20 Hz
+#: (KinematicPreview.solve at both tolerances on the same references): soles within 0.09 mm of the reference,
+#: joints within 0.4 mrad of the 1e-7 solve, 3.6 passes instead of 4.7, 0.82 ms per solve instead of 1.40 (about
+#: 2 % of the engine's CPU); tests/control/test_engine_modes.py bounds it at 0.3 mm and 2 mrad.
 GHOST_TOLERANCE = 1e-4
 RECORD_EVERY_TICKS = 4  # a recording keeps every 4th tick (125 Hz) with the ghost solved at that instant
 #: Stand asked of a walking robot: it first comes to rest under the walking controller (zero command: its

@@ -41,12 +41,18 @@ class _SentHistory:
         now = time.monotonic() if now_s is None else now_s
         self._times.append(now)
         self._vectors.append(np.asarray(vector, float).copy())
-        while self._times and self._times[0] < now - ECHO_WINDOW_S:
+        self._forget(now)
+
+    def _forget(self, now_s: float) -> None:
+        while self._times and self._times[0] < now_s - ECHO_WINDOW_S:
             self._times.popleft()
             self._vectors.popleft()
-        self._stacked = None
+            self._stacked = None
+        if self._times and self._times[-1] == now_s:
+            self._stacked = None
 
-    def near(self, vector: np.ndarray, *others: np.ndarray) -> bool:
+    def near(self, vector: np.ndarray, *others: np.ndarray, now_s: float | None = None) -> bool:
+        self._forget(time.monotonic() if now_s is None else now_s)
         if self._vectors and self._stacked is None:
             self._stacked = np.array(self._vectors)
         rows = [self._stacked] if self._stacked is not None else []
@@ -91,7 +97,9 @@ class CameraFollow:
                 st.look_rel = np.array([0.0, 0.0, LOOK_HEIGHT_M])
                 st.user_until = 0.0
 
-    def place(self, client: Any, position, look_at, up_direction=None) -> None:
+    def place(self, client: Any, position: np.ndarray | tuple[float, float, float],
+              look_at: np.ndarray | tuple[float, float, float],
+              up_direction: np.ndarray | tuple[float, float, float] | None = None) -> None:
         """The studio itself points ``client``'s camera (e.g. "Camera to graph") and following goes on from there.
 
         One step under the follow's lock: a follow step on the drive panel's thread can neither overwrite the new

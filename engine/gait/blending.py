@@ -33,7 +33,7 @@ from engine.gait.style import (
 SWING_PHASES = {"left": (0.0, PHI_LTD), "right": (PHI_RLO, PHI_RTD)}  # (liftoff φ, touchdown φ)
 HEEL, TOE = 4, 5  # indices of heel_pitch / toe_pitch in a swing bank
 ATTRIBUTE_INDEX = {name: i for i, name in enumerate(ATTRIBUTE_NAMES)}
-_WAYPOINTS = np.array(PHASE_WAYPOINTS)  # the phase maps' waypoint phases (bisect in PhaseMap.time_at)
+WAYPOINT_PHASES = np.array(PHASE_WAYPOINTS)  # the phase maps' waypoint phases (bisect in PhaseMap.time_at)
 
 
 class CurveBank:
@@ -180,7 +180,7 @@ class MergedBank:
         """:meth:`evaluate` with each member at its own time Ωᵢ(φ) of ``phase`` and its rates scaled by Ωᵢ'(φ) ·
         ``dphase_dt`` (the chain rule of :meth:`BlendedGait.channels`), in one compiled call."""
         values, rates = merged_bank_at_phase(
-            float(phase), float(dphase_dt), _WAYPOINTS, self.phase_segments, self.cycles, self.member_of_row, self.offset,
+            float(phase), float(dphase_dt), WAYPOINT_PHASES, self.phase_segments, self.cycles, self.member_of_row, self.offset,
             self.periodic, self.period, self.hi, self.search, self.t0, self.coef)
         shape = (self.n_members, self.rows_per_member)
         return values.reshape(shape), rates.reshape(shape)

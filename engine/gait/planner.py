@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from engine.geometry import quat_from_matrix, smoothstep
-from engine.gait.blending import HEEL, SWING_PHASES, TOE, BlendedGait, ChannelLayout, StyleBanks
+from engine.gait.blending import HEEL, SWING_PHASES, TOE, WAYPOINT_PHASES, BlendedGait, ChannelLayout, StyleBanks
 from engine.gait.footsteps import (
     Foothold,
     SafeRegion,
@@ -34,18 +34,13 @@ from engine.gait.footsteps import (
 )
 from engine.gait.heel_toe import ROLL_SMOOTHING
 from engine.gait.path_frame import PathFrame, predict_xy_yaw
-from engine.gait.phase_map import PHASE_WAYPOINTS, PHI_LTD, PHI_RLO, PHI_RTD
+from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD
 from engine.gait.style import SIDES, Style, StyleContext
 from engine.gait.planner_kernels import (
     EDGE_CODES,
-    FOOT_FLAT,
-    FOOT_ROLLED,
-    FOOT_SWING,
-    MIN_HEEL_TOE_TRANSITION_S,
     PREVIEW_EVENT_PHASES,
     SWING_HEEL,
     SWING_TOE,
-    TRANSITION_SMOOTHING_S,
     evaluate_reference_into,
     path_table,
     preview_intervals,
@@ -144,7 +139,6 @@ _ROLL_SMOOTHING_SQ = ROLL_SMOOTHING ** 2  # (evaluate_reference_into's frame: Py
 (_LEFT_LIFTOFF, _LEFT_TOUCHDOWN), (_RIGHT_LIFTOFF, _RIGHT_TOUCHDOWN) = SWING_PHASES["left"], SWING_PHASES["right"]
 _NO_ROTS = np.zeros((3, 3, 3))  # evaluate's previous frames before the first tick (no rates)
 _NO_POS = np.zeros((2, 3))
-_PHASE_WAYPOINTS = np.array(PHASE_WAYPOINTS)  # the phase maps' waypoint phases (merged_bank_at_phase's)
 _NO_ADJUST = np.zeros(2)  # no step adjustment (x, y): _upcoming_foothold reads it, never writes it
 _NO_ADJUST.flags.writeable = False
 PATH_TABLE_STEP_S = 0.05
@@ -508,13 +502,14 @@ class GaitPlanner:
         else:
             dt, prev_rots, prev_foot_pos, prev_pelvis_z, prev_upper = 0.0, _NO_ROTS, _NO_POS, 0.0, None
         n_upper = merged.n_cycle - 4
-        if prev_upper is None or prev_upper.shape[0] != n_upper:
+        if prev_upper is None:
             prev_upper = np.zeros(n_upper)
+        assert prev_upper.shape[0] == n_upper, "the upper-body channels are fixed per planner (its StyleContext)"
         rots, foot_pos, corners = np.empty((3, 3, 3)), np.empty((2, 3)), np.empty((2, 4, 3))
         corner_contact, ang, lin = np.empty((2, 4), dtype=np.bool_), np.empty((3, 3)), np.empty((2, 3))
         upper, upper_qd, progress, scalars = np.empty(n_upper), np.empty(n_upper), np.empty(2), np.empty(2)
         evaluate_reference_into(
-            float(phi), t, blend.events_array, blend.weights, _PHASE_WAYPOINTS, merged.phase_segments, merged.cycles,
+            float(phi), t, blend.events_array, blend.weights, WAYPOINT_PHASES, merged.phase_segments, merged.cycles,
             merged.member_of_row, merged.offset, merged.periodic, merged.period, merged.hi, merged.search, merged.t0,
             merged.coef, merged.n_cycle, float(self.path.yaw), self._frame_constants(), feet,
             np.array([swing_left, swing_right]), np.array([self.landed["left"], self.landed["right"]]),

@@ -584,8 +584,8 @@ def reference_frames_into(params, corners_local, prev_rots, prev_foot_pos, dt, r
 # semantics as in the preview above: min/max keep their first argument on ties, squares go through libm's pow
 # (``two``).
 
-#: Heel/toe transition smoothing and floor of GaitPlanner._foot_params [s] (planner.TRANSITION_SMOOTHING_S,
-#: planner.MIN_HEEL_TOE_TRANSITION_S), and the swing bank's heel_pitch / toe_pitch indices (blending.HEEL, TOE).
+#: Heel/toe transition smoothing and floor of the soles' stance parameters [s] (_foot_params_into), and the swing
+#: bank's heel_pitch / toe_pitch indices (blending.HEEL, TOE).
 TRANSITION_SMOOTHING_S = 0.01
 MIN_HEEL_TOE_TRANSITION_S = 0.08
 SWING_HEEL, SWING_TOE = 4, 5
@@ -675,14 +675,14 @@ def evaluate_reference_into(phi, t, events, weights, waypoints, segments, cycles
     :func:`merged_bank_at_phase`'s, ``n_cycle`` cycle channels per member), ``pitch`` (2, 2, 2): per side the
     (liftoff, touchdown) (heel, toe) pitches, ``attributes``: pelvis height, touchdown and liftoff transitions.
     ``frame``: the sole's length and width, heel_toe.ROLL_SMOOTHING and its square, planner.CONTACT_TOL_M.
-    ``feet`` (2, 2, 3): per side (swing start, target) while ``swinging``, else (latched, latched); ``landed`` (2,). The last tick's
-    frames (``has_prev``, ``dt`` since it, ``prev_*``) give the backward-difference rates.
+    ``feet`` (2, 2, 3): per side (swing start, target) while ``swinging``, else (latched, latched); ``landed`` (2,).
+    The last tick's frames (``has_prev``, ``dt`` since it, ``prev_*``) give the backward-difference rates.
 
     Writes :func:`reference_frames_into`'s ``rots`` … ``lin``, ``corner_contact`` (2, 4) (a corner below
     ``frame[4]``), the upper-body joints ``upper`` and rates ``upper_qd`` (K,), the feet's
     swing ``progress`` (2,) and ``scalars`` (2,): the pelvis height and its rate (0 without rates). The channels' blend
-    is numpy's ``weights @ values`` (BLAS's dgemv, as there): the same numbers as the Python it replaces
-    (tests/gait/test_planner_evaluate_reference.py keeps it)."""
+    is a BLAS dgemv, as numpy's ``weights @ values`` is: the same numbers as the Python it replaces (bit for bit
+    here; tests/gait/test_planner_evaluate_reference.py keeps that code and allows 4 ulp for another BLAS build)."""
     values, _ = merged_bank_at_phase(phi - math.floor(phi), 1.0, waypoints, segments, cycles, member_of_row, offset,
                                      periodic, period, hi, search, t0, coef)
     v = np.dot(weights, values.reshape((weights.shape[0], values.shape[0] // weights.shape[0])))

@@ -19,14 +19,19 @@ from engine.gait.planner import (
     _NO_POS,
     _NO_ROTS,
     CONTACT_TOL_M,
-    MIN_HEEL_TOE_TRANSITION_S,
     ROLL_SMOOTHING,
-    TRANSITION_SMOOTHING_S,
     GaitPlanner,
     GaitReference,
     PlannerFeedback,
 )
-from engine.gait.planner_kernels import FOOT_FLAT, FOOT_ROLLED, FOOT_SWING, reference_frames_into
+from engine.gait.planner_kernels import (
+    FOOT_FLAT,
+    FOOT_ROLLED,
+    FOOT_SWING,
+    MIN_HEEL_TOE_TRANSITION_S,
+    TRANSITION_SMOOTHING_S,
+    reference_frames_into,
+)
 from engine.gait.style import load_style, styles_dir
 from engine.gait.swing import nominal_swing
 from engine.geometry import smooth_max, smooth_min
@@ -120,25 +125,27 @@ def foot_params_before(self: GaitPlanner, side: str, phi: float, t: float, blend
     return (mode, hold.x, hold.y, hold.yaw, 0.0, heel, toe, 0.0, 0.0, 0.0, 0.0), 1.0
 
 
-#: Floats may differ by this many units in the last place: the blended channels are a BLAS dot product, numpy's
-#: (before) and numba's through scipy's (now). They agree bit for bit here, but two OpenBLAS builds may pick different
-#: kernels on another CPU. A wrong change (a swapped index, a dropped term) is off by far more.
+#: Floats may differ by this many units in the last place (relative), or by ``ATOL`` near zero: the blended channels
+#: are a BLAS dot product, numpy's (before) and numba's through scipy's (now). They agree bit for bit here, but two
+#: OpenBLAS builds may pick different kernels on another CPU. A wrong change (a swapped index, a dropped term) is off
+#: by far more.
 MAX_ULP = 4
+ATOL = 1e-12
 
 
 def _assert_same(a: object, b: object, what: str) -> None:
-    """The same type and numbers (arrays: shape, dtype, then bytes for integers and bools and ``MAX_ULP`` for floats;
-    dicts: keys in order, then each value; floats: ``MAX_ULP``; the rest, e.g. Footholds and lists: ==)."""
+    """The same type and numbers (arrays: shape, dtype, then bytes for integers and bools, ``MAX_ULP`` / ``ATOL`` for
+    floats; dicts: keys in order, then each value; floats: ``MAX_ULP`` / ``ATOL``; the rest, e.g. Footholds: ==)."""
     assert type(a) is type(b), (what, type(a), type(b))
     if isinstance(a, np.ndarray):
         assert isinstance(b, np.ndarray)
         assert a.dtype == b.dtype and a.shape == b.shape, what
         if np.issubdtype(a.dtype, np.floating):
-            np.testing.assert_array_max_ulp(a, b, maxulp=MAX_ULP)
+            np.testing.assert_allclose(a, b, rtol=MAX_ULP * np.finfo(float).eps, atol=ATOL, err_msg=what)
         else:
             assert a.tobytes() == b.tobytes(), what
     elif isinstance(a, (float, np.floating)):
-        np.testing.assert_array_max_ulp(np.float64(a), np.float64(b), maxulp=MAX_ULP)
+        np.testing.assert_allclose(float(a), float(b), rtol=MAX_ULP * np.finfo(float).eps, atol=ATOL, err_msg=what)
     elif isinstance(a, dict):
         assert isinstance(b, dict) and list(a) == list(b), what
         for key in a:
@@ -186,26 +193,35 @@ def test_evaluate_matches_the_python_it_replaced() -> None:
     assert compared >= 490 and min(swinging) > 50  # every planner tick; both feet swung and stood
 
 
-def _compare_evaluate(planner: GaitPlanner, phi: float, what: str) -> GaitReference:
-    """evaluate(φ) and evaluate_before(φ) from the same state: the same reference and _last_pose, field by field
-    (the new code's state goes on)."""
-    prev = planner._last_pose
-    now = GaitPlanner.evaluate(planner, phi)
-    after_now = planner._last_pose
-    planner._last_pose = prev
-    before = evaluate_before(planner, phi)
-    for f in fields(GaitReference):
-        _assert_same(getattr(now, f.name), getattr(before, f.name), f"{f.name} {what}")
-    _assert_same(after_now, planner._last_pose, f"_last_pose {what}")
-    planner._last_pose = after_now
-    return now
+def _compare_inside_step(planner: GaitPlanner, counts: dict[str, int]) -> None:
+    """Make ``planner.evaluate`` (called by ``step``) run the new and the replaced code from the same state and
+    compare the references and the _last_pose they leave, field by field (the new code's state goes on); counts the
+    comparisons and those with rates (a tick with time since the last evaluate)."""
+    evaluate_now = planner.evaluate
+
+    def evaluate_both(phi: float) -> GaitReference:
+        prev = planner._last_pose
+        now = evaluate_now(phi)
+        after_now = planner._last_pose
+        planner._last_pose = prev
+        before = evaluate_before(planner, phi)
+        what = f"at t = {planner.t_s}"
+        for f in fields(GaitReference):
+            _assert_same(getattr(now, f.name), getattr(before, f.name), f"{f.name} {what}")
+        _assert_same(after_now, planner._last_pose, f"_last_pose {what}")
+        planner._last_pose = after_now
+        counts["compared"] += 1
+        counts["with rates"] += bool(np.abs(now.foot_lin_vel).max() > 0.0 and np.abs(now.upper_qd).max() > 0.0)
+        return now
+
+    planner.evaluate = evaluate_both  # type: ignore[method-assign]
 
 
 def test_evaluate_matches_the_python_it_replaced_with_heel_toe_rolls() -> None:
     """The planner alone (no robot) on the rigged style (toe-off and heel-strike pitches, a yawed and rolled swing
-    foot, a swaying pelvis) under ramping commands, random time scaling and step adjustments, with ticks without
-    time (no rates): every branch of the soles' parameters (swinging, standing flat and rolled, before the first
-    landing) gives the old numbers, bit for bit."""
+    foot, a swaying pelvis) under ramping commands, random time scaling and step adjustments, and some ticks
+    without time (no rates): every branch of the soles' parameters (swinging, standing flat and rolled, before the
+    first landing) and the rates give the old numbers (to ``MAX_ULP``), compared inside ``step``'s own evaluate."""
     from engine.gait.offline_plan import planner_for
     from engine.gait.style import StyleContext
     from tests.gait.test_planner_speed_references import _rigged_style
@@ -216,6 +232,8 @@ def test_evaluate_matches_the_python_it_replaced_with_heel_toe_rolls() -> None:
     planner = planner_for(robot, _rigged_style(), StyleContext.for_robot("g1"))
     planner.path_follows_feet = 0.5
     step = GaitPlanner.step
+    counts = {"compared": 0, "with rates": 0}
+    _compare_inside_step(planner, counts)
     command, goal = np.zeros(3), np.array([0.4, 0.1, 0.3])
     for k in range(600):
         if k % 120 == 0:
@@ -223,10 +241,10 @@ def test_evaluate_matches_the_python_it_replaced_with_heel_toe_rolls() -> None:
         command = command + np.clip(goal - command, -0.01, 0.01)
         fb = PlannerFeedback(float(rng.uniform(0.7, 1.4)), rng.normal(0.0, 0.02, 2) if k % 3 else None)
         ref = step(planner, 0.008 if k % 50 else 0.0, command, fb, with_preview=False)
-        _compare_evaluate(planner, ref.phase, f"at k = {k}")
         t = planner.blend.time_at(ref.phase)
         for i, side in enumerate(("left", "right")):
             vals = planner.blend.channel_values(ref.phase)[1 + i]
             params, _ = foot_params_before(planner, side, ref.phase, t, planner.blend, vals, not bool(ref.contact[i]))
             modes[params[0]] += 1
     assert min(modes.values()) > 50, modes  # every mode of the soles' parameters came up
+    assert counts["compared"] == 600 and counts["with rates"] > 500, counts

@@ -58,7 +58,7 @@ def foot_at_reference(planner, side: str, phi: float, t: float, blend, vals: np.
     """GaitPlanner._foot_at before the speed-up: (position, rotation, swing progress) of the sole."""
     from engine.gait.blending import HEEL, SWING_PHASES, TOE
     from engine.gait.heel_toe import foot_rig, stance_pitch
-    from engine.gait.planner import MIN_HEEL_TOE_TRANSITION_S, TRANSITION_SMOOTHING_S
+    from engine.gait.planner_kernels import MIN_HEEL_TOE_TRANSITION_S, TRANSITION_SMOOTHING_S
     from engine.gait.swing import nominal_swing
     from engine.geometry import rot_z, smooth_max, smooth_min
 

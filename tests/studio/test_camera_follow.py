@@ -135,8 +135,12 @@ def test_the_sent_history_forgets_after_its_window():
     history = cf._SentHistory()
     history.append(np.array([0.0, 0.0, 0.6]), now_s=100.0)
     history.append(np.array([1.0, 0.0, 0.6]), now_s=100.0 + cf.ECHO_WINDOW_S / 2)
-    assert history.near(np.array([0.001, 0.0, 0.6])) and not history.near(np.array([0.5, 0.0, 0.6]))
-    assert history.near(np.array([0.5, 0.0, 0.6]), np.array([0.5, 0.0, 0.6]))  # an extra candidate counts too
-    history.append(np.array([2.0, 0.0, 0.6]), now_s=100.0 + cf.ECHO_WINDOW_S + 1.0)
-    assert len(history) == 2 and not history.near(np.array([0.0, 0.0, 0.6]))
+    now = 100.0 + cf.ECHO_WINDOW_S / 2
+    assert history.near(np.array([0.001, 0.0, 0.6]), now_s=now) and not history.near(np.array([0.5, 0.0, 0.6]), now_s=now)
+    assert history.near(np.array([0.5, 0.0, 0.6]), np.array([0.5, 0.0, 0.6]), now_s=now)  # an extra candidate counts
+    later = 100.0 + cf.ECHO_WINDOW_S + 1.0
+    assert not history.near(np.array([0.0, 0.0, 0.6]), now_s=later)  # forgotten without a new send
+    assert history.near(np.array([1.0, 0.0, 0.6]), now_s=later)
+    history.append(np.array([2.0, 0.0, 0.6]), now_s=later)
+    assert len(history) == 2 and not history.near(np.array([0.0, 0.0, 0.6]), now_s=later)
     assert np.allclose(history[-1], (2.0, 0.0, 0.6))

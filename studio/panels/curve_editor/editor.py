@@ -80,7 +80,7 @@ class CurveEditor(GraphView, DragInteraction, EditorWidgets):
         #: called when the animator picks a sample in this panel's Sample menu (the app makes it the one
         #: selected everywhere: the Sample tab, and the sample Edit mode walks)
         self.on_sample_picked: Callable[[str], None] | None = None
-        #: run before / after the camera is pointed at the graph (the app brings the graph beside the robot)
+        #: run before the camera is pointed at the graph (the app brings the graph beside the robot)
         self.before_look_at_graph: Callable[[Any], None] | None = None
         #: (client, position, look_at, up): points a browser's camera (None: set it directly)
         self.place_camera: Callable[[Any, Any, Any, Any], None] | None = None
