@@ -122,7 +122,7 @@ class FeasibilityChecker:
     """Checks samples of styles of one robot (reuses the models between calls)."""
 
     def __init__(self, robot: RobotModel, ctx: StyleContext | None = None):
-        from engine.control.walking_controller import toe_trim_m
+        from engine.control.foot_geometry import toe_trim_m
         from engine.control.walking_parameters import WalkingParameters
         from engine.gait.kinematic_preview import FOOT_FRAMES, KinematicPreview
 
