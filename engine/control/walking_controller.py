@@ -11,7 +11,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -27,6 +27,7 @@ from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBody
 from engine.control.wbc.reference import N_BASIS, N_CORNERS
 from engine.control.foot_geometry import toe_trim_m
 from engine.control.walking_parameters import WalkingParameters
+from engine.control.walking_telemetry import WalkingTelemetry, update_telemetry
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
 from engine.geometry.vector import vector_norm
@@ -50,28 +51,6 @@ class StepTimings:
     mpc: float | None = None
     wbc: float | None = None
     estimator: float | None = None
-
-
-@dataclass
-class WalkingTelemetry:
-    """What the studio's overlays and plots need, refreshed every planner tick."""
-
-    t_s: float = 0.0
-    com_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    com_ref_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    cop_ref_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    com_path_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    cop_path_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    support_polygon: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    preview_polygons: list[np.ndarray] = field(default_factory=list)
-    footholds: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # planned (x, y, yaw)
-    sample_weights: np.ndarray = field(default_factory=lambda: np.zeros(9))
-    feedback: FeedbackOutput | None = None
-    command: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    command_clamped: bool = False
-    mpc_status: str = ""
-    wbc_status: str = ""
-    external_force_n: np.ndarray = field(default_factory=lambda: np.zeros(2))  # observed horizontal push
 
 
 class WalkingController:
@@ -645,36 +624,10 @@ class WalkingController:
     def telemetry(self) -> WalkingTelemetry:
         """Overlay/plot signals, assembled on demand (the studio reads them at 20 Hz)."""
         if self._telemetry_stale and self.ref is not None and self._last_fb is not None:
-            self._update_telemetry(self.ref, self._last_com, self._last_fb)
+            update_telemetry(self._telemetry, self.ref, self.plan, self._last_com, self._last_fb, self._mpc_shift,
+                             self.planner.command_clamped, self.wbc.diagnostics, self.observer.force_n)
             self._telemetry_stale = False
         return self._telemetry
-
-    def _update_telemetry(self, ref: GaitReference, com: np.ndarray, fb: FeedbackOutput) -> None:
-        plan = self.plan
-        tel = self._telemetry
-        tel.t_s = ref.t_s
-        tel.com_xy = com
-        if plan is not None:
-            tel.com_ref_xy = plan.com_at(ref.t_s)[0]
-            tel.cop_ref_xy = plan.cop_at(ref.t_s) - self._mpc_shift
-            _, tel.com_path_xy = plan.com_path(0.04)
-            tel.cop_path_xy = plan.waypoints_xy_m - self._mpc_shift
-            tel.mpc_status = plan.status
-        tel.support_polygon = ref.preview[0].polygon if ref.preview else np.zeros((0, 2))
-        tel.preview_polygons = [p.polygon for p in ref.preview]
-        holds: list[np.ndarray] = []
-        for p in ref.preview:
-            for hold in p.footholds.values():
-                row = hold.as_array()
-                if not holds or np.abs(np.asarray(holds[-1]) - row).max() > 1e-9:
-                    holds.append(row)
-        tel.footholds = np.unique(np.round(np.array(holds), 6), axis=0) if holds else np.zeros((0, 3))
-        tel.sample_weights = ref.sample_weights
-        tel.feedback = fb
-        tel.command = ref.command
-        tel.command_clamped = self.planner.command_clamped
-        tel.wbc_status = getattr(self.wbc.diagnostics, "status", "")
-        tel.external_force_n = self.observer.force_n.copy()
 
 
 _clip_to_polygon = clip_into_polygon  # the initial-CoP clip (engine.geometry.polygon)
