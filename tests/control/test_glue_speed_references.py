@@ -350,7 +350,7 @@ def test_early_touchdown_glue_equals_the_former_per_tick_version() -> None:
 
 
 def test_two_vector_any_on_floats_equals_the_array_method() -> None:
-    from engine.control.walking_controller import _any2
+    from engine.control.step_adjustment import _any2
 
     values = [0.0, -0.0, 1e-300, -5e-324, 2.0, math.nan, math.inf, -math.inf]
     for a in values:

@@ -704,7 +704,7 @@ def test_gait_feedback_on_floats_equals_the_numpy_version() -> None:
 
 
 def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
-    """WalkingController._reachable_steps before the speed-up (2-vector numpy expressions), with the legs' reach
+    """StepAdjustment.reachable_steps (formerly WalkingController._reachable_steps) before the speed-up (2-vector numpy expressions), with the legs' reach
     from the stance foot bounding an adjustment beyond max_step_adjust_m (issues 13/14)."""
     import dataclasses
 
@@ -726,10 +726,11 @@ def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
     dcm_error = (com + com_vel / omega) - (pos_now + vel_now / omega)
     err = vector_norm(dcm_error)  # ordinary tracking error is the MPC's to handle
     dcm_error *= max(err - self.params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
+    steps = self.step_adjustment
     if self.observer.force_n.any():
-        self._pushed_at_s = planner.t_s
+        steps.pushed_at_s = planner.t_s
     from_stance = (self.params.capture_from_stance_foot
-                   and planner.t_s - self._pushed_at_s < self.params.stance_capture_after_push_s)
+                   and planner.t_s - steps.pushed_at_s < self.params.stance_capture_after_push_s)
     reach_bounded = from_stance
     for side in SIDES:
         t_td = planner.time_to_touchdown_s(side, fb.kappa)
@@ -740,13 +741,13 @@ def reachable_steps_reference(self, fb):  # noqa: ANN001, ANN201
         growth = min(math.exp(omega * t_td), self.params.dcm_error_growth_cap)
         dcm = pos + vel / omega + growth * dcm_error - self._mpc_shift  # ξ against the real soles
         if from_stance:  # pushed: where the stance foot says ξ goes, whatever the plan says
-            dcm = self._xi_at_touchdown(side, com, com_vel, omega, t_td)
+            dcm = steps.xi_at_touchdown(side, com, com_vel, omega, t_td, self._mpc_shift)
         rel = np.array([nominal.x, nominal.y]) + adjust - dcm
         ahead = float(rel @ forward)
         # Under a push the CoP must hold ξ against it for the whole step: land with ξ near
         # the sole's middle (margin both ways), not at the edge of the CoP's reach.
         share = self.params.pushed_reach_share if self.observer.force_n.any() else 1.0
-        back, fwd = share * self._reach_back_m, share * self._reach_forward_m
+        back, fwd = share * steps.reach_back_m, share * steps.reach_forward_m
         if ahead > back:
             adjust -= (ahead - back) * forward
         elif ahead < -fwd:
@@ -805,14 +806,16 @@ def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
             # trials 3-5: adjustments beyond max_step_adjust_m (a nominal foothold run away from the robot)
             f = dataclasses.replace(fb, step_adjust_m=rng.normal(0.0, 0.05 if trial < 3 else 0.3, 2) * (trial != 0))
             c.params = dataclasses.replace(c.params, capture_from_stance_foot=trial % 3 != 1)
-            saved = c._pushed_at_s
-            got = c._reachable_steps(f)
-            got_pushed_at = c._pushed_at_s
-            c._pushed_at_s = saved
+            saved = c.step_adjustment.pushed_at_s
+            pos_now, vel_now, _ = c.plan.com_at(c.planner.t_s)
+            got = c.step_adjustment.reachable_steps(f, c.params, c.plan, (pos_now, vel_now, *c._com_state()), c._com_z,
+                                                    c._mpc_shift, c.observer.force_n)
+            got_pushed_at = c.step_adjustment.pushed_at_s
+            c.step_adjustment.pushed_at_s = saved
             want = reachable_steps_reference(c, f)
             np.testing.assert_array_equal(got.step_adjust_m, want.step_adjust_m)
             assert (got is f) == (want is f)
-            assert got_pushed_at == c._pushed_at_s
+            assert got_pushed_at == c.step_adjustment.pushed_at_s
             c._com_now = (com, vel)
             checked += 1
             changed += got is not f
@@ -823,7 +826,7 @@ def test_reachable_steps_on_floats_equals_the_numpy_version() -> None:
 
 
 def hurry_beyond_reference(self, com, com_vel, z, outer):  # noqa: ANN001, ANN201
-    """The distance of ξ beyond the outer sole edge in WalkingController._hurry_when_thrown_out before the speed-up."""
+    """The distance of ξ beyond the outer sole edge in StepAdjustment.hurry_when_thrown_out before the speed-up."""
     from engine.constants import GRAVITY_MPS2
     planner = self.planner
     omega = math.sqrt(GRAVITY_MPS2 / max(z, 0.2))
@@ -831,7 +834,7 @@ def hurry_beyond_reference(self, com, com_vel, z, outer):  # noqa: ANN001, ANN20
     c, s_ = math.cos(planner.path.yaw), math.sin(planner.path.yaw)
     outward = np.array([-s_, c]) * (1.0 if outer == "left" else -1.0)
     foot = planner.latched[outer]
-    return float((xi - np.array([foot.x, foot.y])) @ outward) - self._half_sole_width_m
+    return float((xi - np.array([foot.x, foot.y])) @ outward) - self.step_adjustment.half_sole_width_m
 
 
 def test_hurry_when_thrown_out_on_floats_equals_the_numpy_version() -> None:
@@ -860,7 +863,8 @@ def test_hurry_when_thrown_out_on_floats_equals_the_numpy_version() -> None:
         if k % 5 < 2:  # right at the margin or an ulp below it: the decision must not move by an ulp
             at = beyond if k % 5 == 0 else math.nextafter(beyond, -math.inf)
             c.params = dataclasses.replace(c.params, lateral_capture_margin_m=at)
-        got = c._hurry_when_thrown_out(fb, com, com_vel, z, outer, single=bool(k % 4))
+        got = c.step_adjustment.hurry_when_thrown_out(fb, c.params, com, com_vel, z, outer, bool(k % 4), c._mpc_shift,
+                                                      c.observer.force_n)
         want_hurry = beyond > c.params.lateral_capture_margin_m
         assert (got is fb) == (not want_hurry)
         hurried += want_hurry

@@ -1,4 +1,4 @@
-"""The stance-foot capture point that places steps under a push (`WalkingController._xi_at_touchdown`):
+"""The stance-foot capture point that places steps under a push (`StepAdjustment.xi_at_touchdown`):
 the LIP's divergent component ξ̇ = ω (ξ − p) about the stance sole's best CoP p, with a steady push's
 equilibrium shift f/(m ω²) taken off first."""
 
@@ -38,7 +38,8 @@ def _local(ctrl, p):
 
 
 def _inside_reach(ctrl, local) -> bool:
-    return (-ctrl._reach_back_m <= local[0] <= ctrl._reach_forward_m) and abs(local[1]) <= ctrl._reach_side_m
+    steps = ctrl.step_adjustment
+    return (-steps.reach_back_m <= local[0] <= steps.reach_forward_m) and abs(local[1]) <= steps.reach_side_m
 
 
 @settings(max_examples=60, deadline=None)
@@ -48,14 +49,15 @@ def test_a_captured_xi_stays_and_an_uncaptured_one_runs_away_from_the_sole(contr
     ctrl._mpc_shift = np.zeros(2)
     com, vel = np.array([x, y]), np.array([vx, vy])
     xi = com + vel / OMEGA
-    out = ctrl._xi_at_touchdown("left", com, vel, OMEGA, t)
+    out = ctrl.step_adjustment.xi_at_touchdown("left", com, vel, OMEGA, t, ctrl._mpc_shift)
     if _inside_reach(ctrl, _local(ctrl, xi)):
         np.testing.assert_allclose(out, xi, atol=1e-12)  # the CoP sits under ξ: it holds still
         return
     # outside: ξ moves straight away from the nearest reachable CoP, by e^{ωt}
     local = _local(ctrl, xi)
-    cop_local = np.array([np.clip(local[0], -ctrl._reach_back_m, ctrl._reach_forward_m),
-                          np.clip(local[1], -ctrl._reach_side_m, ctrl._reach_side_m)])
+    steps = ctrl.step_adjustment
+    cop_local = np.array([np.clip(local[0], -steps.reach_back_m, steps.reach_forward_m),
+                          np.clip(local[1], -steps.reach_side_m, steps.reach_side_m)])
     gap = np.linalg.norm(local - cop_local)
     moved = _local(ctrl, out)
     assert np.linalg.norm(moved - cop_local) == pytest.approx(gap * math.exp(OMEGA * t), rel=1e-9)
@@ -71,7 +73,7 @@ def test_a_steady_push_is_taken_as_the_shift_of_the_equilibrium(controller, x, y
     shift = np.array([fx, fy])
     com, vel = np.array([x, y]), np.zeros(2)
     ctrl._mpc_shift = shift
-    pushed = ctrl._xi_at_touchdown("left", com, vel, OMEGA, t)
+    pushed = ctrl.step_adjustment.xi_at_touchdown("left", com, vel, OMEGA, t, ctrl._mpc_shift)
     ctrl._mpc_shift = np.zeros(2)
-    moved = ctrl._xi_at_touchdown("left", com - shift, vel, OMEGA, t)
+    moved = ctrl.step_adjustment.xi_at_touchdown("left", com - shift, vel, OMEGA, t, ctrl._mpc_shift)
     np.testing.assert_allclose(pushed, moved, atol=1e-12)

@@ -79,7 +79,12 @@ def test_talos_hurries_every_support_while_pushed() -> None:
     fb = FeedbackOutput(np.zeros(2), np.zeros(2), 0.9, -0.02, -0.1, np.zeros(2))  # a lagging CoM slows the gait
     com = np.zeros(2)
     ctrl.observer.force_n = np.zeros(2)
-    assert ctrl._hurry_when_thrown_out(fb, com, np.zeros(2), 0.9, "left", single=True).kappa == 0.9
+
+    def hurry(ctrl, fb, com, single):  # noqa: ANN001, ANN202
+        return ctrl.step_adjustment.hurry_when_thrown_out(fb, ctrl.params, com, np.zeros(2), 0.9, "left", single,
+                                                          ctrl._mpc_shift, ctrl.observer.force_n)
+
+    assert hurry(ctrl, fb, com, single=True).kappa == 0.9
     ctrl.observer.force_n = np.array([0.0, -100.0])
-    assert ctrl._hurry_when_thrown_out(fb, com, np.zeros(2), 0.9, "left", single=True).kappa == 2.0
-    assert ctrl._hurry_when_thrown_out(fb, com, np.zeros(2), 0.9, "left", single=False).kappa == 2.0  # κ_double's bound
+    assert hurry(ctrl, fb, com, single=True).kappa == 2.0
+    assert hurry(ctrl, fb, com, single=False).kappa == 2.0  # κ_double's bound
