@@ -27,6 +27,7 @@ from engine.control.wbc.reference import N_BASIS, N_CORNERS
 from engine.control.foot_geometry import toe_trim_m
 from engine.control.step_adjustment import StepAdjustment
 from engine.control.walking_parameters import WalkingParameters
+from engine.control.touchdown import TouchdownTracker
 from engine.control.walking_telemetry import WalkingTelemetry, update_telemetry
 from engine.gait.footsteps import Foothold
 from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
@@ -111,9 +112,7 @@ class WalkingController:
         self._last_com = np.zeros(2)
         self._last_fb: FeedbackOutput | None = None
         self._pending_style: Style | None = None
-        self._foot_frames = [self.model.getFrameId(f"{side}_foot") for side in SIDES]
-        self._corner_offsets = np.array([[np.subtract(c, robot.config.soles[side].center)
-                                          for c in robot.config.soles[side].corners()] for side in SIDES])
+        self.touchdown = TouchdownTracker(robot, self.model, self.data)
         self.wbc_contact = np.ones((2, 4), dtype=bool)
         self.step_adjustment = StepAdjustment(robot, self.params, self.planner, self.feedback.gains,
                                               robot.q_standing[2] + self.com_offset_m)
@@ -149,17 +148,11 @@ class WalkingController:
         self._plan_ticks = 0
         self.ref = None
         self.plan = None
-        self._contact_ref: GaitReference | None = None
-        self._ref_contact = np.ones((2, N_CORNERS), dtype=bool)
-        # Of the planner's reference (kept until its next tick, see _reference_tables): the feet with no corner in
-        # contact whose planned vertical velocity is not upward (the only ones _with_early_touchdown looks at).
-        self._ref_landing_candidates: list[int] = []
+        self.touchdown.reset()
         # The references of the control ticks until the planner's next one (_interpolate_ticks), per (ref, plan)
         self._reference_batch: tuple = (None, None)
-        self._early_key: tuple[np.ndarray | None, np.ndarray | None, bool] = (None, None, False)
         self._foot_acc = np.zeros((2, 3))
         self._foot_ang_acc = np.zeros((2, 3))
-        self._since_touchdown = [-1, -1]
         self._landing = False
         self._com_z: float | None = None  # the LIP height, low-passed (set on the first MPC tick)
         com = pin.centerOfMass(self.model, data, q, state.v)
@@ -189,7 +182,7 @@ class WalkingController:
             self._com_now = (pin.centerOfMass(self.model, self.data, est.q, est.v), self._vcom_view.copy())
         # Around a landing the ground force is an impact the QP did not plan: the observer holds
         # (planned landings, and a swing foot already on the ground early).
-        early = self.ref is not None and self._early_touchdown_now(self.wbc_contact, self.ref.contact)
+        early = self.ref is not None and self.touchdown.early_now(self.wbc_contact, self.ref.contact)
         self.observer.update(CONTROL_PERIOD_S, self._com_now[1][:2],
                              None if (self._landing or early) else self._ground_force)
         t_est = time.perf_counter()
@@ -199,7 +192,7 @@ class WalkingController:
         dt_since = (self.tick % TICKS_PER_PLAN) * CONTROL_PERIOD_S
         t_wbc = time.perf_counter()
         reference = self._wbc_reference(dt_since)
-        reference.contact = self._with_early_touchdown(est, reference)
+        reference.contact = self.touchdown.with_early_touchdown(est, reference, self.ref, self.params)
         self.wbc_contact = reference.contact
         reference.external_wrench = self._external_wrench(est)
         cmd = self.wbc.compute(est, reference)
@@ -253,11 +246,11 @@ class WalkingController:
             command_rate_limits=self._command_accel_limits))
         self._feet_feedforward(ref)
         self.ref = ref
-        self._relatch_landed_feet(est, contact_before)
+        since_touchdown = self.touchdown.relatch_landed_feet(est, ref, contact_before, self.params, planner)
         in_contact, progress = ref.contact.tolist(), ref.swing_progress.tolist()
         self._landing = any(
             (not in_contact[i] and progress[i] > 1.0 - self.params.observer_hold_swing_share)
-            or 0 <= self._since_touchdown[i] < self.params.observer_hold_after_touchdown_plan_ticks for i in range(2))
+            or 0 <= since_touchdown[i] < self.params.observer_hold_after_touchdown_plan_ticks for i in range(2))
         t1 = time.perf_counter()
         self.timings.planner = t1 - t0
         every = max(self.params.mpc_every_plan_ticks, 1)
@@ -342,25 +335,6 @@ class WalkingController:
                 self._foot_acc[i] = 0.0
                 self._foot_ang_acc[i] = 0.0
 
-    def _relatch_landed_feet(self, est: RobotState, contact_before: np.ndarray) -> None:
-        """A few ticks after touchdown, latch the foothold where the foot really is."""
-        assert self.ref is not None, "called after the planner's step"
-        for i, side in enumerate(SIDES):
-            if not self.ref.contact[i]:
-                self._since_touchdown[i] = -1
-                continue
-            if not contact_before[i]:
-                self._since_touchdown[i] = 0
-            elif self._since_touchdown[i] >= 0:
-                self._since_touchdown[i] += 1
-            if self._since_touchdown[i] == self.params.relatch_after_plan_ticks:
-                pin.framesForwardKinematics(self.model, self.data, est.q)
-                m = self.data.oMf[self.model.getFrameId(f"{side}_foot")]
-                measured = Foothold(float(m.translation[0]), float(m.translation[1]),
-                                    float(math.atan2(m.rotation[1, 0], m.rotation[0, 0])))
-                if abs(m.translation[2]) < 0.01:  # really down
-                    self.planner.relatch(side, measured)
-
     def _feedback(self, com: np.ndarray, com_vel: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray) -> FeedbackOutput:
         planner = self.planner
         swinging = [s for s in SIDES if planner.in_swing(s, planner.phi)]
@@ -383,53 +357,12 @@ class WalkingController:
         return self.step_adjustment.hurry_when_thrown_out(fb, self.params, com, com_vel, z, outer, bool(swinging),
                                                           self._mpc_shift, self.observer.force_n)
 
-    def _early_touchdown_now(self, wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
-        """:func:`_early_touchdown`, kept while both arrays are the same objects (between planner ticks the whole-body
-        contact is the reference's, which is not written in place)."""
-        key = self._early_key
-        if key[0] is wbc_contact and key[1] is contact:
-            return key[2]
-        early = _early_touchdown(wbc_contact, contact)
-        self._early_key = (wbc_contact, contact, early)
-        return early
-
-    def _with_early_touchdown(self, est: RobotState, reference: WbcReference) -> np.ndarray:
-        """Sole corners the whole-body QP may push on: the plan's, plus the corners of a landing
-        foot that are already on the ground (a swing foot reaches the floor a few ms before its
-        planned touchdown; pretending it is still in the air makes the QP fight the floor)."""
-        contact = reference.contact
-        height = self.params.landing_height_m
-        ref = self.ref
-        if ref is not None and contact is self._ref_contact and self._contact_ref is ref \
-                and reference.foot_lin_vel_mps is ref.foot_lin_vel:  # _wbc_reference's: the per-reference tables
-            landing = [i for i in self._ref_landing_candidates if self._planned_low(reference, i, height)]
-        else:
-            flags = contact.tolist()
-            landing = [i for i in range(2) if not any(flags[i])
-                       and self._planned_low(reference, i, height) and reference.foot_lin_vel_mps[i, 2] <= 0.0]
-        if not landing:
-            return contact
-        pin.framesForwardKinematics(self.model, self.data, est.q)
-        contact = contact.copy()
-        for i in landing:
-            m = self.data.oMf[self._foot_frames[i]]
-            heights = m.translation[2] + (m.rotation @ self._corner_offsets[i].T)[2]
-            contact[i] = heights < self.params.touchdown_height_m
-        return contact
-
-    def _planned_low(self, reference: WbcReference, i: int, height: float) -> bool:
-        """Foot ``i``'s planned sole centre below ``height``, or its lowest planned corner below ``landing_corner_height_m``."""
-        z = float(reference.foot_pos_m[i, 2])
-        if z < height:
-            return True
-        corner = self.params.landing_corner_height_m
-        return corner > 0.0 and z + float((reference.foot_rotation[i][2] @ self._corner_offsets[i].T).min()) < corner
-
     def _wbc_reference(self, dt_since: float) -> WbcReference:
         ref = self.ref
         assert ref is not None and self.plan is not None
-        if self._contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
-            self._reference_tables(ref)
+        touchdown = self.touchdown
+        if touchdown.contact_ref is not ref:  # the planner's corners in contact: the same until its next tick
+            touchdown.reference_tables(ref)
         plan = self.plan
         batch = self._reference_batch
         if batch[0] is not ref or batch[1] is not plan:  # the references of the ticks until the planner's next
@@ -450,7 +383,7 @@ class WalkingController:
         # (positional: WbcReference's field order, com_xy_m … foot_ang_acc_radps2, external_wrench None as by default)
         return WbcReference(
             com[0], com[1], com[2], ref.pelvis_z + ref.pelvis_z_rate * dt_since, ref.pelvis_z_rate, pelvis_rot,
-            ref.pelvis_ang_vel, foot_pos, foot_rot, ref.foot_lin_vel, ref.foot_ang_vel, self._ref_contact, upper_q,
+            ref.pelvis_ang_vel, foot_pos, foot_rot, ref.foot_lin_vel, ref.foot_ang_vel, touchdown.ref_contact, upper_q,
             ref.upper_qd, None, self._foot_acc, self._foot_ang_acc,
         )
 
@@ -468,14 +401,6 @@ class WalkingController:
                                ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot,
                                ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, *batch[2:])
         return batch
-
-    def _reference_tables(self, ref: GaitReference) -> None:
-        """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact and the
-        feet that may be landing early (no corner in contact, not moving up)."""
-        contact = ref.corner_contact & ref.contact[:, None]
-        flags, up = contact.tolist(), ref.foot_lin_vel[:, 2].tolist()
-        self._contact_ref, self._ref_contact = ref, contact
-        self._ref_landing_candidates = [i for i in range(2) if not any(flags[i]) and up[i] <= 0.0]
 
     @property
     def telemetry(self) -> WalkingTelemetry:
@@ -515,12 +440,6 @@ def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
             e = b[f][k]
             terms[f][k] = (e[0] * w[0] + e[2] * w[2]) + (e[1] * w[1] + e[3] * w[3])
     return np.array([terms[0][0] + terms[1][0], terms[0][1] + terms[1][1]])
-
-
-def _early_touchdown(wbc_contact: np.ndarray, contact: np.ndarray) -> bool:
-    """A foot the last whole-body tick stood on (any corner) that the plan has in swing."""
-    corners, planned = wbc_contact.tolist(), contact.tolist()
-    return any(any(c) and not p for c, p in zip(corners, planned))
 
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:

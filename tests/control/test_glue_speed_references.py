@@ -287,13 +287,14 @@ def test_external_wrench_equals_the_cross_product_under_a_push() -> None:
 
 
 def with_early_touchdown_reference(controller, est, reference):  # noqa: ANN001, ANN201
-    """WalkingController._with_early_touchdown before the per-reference tables (the flags read every tick)."""
+    """TouchdownTracker.with_early_touchdown (formerly WalkingController._with_early_touchdown) before the
+    per-reference tables (the flags read every tick)."""
     import pinocchio as pin
 
     contact = reference.contact
     flags = contact.tolist()
     params = controller.params
-    corner = [reference.foot_pos_m[i, 2] + (reference.foot_rotation[i] @ controller._corner_offsets[i].T)[2].min()
+    corner = [reference.foot_pos_m[i, 2] + (reference.foot_rotation[i] @ controller.touchdown.corner_offsets_m[i].T)[2].min()
               for i in range(2)]  # the planned sole's lowest corner
     low = [reference.foot_pos_m[i, 2] < params.landing_height_m
            or (params.landing_corner_height_m > 0.0 and corner[i] < params.landing_corner_height_m) for i in range(2)]
@@ -303,8 +304,8 @@ def with_early_touchdown_reference(controller, est, reference):  # noqa: ANN001,
     pin.framesForwardKinematics(controller.model, controller.data, est.q)
     contact = contact.copy()
     for i in landing:
-        m = controller.data.oMf[controller._foot_frames[i]]
-        heights = m.translation[2] + (m.rotation @ controller._corner_offsets[i].T)[2]
+        m = controller.data.oMf[controller.touchdown.foot_frames[i]]
+        heights = m.translation[2] + (m.rotation @ controller.touchdown.corner_offsets_m[i].T)[2]
         contact[i] = heights < controller.params.touchdown_height_m
     return contact
 
@@ -312,7 +313,8 @@ def with_early_touchdown_reference(controller, est, reference):  # noqa: ANN001,
 def test_early_touchdown_glue_equals_the_former_per_tick_version() -> None:
     """The landing check on the per-reference tables, the kept early-touchdown flag and the swing feed-forward's
     clip (np.minimum/np.maximum) against the former expressions, every tick of a walk with landings."""
-    from engine.control.walking_controller import PLAN_DT_S, TICKS_PER_PLAN, WalkingController, _early_touchdown
+    from engine.control.touchdown import early_touchdown
+    from engine.control.walking_controller import PLAN_DT_S, TICKS_PER_PLAN, WalkingController
     from engine.gait.style import load_style, styles_dir
     from engine.sim import Simulation
 
@@ -323,10 +325,10 @@ def test_early_touchdown_glue_equals_the_former_per_tick_version() -> None:
     prev_ref = None
     for k in range(900):
         controller.set_command(np.array([0.4, 0.0, 0.2]) if k > 100 else np.zeros(3))
-        early_then = controller._early_touchdown_now(controller.wbc_contact, controller.ref.contact) \
+        early_then = controller.touchdown.early_now(controller.wbc_contact, controller.ref.contact) \
             if controller.ref is not None else None
         if early_then is not None:
-            assert early_then == _early_touchdown(controller.wbc_contact, controller.ref.contact)
+            assert early_then == early_touchdown(controller.wbc_contact, controller.ref.contact)
             flagged += early_then
         sim.step()
         ref = controller.ref
@@ -339,7 +341,8 @@ def test_early_touchdown_glue_equals_the_former_per_tick_version() -> None:
             np.testing.assert_array_equal(controller._foot_acc, want)
         prev_ref = ref
         reference = controller._wbc_reference(((controller.tick - 1) % TICKS_PER_PLAN) * 0.002)
-        got = controller._with_early_touchdown(controller.estimate, reference)
+        got = controller.touchdown.with_early_touchdown(controller.estimate, reference, controller.ref,
+                                                        controller.params)
         want = with_early_touchdown_reference(controller, controller.estimate, reference)
         np.testing.assert_array_equal(got, want)
         landed_early += got is not reference.contact

@@ -420,12 +420,12 @@ def test_horizontal_ground_force_equals_the_einsum() -> None:
 
 
 def test_early_touchdown_flag_equals_the_array_expression() -> None:
-    from engine.control.walking_controller import _early_touchdown
+    from engine.control.touchdown import early_touchdown
 
     for bits in range(2 ** 10):
         corners = np.array([(bits >> i) & 1 for i in range(8)], dtype=bool).reshape(2, 4)
         planned = np.array([(bits >> 8) & 1, (bits >> 9) & 1], dtype=bool)
-        assert _early_touchdown(corners, planned) == bool(np.any(corners.any(axis=1) & ~planned))
+        assert early_touchdown(corners, planned) == bool(np.any(corners.any(axis=1) & ~planned))
 
 
 def command_ramp_reference(command, goal, rate_limits):  # noqa: ANN001, ANN201
