@@ -88,7 +88,7 @@ def interpolate_reference(dt, t, times, wps, coms, vels, omega, foot_pos, foot_l
     """The reference ``dt`` after the planner's tick: (the plan's CoM position, velocity and acceleration at ``t``
     as rows (3, 2), the feet's positions (2, 3) and rotations (2, 3, 3), the pelvis rotation (3, 3; the planner's
     own array when it does not turn) and the upper-body joints (K,)). A foot turns when any component of its
-    angular velocity is non-zero (``_reference_tables``' turning feet)."""
+    angular velocity is non-zero."""
     com = np.empty((3, 2))
     _com_at(times, wps, coms, vels, omega, t, com)
     pos = np.empty((2, 3))
