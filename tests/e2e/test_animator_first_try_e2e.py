@@ -10,6 +10,7 @@ and neither the camera nor the graph moves under the pointer.
 from __future__ import annotations
 
 import re
+import time
 
 import numpy as np
 import pytest
@@ -136,6 +137,22 @@ def test_an_animators_first_try(tmp_path, artifacts):
             v_top = editor.view[3]
             _wait_simulated(studio, page, 0.3)  # the camera settles on its follow (still walking)
             cam = client.camera
+            # The browser turns its camera to the graph over several of its frames (2-12 FPS in software WebGL,
+            # fewer on a loaded machine) and reports the orientation as it goes: the orientation the drag must
+            # not change is the settled one — unchanged over 2 s in which the browser reported at least twice
+            # (CI once read it mid-turn and saw a 3.5° "rotation" by the drag).
+            settle = {"wxyz": None, "since": 0.0, "stamp": None, "reports": 0}
+
+            def orientation_settled() -> bool:
+                wxyz, stamp, now = np.asarray(cam.wxyz), cam.update_timestamp, time.monotonic()
+                if settle["wxyz"] is None or 1 - abs(float(np.dot(wxyz, settle["wxyz"]))) > 1e-7:
+                    settle.update(wxyz=wxyz, since=now, stamp=stamp, reports=0)
+                    return False
+                if stamp != settle["stamp"]:
+                    settle.update(stamp=stamp, reports=settle["reports"] + 1)
+                return now - settle["since"] >= 2.0 and settle["reports"] >= 2
+
+            _wait(orientation_settled, 60, "the browser's camera to finish turning to the graph", page)
             box = page.locator("canvas").first.bounding_box()
             steps = 6
             top = box["y"] + 4
