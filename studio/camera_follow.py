@@ -29,6 +29,17 @@ MIN_STEP_M = 2e-3  # smaller robot motions are not sent
 ECHO_WINDOW_S = 10.0
 
 
+def _write_camera(client: Any, position: np.ndarray, look_at: np.ndarray,
+                  up_direction: np.ndarray | tuple[float, float, float] | None = None) -> None:
+    """Send ``client`` one camera pose (one atomic block); the caller holds the follow's lock."""
+    cam = client.camera
+    with client.atomic():
+        if up_direction is not None:
+            cam.up_direction = tuple(up_direction)
+        cam.position = tuple(position)  # translates look_at too …
+        cam.look_at = tuple(look_at)  # … then pin it exactly
+
+
 class _SentHistory:
     """Vectors the studio sent, kept ``ECHO_WINDOW_S``; is a reported vector one of them (within ``ECHO_TOL_M``)?"""
 
@@ -41,14 +52,13 @@ class _SentHistory:
         now = time.monotonic() if now_s is None else now_s
         self._times.append(now)
         self._vectors.append(np.asarray(vector, float).copy())
+        self._stacked = None
         self._forget(now)
 
     def _forget(self, now_s: float) -> None:
         while self._times and self._times[0] < now_s - ECHO_WINDOW_S:
             self._times.popleft()
             self._vectors.popleft()
-            self._stacked = None
-        if self._times and self._times[-1] == now_s:
             self._stacked = None
 
     def near(self, vector: np.ndarray, *others: np.ndarray, now_s: float | None = None) -> bool:
@@ -104,14 +114,9 @@ class CameraFollow:
 
         One step under the follow's lock: a follow step on the drive panel's thread can neither overwrite the new
         camera with the old follow pose in between, nor have that overwrite adopted as the place to follow."""
-        cam = client.camera
         look, pos = np.asarray(look_at, float), np.asarray(position, float)
         with self._lock:
-            with client.atomic():
-                if up_direction is not None:
-                    cam.up_direction = tuple(up_direction)
-                cam.position = tuple(pos)  # translates look_at too …
-                cam.look_at = tuple(look)  # … then pin it exactly
+            _write_camera(client, pos, look, up_direction)
             st = self._state.setdefault(client.client_id, _ClientFollow(np.array([0.0, 0.0, LOOK_HEIGHT_M])))
             st.look_rel = look - self.robot_ground
             st.offset = pos - look
@@ -170,7 +175,5 @@ class CameraFollow:
                 position = look + st.offset
                 st.sent_looks.append(look, now)
                 st.sent_offsets.append(st.offset, now)
-                with client.atomic():  # under the lock: a place() cannot land between this pose and its record
-                    cam.position = tuple(position)  # translates look_at too …
-                    cam.look_at = tuple(look)  # … then pin it exactly
+                _write_camera(client, position, look)  # under the lock: a place() cannot land in between
         return ground

@@ -171,7 +171,9 @@ class GaitPlanner:
         self._stances: tuple[BlendedGait, dict[str, tuple[float, float, float]]] | None = None
         self._preview_constants: tuple[BlendedGait, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._region_array: tuple[SafeRegion, np.ndarray] | None = None  # the preview's (side, front, cross, max yaw)
-        self._frame: tuple[tuple[float, float], np.ndarray] | None = None  # evaluate's sole constants
+        # evaluate_reference_into's ``frame``: the sole's length and width, ROLL_SMOOTHING, its square (Python's
+        # ** 2) and CONTACT_TOL_M (the sole's size is fixed for the planner's life, like sole_corners_local)
+        self._frame = np.array([sole_length_m, sole_width_m, ROLL_SMOOTHING, _ROLL_SMOOTHING_SQ, CONTACT_TOL_M])
         self._attribute_row: tuple[BlendedGait, np.ndarray] | None = None  # evaluate's blend attributes
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
@@ -511,7 +513,7 @@ class GaitPlanner:
         evaluate_reference_into(
             float(phi), t, blend.events_array, blend.weights, WAYPOINT_PHASES, merged.phase_segments, merged.cycles,
             merged.member_of_row, merged.offset, merged.periodic, merged.period, merged.hi, merged.search, merged.t0,
-            merged.coef, merged.n_cycle, float(self.path.yaw), self._frame_constants(), feet,
+            merged.coef, merged.n_cycle, float(self.path.yaw), self._frame, feet,
             np.array([swing_left, swing_right]), np.array([self.landed["left"], self.landed["right"]]),
             blend.boundary_pitch_array, self._blend_attributes(), self.sole_corners_local, prev is not None, dt,
             prev_rots, prev_foot_pos, prev_pelvis_z, prev_upper, 2.0, rots, foot_pos, corners, corner_contact, ang,
@@ -532,15 +534,6 @@ class GaitPlanner:
             cycle_s=blend.events_s[3],
             swing_progress=progress,
         )
-
-    def _frame_constants(self) -> np.ndarray:
-        """:func:`evaluate_reference_into`'s ``frame``: the sole's length and width, ROLL_SMOOTHING, its square
-        (Python's ** 2) and CONTACT_TOL_M, kept while the sole's size is."""
-        cached = self._frame
-        if cached is None or cached[0] != (self.sole_length_m, self.sole_width_m):
-            cached = self._frame = ((self.sole_length_m, self.sole_width_m), np.array(
-                [self.sole_length_m, self.sole_width_m, ROLL_SMOOTHING, _ROLL_SMOOTHING_SQ, CONTACT_TOL_M]))
-        return cached[1]
 
     def _blend_attributes(self) -> np.ndarray:
         """:func:`evaluate_reference_into`'s ``attributes`` of the current blend (pelvis height, touchdown and
