@@ -542,6 +542,35 @@ def test_a_drag_goes_on_past_the_view_and_keeps_to_one_axis(editor, session):
     assert k2.t_s == pytest.approx(k1.t_s + 0.03, abs=1e-6) and k2.value == k1.value
 
 
+def test_the_axis_lock_follows_the_pointer_on_the_canvas(editor, session):
+    """A drag straight up the canvas keeps the knot's time even when its point on the graph plane went
+    sideways too (the studio's copy of the camera lags the browser's; a graph seen at an angle): the user
+    aims along the screen. A diagonal on the canvas moves both."""
+    ref = KnotRef(SWING, 1)
+    k0 = curve(session, SWING).knots[1]
+    start = editor.knot_world_position(ref)
+    up = editor.world_position(SWING, k0.t_s + 0.02, k0.value + 0.01)  # on the plane: diagonal enough...
+    (x0, z0), (x1, z1) = editor.graph_point(SWING, k0.t_s, k0.value), editor.graph_point(SWING, k0.t_s + 0.02,
+                                                                                          k0.value + 0.01)
+    assert abs(z1 - z0) < interaction.AXIS_LOCK_RATIO * abs(x1 - x0)  # ...that the plane alone would not lock
+
+    def ev(phase, end, screen_end):
+        return SimpleNamespace(phase=phase, start_position=np.asarray(start), end_position=np.asarray(end),
+                               start_screen_pos=(0.5, 0.5), end_screen_pos=screen_end, client=None)
+
+    editor.handle_knot_drag(ref, ev("start", start, (0.5, 0.5)))
+    editor.handle_knot_drag(ref, ev("update", up, (0.5, 0.3)))  # ...but straight up on the canvas
+    editor.handle_knot_drag(ref, ev("end", up, (0.5, 0.3)))
+    k1 = curve(session, SWING).knots[1]
+    assert k1.t_s == k0.t_s and k1.value == pytest.approx(k0.value + 0.01, abs=1e-6)
+    start = editor.knot_world_position(ref)
+    side = editor.world_position(SWING, k1.t_s + 0.02, k1.value + 0.01)
+    editor.handle_knot_drag(ref, ev("start", start, (0.5, 0.5)))
+    editor.handle_knot_drag(ref, ev("end", side, (0.6, 0.4)))  # 45° on the canvas: both axes move
+    k2 = curve(session, SWING).knots[1]
+    assert k2.t_s == pytest.approx(k1.t_s + 0.02, abs=1e-6) and k2.value == pytest.approx(k1.value + 0.01, abs=1e-6)
+
+
 def test_switching_to_an_empty_channel_clears_the_knot_fields(editor, session):
     editor.handle_knot_click(KnotRef(SWING, 1))
     assert editor.value_input.value == pytest.approx(curve(session, SWING).knots[1].value, abs=1e-6)

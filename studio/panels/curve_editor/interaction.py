@@ -148,7 +148,24 @@ class Drag:
     last_pt: np.ndarray | None = None  # graph-plane point of the latest pointer event
     last_preview_t: float = 0.0
     last_error: str = ""
+    anchor_screen: np.ndarray | None = None  # where the press was on the canvas (OpenCV 0..1), for the axis lock
+    aspect: float = 1.0  # the canvas' width ÷ height when the drag began
 
+
+
+def _screen_point(event: Any) -> np.ndarray | None:
+    """The press on the canvas (OpenCV 0..1) of a drag's "start" event, None when the event has none."""
+    pos = getattr(event, "start_screen_pos", None)
+    return None if pos is None else np.asarray(pos, dtype=float)
+
+
+def _canvas_aspect(client: Any) -> float:
+    """The canvas' width ÷ height as the client reports it (1 when it cannot say)."""
+    with contextlib.suppress(Exception):
+        aspect = float(client.camera.aspect)
+        if np.isfinite(aspect) and aspect > 0:
+            return aspect
+    return 1.0
 
 
 class DragInteraction(EditorBase):
@@ -250,11 +267,26 @@ class DragInteraction(EditorBase):
         t_lo, t_hi, v_lo, v_hi = drag.view0 or self._view
         dt, dv = dx / self.width_m * (t_hi - t_lo), dz / self.height_m * (v_hi - v_lo)
         if drag.kind == "knot":
-            if abs(dz) >= AXIS_LOCK_RATIO * abs(dx):
+            across, up = self._pointer_motion(drag, event, dx, dz)
+            if abs(up) >= AXIS_LOCK_RATIO * abs(across):
                 dt = 0.0
-            elif abs(dx) >= AXIS_LOCK_RATIO * abs(dz):
+            elif abs(across) >= AXIS_LOCK_RATIO * abs(up):
                 dv = 0.0
         return dt, dv
+
+    @staticmethod
+    def _pointer_motion(drag: Drag, event: Any, dx: float, dz: float) -> tuple[float, float]:
+        """(sideways, vertical) pointer motion that decides the axis lock: on the canvas, as the user moved
+        the mouse (in canvas heights), when the event says where the pointer is; else on the graph plane.
+
+        The screen is what the user sees and aims along: the graph-plane point is re-projected with the
+        studio's copy of the camera, which lags the browser's while the camera follows a walking robot, and
+        a graph seen at an angle tilts a straight-up drag by several degrees on the plane."""
+        end = getattr(event, "end_screen_pos", None)
+        if drag.anchor_screen is None or end is None:
+            return dx, dz
+        d = np.asarray(end, dtype=float) - drag.anchor_screen
+        return float(d[0]) * drag.aspect, -float(d[1])
 
     def _follow_drag_out_of_view(self, drag: Drag, curves: dict[str, HermiteCurve]) -> bool:
         """Grow the value range when the dragged knot nears its top or bottom (True: the view changed)."""
@@ -293,7 +325,8 @@ class DragInteraction(EditorBase):
         client = getattr(event, "client", None)
         label = f"move {sum(map(len, moves.values()))} knot(s) on {', '.join(moves)}"
         self._drag = Drag("knot", ref, "", self._plane_point(event.start_position, client),
-                           UndoGroup(self.session, label, self._quiet), base, dict(moves), client, view0=self._view)
+                           UndoGroup(self.session, label, self._quiet), base, dict(moves), client, view0=self._view,
+                           anchor_screen=_screen_point(event), aspect=_canvas_aspect(client))
         self._draw_ghost(base)
         self._redraw()
         return True

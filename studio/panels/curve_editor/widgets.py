@@ -52,7 +52,7 @@ class EditorWidgets(EditorBase):
         """A GUI callback: guarded, ignored while the editor itself syncs widget values."""
         def callback(event: Any) -> None:
             with self._lock:  # _sync runs under the lock: a user event waits, a synced echo sees the flag
-                if self._syncing:
+                if self._syncing or self._closed:  # closed: a typed value's pause ran out after the editor went
                     return
                 self._guarded(fn, event)
         return callback
