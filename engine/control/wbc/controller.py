@@ -29,6 +29,11 @@ damping), and joint position/velocity set-points come from integrating q̈, clip
 maximum error from the measured state (paper Sec. 7.1). A failed solve (non-finite input,
 no active contact, solver failure, NaN) never raises: the command falls back to a stiff PD
 hold with the last good torques decaying, and the diagnostics say why.
+
+This module composes the tick; its parts live in their own modules: the compiled build, solve and finish
+(:mod:`engine.control.wbc.kernels`), the numpy assembly they replace (:mod:`engine.control.wbc.assembly_numpy`),
+the solvers' order and fallbacks (:mod:`engine.control.wbc.solver_chain`), Eq. 15's torques in numpy
+(:mod:`engine.control.wbc.torques`), the set-points and the fallback hold (:mod:`engine.control.wbc.setpoints`).
 """
 
 from __future__ import annotations
@@ -39,11 +44,11 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg.lapack import dposv as _dposv
 
 from engine.control.controller import JointCommand, RobotState
 from engine.constants import CONTROL_PERIOD_S, GRAVITY_MPS2, SIDES
 from engine.control import qp_backends
+from engine.control.wbc.assembly_numpy import NumpyQpAssembly
 from engine.control.wbc.tasks import (
     AngularMomentumTask,
     ComTask,
@@ -58,6 +63,8 @@ from engine.control.wbc.qp import ActiveSetQpSolver, CentroidalQp, DaqpQpSolver,
 from engine.control.wbc.reference import N_BASIS, N_CORNERS, WbcDiagnostics, WbcGains, WbcReference
 from engine.control.wbc.setpoints import fallback_hold, integrate_setpoints
 from engine.control.wbc.snapshot import SnapshotReader
+from engine.control.wbc.solver_chain import QpSolverChain, SolveResult, solve_status
+from engine.control.wbc.torques import joint_torques, joint_torques_lu
 from engine.control.wbc import kernels as _kernels
 
 #: How the QP is assembled: compiled (numba, the default) or the numpy reference it replaces.
@@ -134,41 +141,27 @@ class TaskSpaceInverseDynamics:
         self._jac_filled = False
         self._rhs = np.zeros(self.n_rows)
         self._w = np.zeros(self.n_rows)
-        # The feet's targets, gains and weights live in (2, 6) arrays (the tasks hold row views), so
-        # both feet's rows are computed at once; every task's weights are views of the stacked ``_w``.
+        # Every task's weights are views of the stacked ``_w`` (the numpy path writes them through the tasks).
         n_feet = len(SIDES)
-        self._foot_kp, self._foot_kd = np.zeros((n_feet, 6)), np.zeros((n_feet, 6))
-        self._foot_vel, self._foot_acc = np.zeros((n_feet, 6)), np.zeros((n_feet, 6))
-        self._foot_w = self._w[:6 * n_feet].reshape(n_feet, 6)
-        for i, foot in enumerate(self.foot_tasks):
-            foot.kp, foot.kd, foot.velocity, foot.acceleration = (
-                self._foot_kp[i], self._foot_kd[i], self._foot_vel[i], self._foot_acc[i])
         r = 0
         for task in self.tasks:
             self._w[r:r + task.dim] = task.weight
             task.weight = self._w[r:r + task.dim]
             r += task.dim
-        self._foot_rows = 6 * n_feet
         # The compiled rows' gains (kernels.task_rows) and zero feed-forward.
         self._task_gains = np.array([g.swing_foot_kp, g.swing_foot_kd, self._swing_weights[0], g.contact_foot_kd,
                                      g.contact_foot_weight, g.pelvis_height_kp, g.pelvis_height_kd, g.pelvis_rot_kp,
                                      g.pelvis_rot_kd, g.com_kp, g.com_kd, g.com_z_weight, g.upper_body_kp,
                                      g.upper_body_kd, g.angular_momentum_kd, self._swing_weights[1]], dtype=float)
         self._zeros_2x3 = np.zeros((n_feet, 3))
-        self._skew = np.zeros((2 * len(SIDES) * N_CORNERS, 3, 3))
         self._corner_offsets_t = self.corner_offsets_m.transpose(0, 2, 1).copy()
         mu_n = g.friction_mu / math.sqrt(1.0 + g.friction_mu**2)
         # Pyramid edges (n ± μ t1, n ± μ t2)/√(1+μ²), t1 = heading, t2 = z × heading (see friction_basis):
         # their x and y rows are linear in the heading (hx, hy).
         self._basis_xy = mu_n * np.array([[[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]],
                                           [[0.0, 0.0, 1.0, -1.0], [1.0, -1.0, 0.0, 0.0]]])  # (x|y row, hx|hy, 4)
-        self._basis_template = np.zeros((len(SIDES), 3, N_BASIS))
-        self._basis_template[:, 2, :] = 1.0 / math.sqrt(1.0 + g.friction_mu**2)
-        self._arms_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3))
-        self._edges_buf = np.zeros((2 * len(SIDES) * N_CORNERS, 3, N_BASIS))
         self._rho_up_cache: tuple[bytes, FloatArray] = (b"", np.zeros(self.n_rho))
         self._rho_idx_cache: tuple[FloatArray | None, NDArray[np.int64]] = (None, np.zeros(0, dtype=np.int64))
-        self._wrench_buf = np.zeros((len(SIDES), 6, N_CORNERS * N_BASIS))
 
         damping = np.asarray(self.model.damping[6:], dtype=float).copy()
         self._joint_damping = damping if np.any(damping > 0.0) else None
@@ -180,9 +173,9 @@ class TaskSpaceInverseDynamics:
         self._neg_torque_limit = -self._torque_limit
         self._zeros_6 = np.zeros(6)
         # kernels.build_qp's scalar parameters (λ_q̈, pyramid z, λ_τ̄, λ_ρ, m g, k_l, b_l, q̈_max)
-        self._build_params = np.array([g.lambda_qdd, self._basis_template[0, 2, 0], g.lambda_tau, g.lambda_rho,
-                                       self.mass_kg * GRAVITY_MPS2, g.joint_limit_kl, g.joint_limit_bl,
-                                       g.max_joint_acc_radps2], dtype=float)
+        self._build_params = np.array([g.lambda_qdd, 1.0 / math.sqrt(1.0 + g.friction_mu**2), g.lambda_tau,
+                                       g.lambda_rho, self.mass_kg * GRAVITY_MPS2, g.joint_limit_kl,
+                                       g.joint_limit_bl, g.max_joint_acc_radps2], dtype=float)
         self._servo_kp = g.servo_kp_scale * robot.kp
         self._servo_kd = g.servo_kd_scale * robot.kd
         self.dense_solver = DenseQpSolver(self.nv, self.n_rho)
@@ -192,6 +185,13 @@ class TaskSpaceInverseDynamics:
         # Balance before style: two solves per tick when the slack is finite (engine/control/wbc/priority.py).
         self.priority = (LexicographicSolve(self.nv, self.n_rho, self.n_joints, self.n_rows, g.priority_slack_mps2)
                          if math.isfinite(g.priority_slack_mps2) else None)
+        self._solvers = QpSolverChain(qp_backend, self.active_set_solver, self.daqp_solver, self.dense_solver,
+                                      self.osqp_solver, self.priority)
+        # kernels="numpy": the task objects' path (engine/control/wbc/assembly_numpy.py)
+        self._numpy = NumpyQpAssembly(g, self._swing_weights, self.tasks, self.foot_tasks, self.pelvis_task,
+                                      self.com_task, self.upper_task, self._jac, self._rhs, self._w,
+                                      self._corner_offsets_t, self._basis_xy, self.mass_kg, self._joint_lower,
+                                      self._joint_upper, self._joint_damping, self._torque_limit)
         # build, solve and finish in one compiled call with the default solver and no task priority (False: the
         # step-by-step calls it replaces, the tests' reference: the same numbers)
         self.one_call = True
@@ -277,72 +277,32 @@ class TaskSpaceInverseDynamics:
 
         snap = DynamicsSnapshot.compute(self.model, self.data, q, v, self.foot_frame_ids)
         t1 = time.perf_counter()
-        self._set_targets(ref, contact)
-        qp = self._build_qp(snap, ref, contact)
+        qp, self._basis, self._corners_m, self._tau_map = self._numpy.build(
+            snap, ref, contact, self._rho_upper(contact), self._jac_filled)
+        self._jac_filled = True
         self.qp = qp
         t2 = time.perf_counter()
-        solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref.com_z_m is not None)
+        solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref)
         t3 = time.perf_counter()
         if solution is None:
             return self._fallback(state, "fallback_solver", message or "qp failed", t0, iterations)
         qdd, rho = solution
-        tau = self._torques(snap, qdd, rho)
+        tau = joint_torques(snap, self._tau_map, qdd, rho, self._joint_damping)
         if not math.isfinite(tau.sum()):
             return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
         cmd = self._setpoints(state, qdd, tau)
         self.last_tau = tau
-        status = "solved" if backend in ("active_set", "dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
         self.diagnostics = WbcDiagnostics(
-            status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
-            pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
-            basis=self._basis, corners_m=self._corners_m, qp=qp)
+            status=solve_status(backend, message), message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau,
+            qp_iterations=iterations, pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2,
+            total_s=time.perf_counter() - t0, basis=self._basis, corners_m=self._corners_m, qp=qp)
         return cmd
 
-    def _solve_prioritized(self, qp: CentroidalQp, contact: NDArray[np.bool_],
-                           com_z_tracked: bool) -> tuple[tuple[FloatArray, FloatArray] | None, str, int, str]:
-        """:meth:`_solve_qp`, or with a task priority its two solves (:mod:`engine.control.wbc.priority`): the
-        level-1 QP by the chosen backend, then level 2 with level 1 held (its solution kept when that fails)."""
-        priority = self.priority
-        if priority is None:
-            return self._solve_qp(qp)
-        first, backend, iterations, message = self._solve_qp(priority.level1_qp(
-            qp, self._jac, self._rhs, self._w, contact, com_z_tracked and self.gains.com_z_weight > 0.0))
-        if first is None:
-            return first, backend, iterations, message
-        second = priority.solve_level2(priority.level2_qp(qp, self._jac, first[0]))
-        iterations += priority.solver.iterations
-        if second is None:
-            return first, backend, iterations, f"{message}; level 2 failed, level 1's solution"
-        return second, backend, iterations, message
-
-    def _solve_qp(self, qp: CentroidalQp) -> tuple[tuple[FloatArray, FloatArray] | None, str, int, str]:
-        """The QP by the chosen backend (DAQP by default), OSQP when that one gives no solution: (q̈, ρ) or
-        None, the backend that solved it, its iterations and its status message."""
-        solution: tuple[FloatArray, FloatArray] | None = None
-        backend, iterations, message = self.qp_backend, 0, ""
-        if self.qp_backend == "active_set":
-            solution = self.active_set_solver.solve(qp)
-            iterations, message = self.active_set_solver.iterations, self.active_set_solver.status
-            if solution is None:  # a singular working set or the iteration cap: DAQP, then OSQP
-                backend = "daqp"
-                solution = self.daqp_solver.solve(qp)
-                iterations, message = iterations + self.daqp_solver.iterations, self.daqp_solver.status
-        elif self.qp_backend == "daqp":
-            solution = self.daqp_solver.solve(qp)
-            iterations, message = self.daqp_solver.iterations, self.daqp_solver.status
-        elif self.qp_backend == "dense":
-            solution = self.dense_solver.solve(qp)
-            iterations = self.dense_solver.iterations
-        elif self.qp_backend != "osqp":
-            result = qp_backends.solve(qp.standard_form(), self.qp_backend)
-            message = result.status
-            if result.ok and result.x is not None:
-                solution = (result.x[:self.nv].copy(), np.clip(result.x[self.nv:], 0.0, qp.rho_up))
-        if solution is None:
-            backend = "osqp"
-            solution = self.osqp_solver.solve(qp)
-            iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
-        return solution, backend, iterations, message
+    def _solve_prioritized(self, qp: CentroidalQp, contact: NDArray[np.bool_], ref: WbcReference) -> SolveResult:
+        """The QP by the solver chain (:mod:`engine.control.wbc.solver_chain`), with the task priority's two
+        solves when there is one (the stacked rows of this tick, the CoM height in level 1 when tracked)."""
+        return self._solvers.solve_prioritized(qp, self._jac, self._rhs, self._w, contact,
+                                               ref.com_z_m is not None and self.gains.com_z_weight > 0.0)
 
     def _compute_compiled(self, state: RobotState, q: FloatArray, v: FloatArray, ref: WbcReference,
                           t0: float) -> JointCommand:
@@ -366,7 +326,7 @@ class TaskSpaceInverseDynamics:
             return self._fallback(state, "fallback_no_contact", "no active contact corner: nothing to stand on", t0)
         self.qp = qp
         t2 = time.perf_counter()
-        solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref.com_z_m is not None)
+        solution, backend, iterations, message = self._solve_prioritized(qp, contact, ref)
         t3 = time.perf_counter()
         return self._finish_compiled(state, snap, qp, solution, backend, iterations, message, (t0, t1, t2, t3))
 
@@ -386,11 +346,8 @@ class TaskSpaceInverseDynamics:
             self._no_damping if damping is None else damping, damping is not None, snap.v, snap.q, self.q_des,
             self.qd_des, float(self.dt_s), float(g.max_position_error_rad), float(g.max_velocity_error_radps),
             self._basis)
-        if not tau.size:  # the base block is not positive definite: LU (see _torques)
-            m = snap.mass_matrix
-            qdd[:6] = np.linalg.solve(m[:6, :6], rhs)
-            tau = m[6:] @ qdd + snap.nonlinear_effects[6:] + gen[6:] + (
-                self._no_damping if damping is None else damping * snap.v[6:])
+        if not tau.size:  # the base block is not positive definite: LU (engine/control/wbc/torques.py)
+            tau = joint_torques_lu(snap, qdd, rhs, gen, damping)
             if not math.isfinite(tau.sum()):
                 return self._fallback(state, "fallback_solver", "non-finite torques", t0, iterations)
             cmd = self._setpoints(state, qdd, tau)
@@ -400,11 +357,11 @@ class TaskSpaceInverseDynamics:
             self.q_des, self.qd_des = q_des, qd_des
             cmd = JointCommand(q_des.copy(), qd_des.copy(), tau.copy(), self._servo_kp, self._servo_kd)
         self.last_tau = tau
-        status = "solved" if backend in ("active_set", "dense", "daqp") or "inaccurate" not in message else "solved_inaccurate"
         self.diagnostics = WbcDiagnostics(
-            status=status, message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau, qp_iterations=iterations,
-            pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2, total_s=time.perf_counter() - t0,
-            basis=self._basis, corners_m=self._corners_m, qp=qp, horizontal_force_n=force)
+            status=solve_status(backend, message), message=message, backend=backend, qdd=qdd, rho=rho, tau_nm=tau,
+            qp_iterations=iterations, pinocchio_s=t1 - t0, build_s=t2 - t1, qp_s=t3 - t2,
+            total_s=time.perf_counter() - t0, basis=self._basis, corners_m=self._corners_m, qp=qp,
+            horizontal_force_n=force)
         return cmd
 
     def _build_args(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> tuple:
@@ -433,16 +390,12 @@ class TaskSpaceInverseDynamics:
         """Build, solve (the compiled active set) and finish in one compiled call
         (:func:`engine.control.wbc.kernels.solve_tick`: the kernels of the step-by-step path in their order, so
         the same numbers); when the active set gives no solution, the QP it built goes on to DAQP, then OSQP,
-        as in :meth:`_solve_qp`. ``build_s`` is the one call's time (``qp_s`` 0, unless DAQP or OSQP ran)."""
+        as in :meth:`QpSolverChain.solve`. ``build_s`` is the one call's time (``qp_s`` 0, unless DAQP or OSQP ran)."""
         nv, n_rho = self.nv, self.n_rho
         p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
         g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
         corners, basis = np.empty((len(SIDES), 3, N_CORNERS)), np.empty((len(SIDES), 3, N_BASIS))
-        key = contact.tobytes()
-        if key != self._rho_up_cache[0]:
-            rho_max = self.gains.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
-            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
-        rho_up = self._rho_up_cache[1]
+        rho_up = self._rho_upper(contact)
         if self._rho_idx_cache[0] is not rho_up:  # the ρ in the QP (ActiveSetQpSolver.workspace), per bounds array
             self._rho_idx_cache = (rho_up, np.flatnonzero(rho_up > 0.0).astype(np.int64))
         rho_idx = self._rho_idx_cache[1]
@@ -473,18 +426,12 @@ class TaskSpaceInverseDynamics:
                           tau_map[6:], bias, self._neg_torque_limit, self._torque_limit)
         self.qp = qp
         solved = solver.record(outcome, iterations, n_out, count)
-        if tick in (_kernels.TICK_NOT_SOLVED, _kernels.TICK_BASE_NOT_PD):  # DAQP, then OSQP (as _solve_qp); or the
-            # base block's LU (_finish_compiled)
+        if tick in (_kernels.TICK_NOT_SOLVED, _kernels.TICK_BASE_NOT_PD):  # DAQP, then OSQP (the solver chain); or
+            # the base block's LU (_finish_compiled)
             solution: tuple[FloatArray, FloatArray] | None = (qdd, rho)
             backend, message = "active_set", solver.status
             if not solved:
-                backend = "daqp"
-                solution = self.daqp_solver.solve(qp)
-                iterations, message = iterations + self.daqp_solver.iterations, self.daqp_solver.status
-                if solution is None:
-                    backend = "osqp"
-                    solution = self.osqp_solver.solve(qp)
-                    iterations, message = self.osqp_solver.iterations, f"osqp: {self.osqp_solver.status}"
+                solution, backend, iterations, message = self._solvers.after_active_set(qp, iterations)
             return self._finish_compiled(state, snap, qp, solution, backend, iterations, message,
                                          (t0, t1, t2, time.perf_counter()))
         if tick == _kernels.TICK_NONFINITE_TORQUES:
@@ -500,8 +447,8 @@ class TaskSpaceInverseDynamics:
 
     def _build_qp_compiled(self, snap: DynamicsSnapshot, ref: WbcReference,
                            contact: NDArray[np.bool_]) -> CentroidalQp | None:
-        """:meth:`_build_qp` in one compiled call (:func:`engine.control.wbc.kernels.build_qp`); None when
-        the reference has a non-finite number (nothing is written then)."""
+        """The QP of :meth:`NumpyQpAssembly.build` in one compiled call (:func:`engine.control.wbc.kernels.build_qp`);
+        None when the reference has a non-finite number (nothing is written then)."""
         nv, n_rho = self.nv, self.n_rho
         p_qq, c_q, r_rr = np.empty((nv, nv)), np.empty(nv), np.empty((n_rho, n_rho))
         g_rho, tau_map = np.empty((6, n_rho)), np.empty((nv, n_rho))
@@ -512,158 +459,18 @@ class TaskSpaceInverseDynamics:
             return None
         self._jac_filled = True
         self._basis, self._corners_m, self._tau_map = basis, corners, tau_map
+        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, self._rho_upper(contact),
+                            tau_qdd=snap.mass_matrix[6:], tau_rho=tau_map[6:], tau_bias=bias,
+                            tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
+
+    def _rho_upper(self, contact: NDArray[np.bool_]) -> FloatArray:
+        """ρ's upper bounds (Eqs. 24, 25): ``max_corner_force_weights`` m g on the active corners' edges, 0 on the
+        others; one array per contact pattern, kept until the pattern changes."""
         key = contact.tobytes()
         if key != self._rho_up_cache[0]:
             rho_max = self.gains.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
             self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
-        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, self._rho_up_cache[1],
-                            tau_qdd=snap.mass_matrix[6:], tau_rho=tau_map[6:], tau_bias=bias,
-                            tau_lo=self._neg_torque_limit, tau_up=self._torque_limit)
-
-    def _set_targets(self, ref: WbcReference, contact: NDArray[np.bool_]) -> None:
-        g = self.gains
-        for i, task in enumerate(self.foot_tasks):
-            lin_acc = None if ref.foot_lin_acc_mps2 is None else ref.foot_lin_acc_mps2[i]
-            ang_acc = None if ref.foot_ang_acc_radps2 is None else ref.foot_ang_acc_radps2[i]
-            task.set_target(ref.foot_pos_m[i], ref.foot_rotation[i], ref.foot_lin_vel_mps[i], ref.foot_ang_vel_radps[i],
-                            lin_acc, ang_acc)
-            if contact[i].all():  # flat on the ground: hold still (damping only, zero acceleration)
-                task.kp[:] = 0.0
-                task.kd[:] = g.contact_foot_kd
-                task.weight[:] = g.contact_foot_weight
-                task.velocity[:] = 0.0
-                task.acceleration[:] = 0.0
-            else:  # heel/toe contact (firm) or swing: follow the planned pose
-                task.kp[:] = g.swing_foot_kp
-                task.kd[:] = g.swing_foot_kd
-                if contact[i].any():
-                    task.weight[:] = g.contact_foot_weight
-                else:
-                    task.weight[:3], task.weight[3:] = self._swing_weights
-        self.pelvis_task.set_target(ref.pelvis_height_m, ref.pelvis_rotation, ref.pelvis_height_rate_mps,
-                                    ref.pelvis_ang_vel_radps)
-        com = self.com_task  # targets written in place (the task owns its 3-vectors)
-        com.position_m[:2] = ref.com_xy_m
-        com.position_m[2] = 0.0 if ref.com_z_m is None else ref.com_z_m
-        com.velocity_mps[:2] = ref.com_xy_vel_mps
-        com.acceleration_mps2[:2] = ref.com_xy_acc_mps2
-        com.weight[2] = g.com_z_weight if ref.com_z_m is not None else 0.0
-        self.upper_task.set_target(ref.upper_body_q_rad, ref.upper_body_qd_radps)
-
-    def _build_qp(self, snap: DynamicsSnapshot, ref: WbcReference, contact: NDArray[np.bool_]) -> CentroidalQp:
-        """The QP in numpy (the reference of :meth:`_build_qp_compiled`)."""
-        g = self.gains
-        # ---- tasks: stacked weighted least squares on q̈ (Eq. 20); both feet at once (rows 0..11)
-        self._rows_numpy(snap)
-        self._jac_filled = True
-        p_qq, c_q, r_rr, g_rho, tj = self._assemble_numpy(snap)
-
-        key = contact.tobytes()
-        if key != self._rho_up_cache[0]:
-            rho_max = g.max_corner_force_weights * self.mass_kg * GRAVITY_MPS2
-            self._rho_up_cache = (key, np.repeat(np.where(contact.ravel(), rho_max, 0.0), N_BASIS))
-        rho_up = self._rho_up_cache[1]
-        # ---- centroidal equality (21): A_h q̈ − G ρ = −Ȧ_h q̇ + [m g; 0] + w_ext
-        b = -snap.centroidal_drift
-        b[2] -= self.mass_kg * GRAVITY_MPS2
-        if ref.external_wrench is not None:
-            b = b + np.asarray(ref.external_wrench, dtype=float)
-
-        # ---- soft joint limits (22, 23) within the acceleration limits; ρ bounds (24, 25)
-        qj, vj = snap.q[7:], snap.v[6:]
-        amax = g.max_joint_acc_radps2
-        lo = np.minimum(np.maximum(g.joint_limit_kl * (self._joint_lower - qj) - g.joint_limit_bl * vj, -amax), amax)
-        up = np.maximum(np.minimum(g.joint_limit_kl * (self._joint_upper - qj) - g.joint_limit_bl * vj, amax), lo)
-        # ---- actuator torque limits on Eq. 15's joint rows: τ = M_j q̈ + T ρ + h_j
-        bias = snap.nonlinear_effects[6:].copy()
-        if self._joint_damping is not None:
-            bias += self._joint_damping * snap.v[6:]
-        return CentroidalQp(p_qq, c_q, r_rr, snap.centroidal_map, g_rho, b, lo, up, rho_up,
-                            tau_qdd=snap.mass_matrix[6:], tau_rho=tj, tau_bias=bias,
-                            tau_lo=-self._torque_limit, tau_up=self._torque_limit)
-
-    def _rows_numpy(self, snap: DynamicsSnapshot) -> None:
-        """The tasks' rows (J, a* − J̇ q̇) written by the task objects (targets set by :meth:`_set_targets`)."""
-        nv = self.nv
-        jac, rhs, nf = self._jac, self._rhs, self._foot_rows
-        jac[:nf] = snap.frame_jacobian.reshape(nf, nv)
-        acc = self._foot_acc + self._foot_kd * (self._foot_vel - snap.frame_velocity)
-        for i, foot in enumerate(self.foot_tasks):
-            if foot.kp.any():  # swing or heel/toe: PD on the pose (a flat contact foot is damped only)
-                acc[i] += foot.kp * foot.compute_error(snap)
-        np.subtract(acc, snap.frame_drift, out=rhs[:nf].reshape(acc.shape))
-        r = nf
-        for task in self.tasks[len(self.foot_tasks):]:
-            d = task.dim
-            task.write_rows(snap, jac[r:r + d] if not task.constant_jacobian or not self._jac_filled else None,
-                            rhs[r:r + d])
-            r += d
-
-    def _assemble_numpy(self, snap: DynamicsSnapshot) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-        """The tasks' normal equations and the contact model in numpy (the reference of
-        :func:`engine.control.wbc.kernels.assemble_qp`): P, c, R, G and the τ̄ map's joint rows."""
-        g = self.gains
-        nv = self.nv
-        jac, rhs = self._jac, self._rhs
-        wj = jac * self._w[:, None]
-        p_qq = jac.T @ wj
-        p_qq.flat[::nv + 1] += g.lambda_qdd
-        c_q = -(wj.T @ rhs)
-
-        # ---- contact model (Eq. 17): corners, friction pyramids (world z normal, foot-yaw tangents)
-        rot = snap.frame_rotation  # (2, 3, 3)
-        corner_rel = rot @ self._corner_offsets_t  # (2, 3, 4) world, from the sole centre
-        corners = snap.frame_position_m[:, :, None] + corner_rel  # (2, 3, 4)
-        heading = rot[:, :2, 0]  # foot x axes, horizontal part (2, 2)
-        heading = heading / np.maximum(np.sqrt((heading * heading).sum(axis=1)), 1e-9)[:, None]
-        basis = self._basis_template.copy()  # (2, 3, 4); z row constant
-        basis[:, :2, :] = (heading @ self._basis_xy).transpose(1, 0, 2)  # x and y rows of the pyramid edges
-        self._basis = basis
-        self._corners_m = corners
-        # Arms to every corner, from the CoM (centroidal moments) and from the sole centre (foot wrench).
-        arms = self._arms_buf  # (16, 3): 8 corners from the CoM, then 8 from their sole centre
-        arms[:8] = (corners - snap.com_m[None, :, None]).transpose(0, 2, 1).reshape(8, 3)
-        arms[8:] = corner_rel.transpose(0, 2, 1).reshape(8, 3)
-        edges = self._edges_buf  # (16, 3, 4): each corner's pyramid edges (twice: CoM arms, foot arms)
-        edges.reshape(2, len(SIDES), N_CORNERS, 3, N_BASIS)[:] = basis[None, :, None]
-        moments = (self._skew_stack(arms) @ edges).transpose(1, 0, 2).reshape(3, 2, -1)  # (3, 2 × 32)
-        g_rho = np.empty((6, self.n_rho))
-        g_rho[:3] = edges[:8].transpose(1, 0, 2).reshape(3, -1)
-        g_rho[3:] = moments[:, 0]
-        # τ̄ map: −Σ_feet J_footᵀ [f; m_foot] per unit ρ (all nv rows; rows 6: are τ̄)
-        wrench = self._wrench_buf  # (2, 6, 16)
-        wrench[:, :3] = g_rho[:3].reshape(3, 2, -1).transpose(1, 0, 2)
-        wrench[:, 3:] = moments[:, 1].reshape(3, 2, -1).transpose(1, 0, 2)
-        tau_map = -(snap.frame_jacobian.transpose(0, 2, 1) @ wrench).transpose(1, 0, 2).reshape(nv, -1)
-        self._tau_map = tau_map
-        tj = tau_map[6:]
-        r_rr = g.lambda_tau * (tj.T @ tj)  # λ_τ̄ ‖τ̄‖²
-        r_rr.flat[::self.n_rho + 1] += g.lambda_rho
-
-        return p_qq, c_q, r_rr, g_rho, tj
-
-    def _skew_stack(self, arms: FloatArray) -> FloatArray:
-        s = self._skew
-        s[:, 0, 1] = -arms[:, 2]
-        s[:, 0, 2] = arms[:, 1]
-        s[:, 1, 0] = arms[:, 2]
-        s[:, 1, 2] = -arms[:, 0]
-        s[:, 2, 0] = -arms[:, 1]
-        s[:, 2, 1] = arms[:, 0]
-        return s
-
-    def _torques(self, snap: DynamicsSnapshot, qdd: FloatArray, rho: FloatArray) -> FloatArray:
-        """Eq. 15: base rows solved exactly for q̈_base (6×6, in place), then τ from the joint rows
-        (numpy: the reference of :func:`engine.control.wbc.kernels.finish_tick`)."""
-        m = snap.mass_matrix
-        contact_gen = self._tau_map @ rho  # −Σ J_cᵀ f_c
-        rhs = -(m[:6, 6:] @ qdd[6:]) - snap.nonlinear_effects[:6] - contact_gen[:6]
-        _, base, info = _dposv(m[:6, :6], rhs)  # the base block of M is symmetric positive definite
-        qdd[:6] = base if info == 0 else np.linalg.solve(m[:6, :6], rhs)
-        tau = m[6:] @ qdd + snap.nonlinear_effects[6:] + contact_gen[6:]
-        if self._joint_damping is not None:  # the model's viscous joint damping (MuJoCo applies it too)
-            tau += self._joint_damping * snap.v[6:]
-        return tau
+        return self._rho_up_cache[1]
 
     def _setpoints(self, state: RobotState, qdd: FloatArray, tau: FloatArray) -> JointCommand:
         assert self.q_des is not None and self.qd_des is not None, "_compute resets the integrators first"

@@ -1,6 +1,6 @@
 """Compiled (numba) kernels of the whole-body QP's assembly: the same numbers as the numpy code in
-:meth:`engine.control.wbc.controller.TaskSpaceInverseDynamics._build_qp_numpy` (equal to rounding,
-``tests/test_wbc_kernels.py``), in one call instead of ~40 small numpy operations per 500 Hz tick.
+:meth:`engine.control.wbc.assembly_numpy.NumpyQpAssembly.build` (equal to rounding,
+``tests/control/test_wbc_kernels.py``), in one call instead of ~40 small numpy operations per 500 Hz tick.
 
 * :func:`assemble_qp` — the stacked tasks' normal equations (P = Jᵀ W J + λ I, c = −Jᵀ W r), the contact
   model (sole corners, friction-pyramid edges, Eq. 17), the centroidal map of ρ (Eq. 21), the
