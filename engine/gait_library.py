@@ -12,8 +12,8 @@ A library is a folder::
                                      reference in the learning formats (engine/export/), resampled to ``fps``
 
 Each cell's command ramps from standing to its velocity in ``RAMP_S`` and holds it. Cells run as
-Ray tasks (a local Ray by default, ``address`` for a cluster); workers return the recordings as
-bytes and only this process writes the folder, so a cluster needs no shared disk. A second run on
+Ray tasks (a local Ray by default, ``address`` for a cluster: :mod:`engine.ray_cluster`); workers return
+the recordings as bytes and only this process writes the folder, so a cluster needs no shared disk. A second run on
 the same folder skips finished cells (resume after a cancel or a crash).
 """
 
@@ -33,6 +33,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from engine.atomic_io import atomic_write_bytes, atomic_write_text
+from engine.ray_cluster import RayClusterError, connect_ray
 
 AXES = ("vx", "vy", "wz")
 AXIS_UNITS = {"vx": "m/s", "vy": "m/s", "wz": "rad/s"}
@@ -40,7 +41,6 @@ RAMP_S = 1.5  # command ramp from standing to the cell's velocity
 MAX_POINTS_PER_AXIS = 101
 MIN_SPACING = 0.002  # m/s or rad/s between grid points: cell folders name velocities to 0.001, so they stay unique
 SCHEMA = "motion-studio/gait-library"
-RAY_START_ATTEMPTS = 3
 SLIP_LIMIT_MM = 2.0  # the stack's stance-slip goal: above it a cell is marked as slipping
 
 
@@ -286,16 +286,11 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
     if todo:
         import ray
 
-        repo = str(Path(__file__).resolve().parents[1])
-        runtime_env: dict[str, object]
-        if address:
-            runtime_env = {"working_dir": repo, "excludes": [".venv", ".git", "docs", "tests", "*.npz"]}
-        else:
-            runtime_env = {"env_vars": {"PYTHONPATH": repo}}
         started_here = not ray.is_initialized()
-        if started_here:
-            kwargs = {"address": address} if address else {"num_cpus": workers or None, "include_dashboard": False}
-            _start_ray(ray, runtime_env, {k: v for k, v in kwargs.items() if v is not None})
+        try:
+            connect_ray(address, num_cpus=workers)
+        except RayClusterError as exc:
+            raise LibraryError(str(exc)) from None
         remote_cell = ray.remote(num_cpus=1, max_retries=1)(run_cell)
         limit = workers or max(1, int(ray.available_resources().get("CPU", 1)))
         pending: dict = {}
@@ -327,23 +322,6 @@ def run_library(run: LibraryRun, address: str | None = None, workers: int | None
     atomic_write_text(run.out / "index.json", json.dumps(index, indent=1))
     write_summary_png(index, run.out / "summary.png")
     return {**index, "ran": done, "skipped": skipped, "exported": exported, "exports_kept": exports_kept}
-
-
-def _start_ray(ray, runtime_env: dict, kwargs: dict, attempts: int = RAY_START_ATTEMPTS) -> None:  # noqa: ANN001
-    """``ray.init``, retried: a local raylet that takes more than Ray's fixed 30 s to register (a
-    loaded machine) fails the first attempt; a cluster that cannot be reached is one line."""
-    last: Exception | None = None
-    for _ in range(attempts):
-        try:
-            ray.init(runtime_env=runtime_env, log_to_driver=False, configure_logging=False, **kwargs)
-            return
-        except Exception as exc:  # noqa: BLE001 - Ray raises plain Exception/ConnectionError here
-            last = exc
-            ray.shutdown()
-    where = f"--address: could not connect to the Ray cluster at {kwargs['address']}" if "address" in kwargs \
-        else "Ray: could not start a local Ray"
-    message = str(last).splitlines()[0] if str(last) else type(last).__name__
-    raise LibraryError(f"{where} ({attempts} attempts): {message}")
 
 
 # ----------------------------------------------------------------------------- the figure

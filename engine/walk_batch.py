@@ -6,7 +6,7 @@ measure afterwards), so it travels to any Ray worker and names its result file:
 with the same output folder skips every job whose result is there (resumable, cancellable:
 Ctrl+C cancels the running tasks and keeps what finished) unless another version of the code
 made it (``code_version()``: after a controller change the jobs run again). Ray runs locally by default
-(``address=None``) or joins a cluster (``address="ray://host:10001"`` or ``"auto"``).
+(``address=None``) or joins a cluster (``"host:6379"``, ``"ray://host:10001"`` or ``"auto"``): :mod:`engine.ray_cluster`.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from engine.atomic_io import atomic_write_text
+from engine.ray_cluster import RayClusterError, connect_ray
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -111,22 +112,6 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
     return result
 
 
-def _ray_init(address: str | None) -> Any:
-    import ray
-
-    if not ray.is_initialized():
-        env = {"env_vars": {"PYTHONPATH": os.pathsep.join(p for p in (str(REPO_ROOT), os.environ.get("PYTHONPATH", "")) if p)}}
-        if address:
-            ray.init(address=address, runtime_env={"working_dir": str(REPO_ROOT), "excludes": [".git", ".venv", "*.npz"]},
-                     log_to_driver=False)
-        else:
-            # Ray lowers its workers' priority (niceness 15) by default: on a shared machine they
-            # would then wait behind everything else.
-            ray.init(runtime_env=env, log_to_driver=False, include_dashboard=False,
-                     _system_config={"worker_niceness": 0})
-    return ray
-
-
 def run_batch(jobs: Iterable[dict[str, Any]], out_dir: str | os.PathLike, address: str | None = None,
               progress: Callable[[int, int, str, dict[str, Any]], None] | None = None,
               local: bool = False) -> dict[str, dict[str, Any]]:
@@ -171,11 +156,13 @@ def run_batch(jobs: Iterable[dict[str, Any]], out_dir: str | os.PathLike, addres
     if not todo:
         return results
     try:
-        ray = _ray_init(address)
-    except Exception as exc:  # noqa: BLE001 - e.g. a raylet too slow to start on a loaded machine
+        # Ray lowers its workers' priority (niceness 15) by default: on a shared machine they would then wait
+        # behind everything else.
+        ray = connect_ray(address, worker_niceness=0)
+    except RayClusterError as exc:  # e.g. a raylet too slow to start on a loaded machine
         if address:
             raise
-        print(f"Ray did not start ({exc}); running the jobs in this process", file=sys.stderr)
+        print(f"{exc}; running the jobs in this process", file=sys.stderr)
         for key in todo:
             finish(key, run_job(keyed[key]))
         return results

@@ -19,6 +19,18 @@ class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
 
+def check_ray_address(address: str | None) -> None:
+    """``--address``: a Ray head that does not answer is one line (exit 2) within seconds, before any work."""
+    if address is None:
+        return
+    from engine.ray_cluster import RayClusterError, check_address
+
+    try:
+        check_address(address)
+    except RayClusterError as exc:
+        raise CliError(str(exc)) from None
+
+
 class _Parser(argparse.ArgumentParser):
     """Usage errors as ONE line (``studio walk: error: ...``), exit 2, like every other user error."""
 
@@ -371,9 +383,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     problem = check_clip_options(args.clips, args.budget, args.robots)
     if problem:
         raise CliError(problem)
+    check_ray_address(args.address)
+    from engine.ray_cluster import RayClusterError
+
     rows: list[dict] = []
     for section in sections:
-        rows.extend(run_section(SECTIONS[section], args))
+        try:
+            rows.extend(run_section(SECTIONS[section], args))
+        except RayClusterError as exc:  # a cluster that answers but cannot be joined (e.g. its token)
+            raise CliError(str(exc)) from None
     if args.json:
         print(json.dumps({"rows": rows, "cpu_count": os.cpu_count()}, indent=1))
         return 0

@@ -31,7 +31,7 @@ def add_parser(sub) -> None:  # noqa: ANN001 - argparse's subparsers action
 def cmd_library(args: argparse.Namespace) -> int:
     from engine.gait.style import style_to_json_dict
     from engine.gait_library import GridError, LibraryError, LibraryRun, parse_grid, run_library, text_progress
-    from studio.cli import CliError, _walk_inputs
+    from studio.cli import CliError, _walk_inputs, check_ray_address
 
     try:
         grid = parse_grid(args.grid)
@@ -62,6 +62,7 @@ def cmd_library(args: argparse.Namespace) -> int:
         if max(abs(axis.low), abs(axis.high)) > limits[axis.name] + 1e-9:
             print(f"studio: warning: --grid: {axis.name} beyond the style's limit ±{limits[axis.name]:g}; "
                   "those cells walk clamped commands", file=sys.stderr)
+    check_ray_address(args.address)
     run = LibraryRun(args.robot, style.name, style_to_json_dict(style), grid, float(args.duration), Path(args.out))
     try:
         run.check_folder()

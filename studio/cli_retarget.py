@@ -15,7 +15,7 @@ import json
 import sys
 from pathlib import Path
 
-from studio.cli import CliError
+from studio.cli import CliError, check_ray_address
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -126,7 +126,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
         from studio import cli_tmr
 
         settings = cli_tmr._settings(args)
-        cli_tmr._check_address(args.address)
+        check_ray_address(args.address)
     try:
         heightmap = parse_terrain(args.terrain)
     except ValueError as exc:

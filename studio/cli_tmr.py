@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.cli import CliError
+from studio.cli import CliError, check_ray_address
 
 GENERATED_CLIPS = ("standing", "trot", "hop")
 
@@ -80,28 +80,18 @@ def _settings(args: argparse.Namespace):  # noqa: ANN202
                        window_s=args.window)
 
 
-def _check_address(address: str | None) -> None:
-    if address is None:
-        return
-    from engine.retarget.quadruped.tmr.ray_jobs import RayAddressError, check_address
-
-    try:
-        check_address(address)
-    except RayAddressError as exc:
-        raise CliError(str(exc)) from None
-
-
 def _executor(address: str | None, parallel: int):  # noqa: ANN202
     """In process for one evaluation at a time; Ray otherwise. A cluster that does not answer is a user error (exit
     2); a local Ray that fails to start (a loaded machine can miss raylet's start-up window) is one line on stderr
     and the evaluations run one after the other in this process."""
-    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
+    from engine.ray_cluster import RayClusterError
+    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayExecutor
 
     if address is None and parallel <= 1:
         return LocalExecutor()
     try:
         return RayExecutor(address=address, num_cpus=None)
-    except RayAddressError as exc:
+    except RayClusterError as exc:
         if address is not None:
             raise CliError(str(exc)) from None
         print(f"studio: {exc}; running the evaluations one at a time in this process", file=sys.stderr, flush=True)
@@ -203,7 +193,7 @@ def _progress_line(prefix: str):  # noqa: ANN202
 def cmd_tmr(args: argparse.Namespace) -> int:
     settings = _settings(args)
     out = _out_npz(args.out)
-    _check_address(args.address)
+    check_ray_address(args.address)
     motion = _load_motion(args.motion)
     robot = _quadruped(args.robot) if args.robot else _quadruped(motion.robot, f"{Path(args.motion).name}: robot")
     _check_motion(motion, robot, Path(args.motion).name, settings)
@@ -302,7 +292,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     from engine.retarget.quadruped.tmr.deformation import DeformationError, check_segments
 
     settings = _settings(args)
-    _check_address(args.address)
+    check_ray_address(args.address)
     out_dir = Path(args.out)
     if out_dir.exists() and not out_dir.is_dir():
         raise CliError(f"--out: expected a folder, {out_dir} is a file")
@@ -353,7 +343,8 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
     total = len(plan)
     _bar(len(summaries), total, t0)
     if todo:
-        from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
+        from engine.ray_cluster import RayClusterError
+        from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayExecutor
 
         executor: LocalExecutor | RayExecutor
         if args.address is None and args.jobs == 1:
@@ -361,7 +352,7 @@ def cmd_retarget_batch(args: argparse.Namespace) -> int:
         else:
             try:
                 executor = RayExecutor(address=args.address, num_cpus=args.jobs)
-            except RayAddressError as exc:
+            except RayClusterError as exc:
                 raise CliError(str(exc)) from None
         limit = args.jobs or executor.workers
         pending = list(todo)

@@ -163,7 +163,8 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
     see the module docstring)."""
     from engine.retarget.importers import import_source
     from engine.retarget.quadruped.pipeline import retarget_detailed
-    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayAddressError, RayExecutor
+    from engine.ray_cluster import RayClusterError
+    from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor, RayExecutor
     from engine.retarget.quadruped.tmr.tmr import TMRSettings, temporal_retarget, track_motion
 
     problem = check_clip_options(clip_names, bo_budget, robot_names)
@@ -179,7 +180,7 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
     if address is not None or parallel > 1:
         try:
             executor = RayExecutor(address=address)
-        except RayAddressError as exc:
+        except RayClusterError as exc:
             print(f"bench retarget: {exc}; running the evaluations one at a time in this process", file=sys.stderr)
             parallel = 1
     # the warm start: α = 1, then every segment at log2 α = −1, +1 and −0.5 (bayes_opt.initial_design); EI after

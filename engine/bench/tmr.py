@@ -46,7 +46,8 @@ def _row(stage: str, wall_s: float | None, res=None, note: str = "", **extra) ->
 
 
 def bench_tmr() -> list[dict]:
-    from engine.retarget.quadruped.tmr.ray_jobs import RayAddressError, RayExecutor
+    from engine.ray_cluster import RayClusterError
+    from engine.retarget.quadruped.tmr.ray_jobs import RayExecutor
     from engine.retarget.quadruped.tmr.tmr import TMRSettings, evaluate_alpha, temporal_retarget
 
     motion = _clip()
@@ -68,7 +69,7 @@ def bench_tmr() -> list[dict]:
             ray.shutdown()
         try:
             ex = RayExecutor(num_cpus=workers)
-        except RayAddressError as exc:
+        except RayClusterError as exc:
             note = f"{exc}: the evaluations ran one at a time in this process (row above); no Ray speed-up measured"
             print(f"bench tmr: {note}", file=sys.stderr, flush=True)
             rows.append(_row(f"whole TMR on Ray, {workers} worker(s)", None, note=note))

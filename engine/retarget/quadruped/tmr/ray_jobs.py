@@ -7,15 +7,10 @@ running ones. No home-made process pool: parallelism is Ray's.
 
 from __future__ import annotations
 
-import socket
+import os
 from typing import Any, Callable
 
-
-START_ATTEMPTS = 2  # a loaded machine can miss Ray's fixed 30 s node start-up window once
-
-
-class RayAddressError(RuntimeError):
-    """A Ray address that does not answer (one line)."""
+from engine.ray_cluster import connect_ray
 
 
 class LocalExecutor:
@@ -52,52 +47,12 @@ class LocalExecutor:
         return 1
 
 
-def check_address(address: str, timeout_s: float = 3.0) -> None:
-    """Fail fast (one line) when nothing listens at a Ray address ``host:port`` or ``ray://host:port``."""
-    if address in ("auto", "local"):
-        return
-    hostport = address.split("://", 1)[-1]
-    host, _, port = hostport.rpartition(":")
-    if not host or not port.isdigit():
-        raise RayAddressError(f"--address: expected host:port or ray://host:port, got {address!r}")
-    try:
-        with socket.create_connection((host, int(port)), timeout=timeout_s):
-            pass
-    except OSError as exc:
-        raise RayAddressError(f"--address {address}: no Ray head answers ({exc.strerror or type(exc).__name__})") from None
-
-
 class RayExecutor:
-    """Ray tasks; ``address`` None starts (or joins) a local Ray with ``num_cpus`` workers."""
+    """Ray tasks; ``address`` None starts a local Ray with ``num_cpus`` workers (a Ray already initialised in this
+    process is used as it is), else joins that cluster: :mod:`engine.ray_cluster`, which raises ``RayClusterError``."""
 
     def __init__(self, address: str | None = None, num_cpus: int | None = None):
-        import os
-
-        import ray
-
-        if address is not None:
-            check_address(address)
-        if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "ignore_reinit_error": True,
-                                      "configure_logging": False}
-            if address is None:
-                kwargs["num_cpus"] = num_cpus or os.cpu_count() or 1
-                repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))))
-                kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": os.pathsep.join(
-                    p for p in [repo, os.environ.get("PYTHONPATH", "")] if p)}}
-            else:
-                kwargs["address"] = address
-            for attempt in range(START_ATTEMPTS):
-                try:
-                    ray.init(**kwargs)
-                    break
-                except Exception as exc:  # noqa: BLE001 - Ray raises bare Exception when its node times out
-                    ray.shutdown()
-                    if attempt + 1 == START_ATTEMPTS:
-                        where = f"--address {address}: " if address else "local Ray: "
-                        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                        raise RayAddressError(f"{where}Ray did not start ({first})") from None
-        self._ray = ray
+        self._ray = connect_ray(address, num_cpus=num_cpus or os.cpu_count() or 1)
         self._remote: dict[Callable, Any] = {}
 
     def submit(self, fn: Callable, *args: Any, **kwargs: Any) -> Any:
