@@ -55,7 +55,8 @@ def add_tmr_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
     p.add_argument("--mode", choices=("receding", "full"), default="receding", help=prefix + "iLQR horizon (default receding)")
     p.add_argument("--window", type=float, default=0.25, help=prefix + "receding-horizon window in seconds (default "
                    "0.25; flips need the whole flight, e.g. 0.6). The tracker also solves a 0.4 s window and keeps "
-                   "the standing answer of least cost, and tries 0.5 s when every answer falls (TMRSettings)")
+                   "the standing answer of least cost, and tries 0.5 s, then this window with the terminal weight 5 instead "
+                   "of 20, while every answer falls (TMRSettings)")
     p.add_argument("--seed", type=int, default=0, help=prefix + "seed of the BO warm start")
 
 

@@ -274,3 +274,47 @@ def test_fallback_windows_run_only_while_every_answer_falls() -> None:
     standing = tracker.track(target)  # the first answer stands: the fallback is not solved
     assert len(calls) == 1 and not standing.fell
     assert not np.array_equal(standing.ctrl, fallback_alone.ctrl)
+
+
+def test_fallback_final_scale_runs_last_and_is_costed_with_the_trackers_weights() -> None:
+    """A fallback terminal weight is solved (with ``window_s``) only once every other answer falls; its standing
+    answer is the one a tracker with that terminal weight finds, and its cost is the tracker's own objective."""
+    from dataclasses import replace
+
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget, TrackingWeights, rollout
+    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.robot.model import load_robot
+
+    robot = load_robot("go1")
+    H = 20
+    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
+    q_ref[:, 0] += 0.2 * np.linspace(0.0, H * 0.01, H + 1)
+    qvel = np.zeros((H + 1, robot.mj_model.nv))
+    qvel[:, 0] = 0.2
+    target = TrackingTarget(0.01, q_ref, qvel, np.ones((H + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+    kw: dict = {"window_s": 0.1, "replan_s": 0.05, "window_iterations": 2, "polish_iterations": 0}
+    low = MotionTracker(robot, weights=TrackingWeights(final_scale=2.0), **kw).track(target)
+    tracker = MotionTracker(robot, fallback_windows_s=(0.2,), fallback_final_scales=(2.0,), **kw)
+    high = MotionTracker(robot, **kw).track(target)
+    assert not low.fell and not np.array_equal(low.ctrl, high.ctrl)
+    real_replay = tracker.replay
+    calls: list[bool] = []
+
+    def all_but_last_fall(qpos0: np.ndarray, qvel0: np.ndarray, U: np.ndarray):  # noqa: ANN202
+        out = real_replay(qpos0, qvel0, U)
+        calls.append(True)
+        return replace(out, fell=True, fall_fraction=0.5) if len(calls) < 3 else out
+
+    tracker.replay = all_but_last_fall  # type: ignore[method-assign]
+    kept = tracker.track(target)
+    assert len(calls) == 3 and not kept.fell
+    np.testing.assert_array_equal(kept.ctrl, low.ctrl)
+    u_ff = tracker.stance_torques(target)
+    own_cost = rollout(tracker.dyn, tracker.make_cost(target, u_ref=u_ff), tracker.initial_state(q_ref[0], qvel[0]),
+                       kept.ctrl, mujoco.MjData(tracker.model))[0]
+    assert kept.cost == pytest.approx(own_cost) and kept.cost != pytest.approx(low.cost)
+    calls.clear()
+    tracker.replay = lambda q0, v0, U: (calls.append(True), real_replay(q0, v0, U))[1]  # type: ignore[method-assign]
+    standing = tracker.track(target)  # the first answer stands: no fallback is solved
+    assert len(calls) == 1 and not standing.fell
+    np.testing.assert_array_equal(standing.ctrl, high.ctrl)

@@ -17,7 +17,7 @@ open-loop rollout, so what the solver reports is what the replay shows.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Protocol
 
 import mujoco
@@ -518,8 +518,10 @@ class MotionTracker:
     ``timestep_s`` is the control interval, ``physics_step_s`` MuJoCo's step inside it (default: the same 10 ms,
     the step MuJoCo MPC's tasks use; the engine's 2 ms is allowed, five times dearer). ``mode`` "receding"
     (default) solves ``window_s`` windows re-planned every ``replan_s`` as MuJoCo MPC does — and once more per
-    length in ``other_windows_s`` (and in ``fallback_windows_s``, one by one, while every answer falls), answering
-    with the candidate that stands (else falls latest), then of least cost; "full" solves the whole horizon at once. The replay uses the very same model.
+    length in ``other_windows_s`` (and in ``fallback_windows_s``, then with ``window_s`` and each terminal weight
+    in ``fallback_final_scales``, one by one, while every answer falls), answering with the candidate that stands
+    (else falls latest), then of least cost; "full" solves the whole horizon at once. The replay uses the very
+    same model.
     """
 
     def __init__(self, robot, timestep_s: float = DEFAULT_TIMESTEP_S, physics_step_s: float | None = None,  # noqa: ANN001
@@ -527,7 +529,7 @@ class MotionTracker:
                  torque_limit_scale: float = 1.0, mode: str = "receding", window_s: float = 0.3,
                  replan_s: float = 0.03, window_iterations: int = 3, polish_iterations: int = 0,
                  stop_on_fall: bool = True, other_windows_s: tuple[float, ...] = (),
-                 fallback_windows_s: tuple[float, ...] = ()):
+                 fallback_windows_s: tuple[float, ...] = (), fallback_final_scales: tuple[float, ...] = ()):
         if mode not in ("receding", "full"):
             raise ValueError(f"mode: expected 'receding' or 'full', got {mode!r}")
         self.mode = mode
@@ -550,6 +552,9 @@ class MotionTracker:
         self.other_windows = [max(2, int(round(w / self.dt_s))) for w in other_windows_s]
         # tried one at a time, in order, only while every answer so far falls (a fallen pass stops early: cheap)
         self.fallback_windows = [max(2, int(round(w / self.dt_s))) for w in fallback_windows_s]
+        # then ``window_s`` again with another terminal weight (``TrackingWeights.final_scale``), one at a time while
+        # every answer falls; its answer is costed with the tracker's own weights, like the other candidates
+        self.fallback_final_scales = [float(s) for s in fallback_final_scales]
         self.replan = max(1, int(round(replan_s / self.dt_s)))
         self.window_settings = ILQRSettings(max_iterations=window_iterations, tolerance=1e-3)
         self.polish_iterations = int(polish_iterations)  # full-horizon iLQR after the receding pass
@@ -590,9 +595,10 @@ class MotionTracker:
             d.qvel[:] = qvel0
         return MjDynamics.snapshot(d)
 
-    def make_cost(self, target: TrackingTarget, u_ref: np.ndarray | None = None) -> TrackingCost:
-        return TrackingCost(self.model, self.keypoints, target, self.weights, self.joint_dof, self.foot_radius,
-                            u_ref)
+    def make_cost(self, target: TrackingTarget, u_ref: np.ndarray | None = None,
+                  weights: TrackingWeights | None = None) -> TrackingCost:
+        return TrackingCost(self.model, self.keypoints, target, weights or self.weights, self.joint_dof,
+                            self.foot_radius, u_ref)
 
     def stance_torques(self, target: TrackingTarget) -> np.ndarray:
         """Feed-forward guess per step: gravity and Coriolis of the target minus Jᵀ f with the weight shared by
@@ -651,12 +657,21 @@ class MotionTracker:
             best: tuple[ILQRResult, TrackResult] | None = None
             wall_s = deriv_s = 0.0
             always = 1 + len(self.other_windows)
-            for i, window in enumerate([self.window, *self.other_windows, *self.fallback_windows]):
+            candidates: list[tuple[int, float | None]] = [
+                *((w, None) for w in [self.window, *self.other_windows, *self.fallback_windows]),
+                *((self.window, s) for s in self.fallback_final_scales)]
+            for i, (window, final_scale) in enumerate(candidates):
                 if i >= always and best is not None and not best[1].fell:
                     break
                 # each candidate polished before the choice: a receding replay that touches the floor on the way
                 # can stand once polished (go1 trot1's 0.4 s window: chosen after the polish, 3.18 → 2.88 % DTW)
-                res, out = self._receding(target, cost, x0, U0, window, cancel, progress)
+                if final_scale is None:
+                    res, out = self._receding(target, cost, x0, U0, window, cancel, progress)
+                else:
+                    own = self.make_cost(target, u_ref=u_ff, weights=replace(self.weights, final_scale=final_scale))
+                    res, out = self._receding(target, own, x0, U0, window, cancel, progress)
+                    # the same whole-clip objective for every candidate: the tracker's own terminal weight
+                    res.cost = rollout(self.dyn, cost, x0, res.U, mujoco.MjData(self.model))[0]
                 wall_s += res.wall_time_s
                 deriv_s += res.derivative_time_s
                 if best is None or _candidate_key(res, out) < _candidate_key(*best):

@@ -59,6 +59,13 @@ class TMRSettings:
     # and 0.4 s windows and stands with 0.5 s (2.01 % DTW, 15.3 mm); 0.5 s as a standing candidate fell on go1
     # trot1, pace0, pace1
     fallback_windows_s: tuple[float, ...] = (0.5,)
+    # then ``window_s`` with these terminal weights (TrackingWeights.final_scale, 20), one at a time while every
+    # answer still falls. The terminal weight 20 (for go1 trot1's one-foot landings) makes each window reach for
+    # its end state: through b1's BackFlip the rear feet leave the ground at 0.46 s instead of 0.55 s and the
+    # α = 1 replay falls (1.08 s with the 0.25 s window alone; 1.21 s, a thigh touching at the absorb, with all
+    # three windows); with 5 (the third round's) it lands upright (6.1 % DTW, 161 mm). Clips that stand with a
+    # regular or fallback window never solve it
+    fallback_final_scales: tuple[float, ...] = (5.0,)
     replan_s: float = 0.05
     # iLQR iterations per receding window (each stops early once the cost decreases < 0.1 %). 2 left the
     # solve short of converged: SideSteps at α = 0.5 fell at 1.89 s (go1); with 4 it tracks the whole clip
@@ -115,7 +122,8 @@ def make_tracker(robot, settings: TMRSettings) -> MotionTracker:  # noqa: ANN001
                          mode=settings.mode, window_s=settings.window_s, replan_s=settings.replan_s,
                          window_iterations=settings.window_iterations, polish_iterations=settings.polish_iterations,
                          other_windows_s=tuple(settings.other_windows_s),
-                         fallback_windows_s=tuple(settings.fallback_windows_s))
+                         fallback_windows_s=tuple(settings.fallback_windows_s),
+                         fallback_final_scales=tuple(settings.fallback_final_scales))
 
 
 def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: float, log2_alpha: np.ndarray,
