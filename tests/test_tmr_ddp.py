@@ -198,22 +198,29 @@ def test_polish_lowers_the_receding_cost_and_is_dropped_when_its_replay_falls() 
     np.testing.assert_array_equal(kept.ctrl, receding.ctrl)
 
 
+
+def _gliding_target(robot, steps: int = 20):  # noqa: ANN001, ANN202
+    """A standing pose that glides forward at 0.2 m/s over ``steps`` ticks of 10 ms: a target the tracker can meet."""
+    from engine.retarget.quadruped.tmr.ddp import TrackingTarget
+    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+
+    q_ref = robot.mj_standing_qpos()[None].repeat(steps + 1, 0)
+    q_ref[:, 0] += 0.2 * np.linspace(0.0, steps * 0.01, steps + 1)
+    qvel = np.zeros((steps + 1, robot.mj_model.nv))
+    qvel[:, 0] = 0.2
+    return TrackingTarget(0.01, q_ref, qvel, np.ones((steps + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+
+
 def test_other_windows_keep_the_standing_answer_of_least_cost() -> None:
     """With further receding windows the tracker answers with the candidate of least whole-clip cost among those
     whose replay stands; a cheaper candidate that falls is passed over."""
     from dataclasses import replace
 
-    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget
-    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker
     from engine.robot.model import load_robot
 
     robot = load_robot("go1")
-    H = 20
-    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
-    q_ref[:, 0] += 0.2 * np.linspace(0.0, H * 0.01, H + 1)
-    qvel = np.zeros((H + 1, robot.mj_model.nv))
-    qvel[:, 0] = 0.2
-    target = TrackingTarget(0.01, q_ref, qvel, np.ones((H + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+    target = _gliding_target(robot)
     kw: dict = {"replan_s": 0.05, "window_iterations": 2, "polish_iterations": 0}
     short = MotionTracker(robot, window_s=0.1, **kw).track(target)
     long = MotionTracker(robot, window_s=0.2, **kw).track(target)
@@ -281,17 +288,11 @@ def test_fallback_final_scale_runs_last_and_is_costed_with_the_trackers_weights(
     answer is the one a tracker with that terminal weight finds, and its cost is the tracker's own objective."""
     from dataclasses import replace
 
-    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingTarget, TrackingWeights, rollout
-    from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory
+    from engine.retarget.quadruped.tmr.ddp import MotionTracker, TrackingWeights, rollout
     from engine.robot.model import load_robot
 
     robot = load_robot("go1")
-    H = 20
-    q_ref = robot.mj_standing_qpos()[None].repeat(H + 1, 0)
-    q_ref[:, 0] += 0.2 * np.linspace(0.0, H * 0.01, H + 1)
-    qvel = np.zeros((H + 1, robot.mj_model.nv))
-    qvel[:, 0] = 0.2
-    target = TrackingTarget(0.01, q_ref, qvel, np.ones((H + 1, 4), bool), keypoint_trajectory(robot, q_ref))
+    target = _gliding_target(robot)
     kw: dict = {"window_s": 0.1, "replan_s": 0.05, "window_iterations": 2, "polish_iterations": 0}
     low = MotionTracker(robot, weights=TrackingWeights(final_scale=2.0), **kw).track(target)
     tracker = MotionTracker(robot, fallback_windows_s=(0.2,), fallback_final_scales=(2.0,), **kw)
@@ -310,7 +311,7 @@ def test_fallback_final_scale_runs_last_and_is_costed_with_the_trackers_weights(
     assert len(calls) == 3 and not kept.fell
     np.testing.assert_array_equal(kept.ctrl, low.ctrl)
     u_ff = tracker.stance_torques(target)
-    own_cost = rollout(tracker.dyn, tracker.make_cost(target, u_ref=u_ff), tracker.initial_state(q_ref[0], qvel[0]),
+    own_cost = rollout(tracker.dyn, tracker.make_cost(target, u_ref=u_ff), tracker.initial_state(target.qpos[0], target.qvel[0]),
                        kept.ctrl, mujoco.MjData(tracker.model))[0]
     assert kept.cost == pytest.approx(own_cost) and kept.cost != pytest.approx(low.cost)
     calls.clear()
