@@ -18,8 +18,8 @@ def test_talos_gains_come_from_its_config() -> None:
     assert talos.config.wbc_gains == {"servo_kp_scale": 0.05, "servo_kd_scale": 0.2, "swing_foot_kp": 300.0,
                                       "swing_foot_kd": 35.0}
     assert (gains.servo_kp_scale, gains.servo_kd_scale, gains.swing_foot_kp, gains.swing_foot_kd) == (0.05, 0.2, 300.0, 35.0)
-    # G1: the defaults but the style tasks' weight share (robots/g1.toml [control.wbc])
-    assert WbcGains.for_robot(load_robot("g1")) == replace(WbcGains(), priority_level2_scale=0.1)
+    # G1: the defaults but the style tasks' weight share and the CoM task's weight (robots/g1.toml [control.wbc])
+    assert WbcGains.for_robot(load_robot("g1")) == replace(WbcGains(), priority_level2_scale=0.1, com_weight=300.0)
 
 
 def test_unknown_gain_is_a_config_error_naming_the_field() -> None:
