@@ -27,6 +27,7 @@ import json
 
 import numpy as np
 
+from engine.bench.options import add_random_style_options
 from engine.constants import CONTROL_PERIOD_S, GRAVITY_MPS2, SIDES
 from engine.control.controller import JointCommand, RobotState
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference
@@ -44,12 +45,8 @@ def _overrides(items: list[str]) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--robot", default="g1")
-    ap.add_argument("--seed", type=int, default=4)
+    add_random_style_options(ap, n=8, seed=4, extent=0.15, duration_s=20.0)
     ap.add_argument("--index", type=int, default=2)
-    ap.add_argument("--n", type=int, default=8)
-    ap.add_argument("--extent", type=float, default=0.15)
-    ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--shipped", default="", help="a shipped style's name instead of a random one")
     ap.add_argument("--walking", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--strikes", action="store_true", help="list every early strike (default: their means)")

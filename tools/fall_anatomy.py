@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.bench.options import add_random_style_options
 from engine.bench.styles import style_jobs
 from engine.gait.command_schedule import parse_command
 from engine.robot.model import RobotModel, load_robot
@@ -217,11 +218,7 @@ def anatomy(robot: RobotModel, style: Any, duration_s: float, window_s: float) -
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("indices", type=int, nargs="+")
-    ap.add_argument("--robot", default="g1")
-    ap.add_argument("--n", type=int, default=40)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--extent", type=float, default=0.3)
-    ap.add_argument("--duration", type=float, default=60.0)
+    add_random_style_options(ap)
     ap.add_argument("--window", type=float, default=1.5)
     ap.add_argument("--bench", help="the bench JSON with each style's fall time")
     ap.add_argument("--json", help="write the rows here")

@@ -15,6 +15,7 @@ import argparse
 import json
 import sys
 
+from engine.bench.options import add_random_style_options
 from engine.bench.styles import style_jobs
 from engine.walk_batch import run_job
 
@@ -22,11 +23,7 @@ from engine.walk_batch import run_job
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("indices", type=int, nargs="*")
-    ap.add_argument("--robot", default="g1")
-    ap.add_argument("--n", type=int, default=40)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--extent", type=float, default=0.3)
-    ap.add_argument("--duration", type=float, default=60.0)
+    add_random_style_options(ap)
     ap.add_argument("--shipped", action="store_true")
     ap.add_argument("--shipped-duration", type=float, default=20.0)
     ap.add_argument("--json", help="write the rows here")

@@ -8,6 +8,17 @@ import inspect
 from collections.abc import Callable
 
 
+def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed: int = 0, extent: float = 0.3,
+                             duration_s: float = 60.0) -> None:
+    """Which of ``studio bench styles``' random styles a tool walks again: the bench's robot, ``--n``, ``--seed``,
+    ``--extent`` and ``--duration`` (style i is the same style as in the bench run with those options)."""
+    parser.add_argument("--robot", default="g1")
+    parser.add_argument("--n", type=int, default=n, help="as the bench's --n")
+    parser.add_argument("--seed", type=int, default=seed, help="as the bench's --seed")
+    parser.add_argument("--extent", type=float, default=extent, help="as the bench's --extent")
+    parser.add_argument("--duration", type=float, default=duration_s, help="seconds of the sweep")
+
+
 def add_bench_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="g1", help="robot of the styles/push sections")
     parser.add_argument("--style", default=None, help="style file of the push section (default: the robot's neutral)")
