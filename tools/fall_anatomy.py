@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from typing import Any
 
@@ -40,6 +39,7 @@ import numpy as np
 from engine.bench.options import add_random_style_options
 from engine.bench.styles import style_jobs
 from engine.gait.command_schedule import parse_command
+from engine.geometry.rotation import matrix_from_quat, roll_pitch_of
 from engine.robot.model import RobotModel, load_robot
 from engine.sim import Simulation
 from engine.walk_runner import ContactMeter, run_walk
@@ -100,13 +100,6 @@ def sweep_segment(t_s: float, command: np.ndarray) -> str:
         return "stop"
     moving = np.abs(command).max() > 1e-3
     return SEGMENTS[leg] if moving else f"stop({SEGMENTS[leg]})"
-
-
-def euler_rp(quat_wxyz: np.ndarray) -> tuple[float, float]:
-    w, x, y, z = quat_wxyz
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    return roll, pitch
 
 
 def window_indicators(robot: RobotModel, rec: dict[str, np.ndarray], probe: TickProbe, t0: float, t1: float,
@@ -201,7 +194,7 @@ def anatomy(robot: RobotModel, style: Any, duration_s: float, window_s: float) -
     else:
         row["onset_s"], row["onset_dir"], row["onset_seg"] = None, "", ""
     row["step_adj"] = round(float(np.linalg.norm(np.asarray(rec["step_adjust"])[sel], axis=1).max()), 3)
-    rp = np.array([euler_rp(x) for x in q[sel, 3:7]])
+    rp = np.array([roll_pitch_of(matrix_from_quat(x)) for x in q[sel, 3:7]])
     row["roll"], row["pitch"] = round(float(rp[-1, 0]), 2), round(float(rp[-1, 1]), 2)
     early = rp[:-int(0.3 / (t[1] - t[0]))] if len(rp) > 60 else rp  # before the last 0.3 s of the fall itself
     row["roll_max"] = round(float(early[np.argmax(np.abs(early[:, 0])), 0]), 2)

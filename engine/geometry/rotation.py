@@ -69,6 +69,11 @@ def yaw_of(m: np.ndarray) -> float:
     return math.atan2(m[1, 0], m[0, 0])
 
 
+def roll_pitch_of(m: np.ndarray) -> tuple[float, float]:
+    """Roll and pitch of ``m`` in :func:`rot_zyx`'s convention (Rz(yaw) Ry(pitch) Rx(roll))."""
+    return math.atan2(m[2, 1], m[2, 2]), math.asin(max(-1.0, min(1.0, -m[2, 0])))
+
+
 def log_so3(m: np.ndarray) -> np.ndarray:
     """Rotation vector of a rotation matrix."""
     cos = max(-1.0, min(1.0, 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)))

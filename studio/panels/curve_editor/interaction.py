@@ -152,7 +152,6 @@ class Drag:
     aspect: float = 1.0  # the canvas' width ÷ height when the drag began
 
 
-
 def _screen_point(event: Any) -> np.ndarray | None:
     """The press on the canvas (OpenCV 0..1) of a drag's "start" event, None when the event has none."""
     pos = getattr(event, "start_screen_pos", None)
