@@ -75,13 +75,7 @@ class LegReach:
         corners = np.array([[sx * hl, sy * hw, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
         pivot = float(np.max(np.linalg.norm(corners - ankle_in_foot, axis=1)))
 
-        # The sum of the leg's link lengths, joint to joint: each link's length is fixed, so no posture within
-        # any joint limits puts the ankle farther from the hip (a straight leg comes within 1 % of it).
-        pin.forwardKinematics(model, data, pin.neutral(model))
-        points = [data.oMi[j].translation for j in chain]
-        length = float(sum(np.linalg.norm(b - a) for a, b in zip(points[:-1], points[1:])))
-
-        roll = math.inf
+        roll = math.inf  # (the soles flat at standing: their long axis is the ankle roll joint's)
         for side_frame in FOOT_FRAMES:
             f = model.getFrameId(side_frame)
             axis_x = data.oMf[f].rotation[:, 0]
@@ -90,6 +84,13 @@ class LegReach:
                 if abs(float(axis @ axis_x)) > 0.95:  # turns the foot about its long axis: its ankle roll
                     jq = model.joints[j].idx_q
                     roll = min(roll, abs(float(model.lowerPositionLimit[jq])), abs(float(model.upperPositionLimit[jq])))
+        # The sum of the leg's link lengths, joint to joint: each link's length is fixed, so no posture within
+        # any joint limits puts the ankle farther from the hip (TALOS's straight leg is it; G1's hip offsets kink its
+        # straight leg to 0.639 m of 0.698 m summed).
+        pin.forwardKinematics(model, data, pin.neutral(model))
+        points = [data.oMi[j].translation for j in chain]
+        length = float(sum(np.linalg.norm(b - a) for a, b in zip(points[:-1], points[1:])))
+
         return cls(leg_length_m=float(length), hip_offset_m=(float(hip_in_root[0]), float(hip_in_root[1]), float(hip_in_root[2])),
                    hip_separation_m=hip_sep, ankle_height_m=float(ankle_in_foot[2]),
                    ankle_to_sole_m=(float(-ankle_in_foot[0]), float(-ankle_in_foot[1])), pivot_radius_m=pivot,
