@@ -18,7 +18,7 @@ import pinocchio as pin
 from engine.gait.planner import GaitReference
 from engine.robot.model import RobotModel
 
-FOOT_FRAMES = ("left_foot", "right_foot")
+from engine.constants import FOOT_FRAMES  # (re-exported: the soles' frames)
 RESEED_ERROR_M = 0.01  # a warm-started solve missing by more than this is solved again from standing
 MAX_STEP = 0.2  # largest Gauss-Newton step (norm over base m/rad and joint rad)
 COM_WEIGHT = 0.1  # the CoM plan gives way to the reference (feet, pelvis) where both cannot be met

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import json
 import math
 import os
@@ -44,6 +45,7 @@ import numpy as np
 from engine.atomic_io import atomic_write_text
 from engine.safe_io import ReadError, one_line, read_json
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
+from engine.gait.leg_reach import LegReach, max_reachable_speed, sample_step_reach
 from engine.robot.config import CurveRateLimits
 from engine.gait.phase_map import PhaseMap
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
@@ -239,6 +241,9 @@ class StyleContext:
     joint_velocity_limits: Mapping[str, float] = field(default_factory=dict)
     # How fast every other curve may change on this robot (robots/<name>.toml [gait.curve_rates]).
     curve_rates: CurveRateLimits = field(default_factory=CurveRateLimits)
+    # What the legs physically reach (engine/gait/leg_reach.py): bounds a sample's step (its velocity ×
+    # its cycle) and the swing feet's roll. None: no robot-level reach bounds.
+    leg_reach: LegReach | None = None
 
     @classmethod
     def for_robot(cls, robot_name: str) -> "StyleContext":
@@ -260,7 +265,16 @@ class StyleContext:
             stance_width_range_m=gait.stance_width_range_m, min_single_support_s=gait.min_single_support_s,
             min_double_support_s=gait.min_double_support_s, max_cycle_s=gait.max_cycle_s,
             max_swing_height_m=gait.max_swing_height_m, joint_velocity_limits=speeds, curve_rates=gait.curve_rates,
+            leg_reach=_leg_reach(robot_name),
         )
+
+
+@functools.lru_cache(maxsize=None)
+def _leg_reach(robot_name: str) -> LegReach:
+    """The robot's :class:`LegReach` (a small optimisation over the leg joints: computed once per robot)."""
+    from engine.robot.model import load_robot
+
+    return LegReach.for_robot(load_robot(robot_name))
 
 
 def channel_value_range(channel: str, pelvis_height_m: float | None,
@@ -278,6 +292,10 @@ def channel_value_range(channel: str, pelvis_height_m: float | None,
             return (0.0, ctx.max_swing_height_m if ctx else 1.0, "swing height (no ground penetration)")
         if tail in ("x", "y"):
             return (-MAX_FOOT_OFFSET_M, MAX_FOOT_OFFSET_M, "a foot offset")
+        if tail == "roll" and ctx is not None and ctx.leg_reach is not None \
+                and ctx.leg_reach.ankle_roll_range_rad < MAX_FOOT_ANGLE_RAD:
+            bound = ctx.leg_reach.ankle_roll_range_rad
+            return (-bound, bound, f"a foot roll the ankle roll joint reaches (±{bound:.4g} rad)")
         return (-MAX_FOOT_ANGLE_RAD, MAX_FOOT_ANGLE_RAD, "a foot angle")
     if channel == "pelvis.z":
         lo, hi = -MAX_PELVIS_Z_OFFSET_M, MAX_PELVIS_Z_OFFSET_M
@@ -470,6 +488,8 @@ def style_from_dict(data: Any, ctx: StyleContext | None = None, expected_robot: 
     for name in SAMPLE_NAMES:
         _expect(name in samples_raw, f"samples.{name}", "missing gait sample (a style needs all nine of Table 3)")
     samples = {name: parse_sample(samples_raw[name], f"samples.{name}", ctx) for name in SAMPLE_NAMES}
+    if ctx is not None and ctx.leg_reach is not None:
+        validate_step_reach(velocities, samples, ctx.leg_reach)
     return Style(name=top["name"], robot=robot, velocities=velocities, samples=samples, blend_eta=eta,
                  description=description)
 
@@ -499,6 +519,34 @@ def validate_intervals(iv: Intervals, path: str, ctx: StyleContext | None) -> No
             f"expected a double support after left touchdown of at least {min_ds} s, got {t_rlo - t_ltd:.3f} s")
     _expect(cycle - t_rtd >= min_ds - 1e-9, f"{path}.right_swing_s[1]",
             f"expected a double support after right touchdown of at least {min_ds} s, got {cycle - t_rtd:.3f} s")
+
+
+# The velocity field each sample walks at (velocity_of's table): its step is that velocity × its timings.
+VELOCITY_FIELD = {"forward_fast": "x_max_mps", "forward_slow": "x_slow_mps", "reverse_slow": "x_slow_mps",
+                  "reverse_fast": "x_max_mps", "left_strafe": "y_max_mps", "right_strafe": "y_max_mps",
+                  "left_turn": "yaw_max_radps", "right_turn": "yaw_max_radps"}
+
+
+def validate_step_reach(velocities: SampleVelocities, samples: Mapping[str, "GaitSample"], reach: LegReach) -> None:
+    """Each sample's steps within what the legs reach (engine/gait/leg_reach.py): in each double support,
+    the two ankles at most as far apart as two legs at the sample's pelvis height reach."""
+    for name in SAMPLE_NAMES:
+        field_name = VELOCITY_FIELD.get(name)
+        if field_name is None:
+            continue
+        velocity = velocities.velocity_of(name)
+        found = sample_step_reach(reach, samples[name], velocity)
+        if found.excess_m <= 1e-9:
+            continue
+        value = getattr(velocities, field_name)
+        unit = tuple(v / value for v in velocity)
+        top = max_reachable_speed(reach, samples[name], unit, value)
+        units = "rad/s" if field_name.startswith("yaw") else "m/s"
+        raise StyleError(f"velocities.{field_name}",
+                         f"expected at most {top:.3g} {units} (or a shorter samples.{name}.intervals.cycle_s or a lower "
+                         f"pelvis): at {value:.4g} {units} its ankles are {found.ankle_distance_m:.3f} m apart "
+                         f"{found.double_support}, more than the legs reach at its pelvis height "
+                         f"({found.limit_m:.3f} m), got {value:.4g}")
 
 
 def _check_range(curve: HermiteCurve, path: str, lo: float, hi: float, what: str) -> None:

@@ -9,11 +9,13 @@ random curves of zero amplitude). What is drawn, per sample (each of the nine in
   swings and double supports as random shares of it that respect the minimum durations;
 * attributes — stance width, splay, x-bias, liftoff/touchdown heel-toe transitions, pelvis height;
 * swing curves — height (apex time and value up to max_swing_height_m), x/y offsets, yaw,
-  roll, and heel/toe pitch with the contact rule (heel or toe at zero at each switch);
+  roll (within the ankle roll joint's range: the validator's robot-level bound), and heel/toe
+  pitch with the contact rule (heel or toe at zero at each switch);
 * cycle curves — pelvis height offset and yaw/pitch/roll, every upper-body joint within its
   limits, periodic, 1–3 knots;
-* the style's sample velocities (the validator only asks them positive and x_slow < x_max:
-  drawn within [0.5, 1.5] × neutral scaled by ``extent``) and the blend gain η.
+* the style's sample velocities (drawn within [0.5, 1.5] × neutral scaled by ``extent``, x_slow <
+  x_max, and below the speed at which a sample's step leaves the legs' reach — the validator's step
+  bound, engine/gait/leg_reach.py: there the range is drawn below that speed) and the blend gain η.
 
 Drawn with a numpy Generator: the same seed gives the same styles.
 """
@@ -36,9 +38,12 @@ from engine.gait.style import (
     Attributes,
     GaitSample,
     Intervals,
+    VELOCITY_FIELD,
     Style,
     StyleContext,
+    channel_value_range,
 )
+from engine.gait.leg_reach import max_reachable_speed
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
 
 MAX_SPLAY_RAD = 0.6  # the validator's bounds (engine/gait/style.py validate_sample)
@@ -153,8 +158,10 @@ def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Interv
         centre = apex.value_range()[1] if apex is not None else 0.5 * ctx.max_swing_height_m
         curves[f"{side}_foot.z"] = _swing_curve(rng, d, 0.0, ctx.max_swing_height_m, extent, rate_bound(f"{side}_foot.z", ctx),
                                                 centre=centre, min_peak=MIN_SWING_APEX_M)
+        roll_range = channel_value_range(f"{side}_foot.roll", attributes.pelvis_height_m, ctx)
+        roll_bound = roll_range[1] if roll_range is not None else MAX_FOOT_ANGLE_RAD  # (the ankle's, symmetric)
         for tail, bound in (("x", MAX_FOOT_OFFSET_M), ("y", MAX_FOOT_OFFSET_M), ("yaw", MAX_FOOT_ANGLE_RAD),
-                            ("roll", MAX_FOOT_ANGLE_RAD)):
+                            ("roll", roll_bound)):
             if rng.random() < 0.5:
                 curves[f"{side}_foot.{tail}"] = _swing_curve(rng, d, -bound, bound, extent, rate_bound(f"{side}_foot.{tail}", ctx))
         # Heel/toe pitch: at each contact switch the foot is on its heel or on its toe (or flat).
@@ -187,13 +194,34 @@ def random_curves(rng: np.random.Generator, ctx: StyleContext, intervals: Interv
     return curves
 
 
-def random_velocities(rng: np.random.Generator, neutral: SampleVelocities, extent: float) -> SampleVelocities:
-    def scale() -> float:
-        return float(rng.uniform(1.0 - 0.5 * extent, 1.0 + 0.5 * extent))
+def reachable_velocities(ctx: StyleContext, samples: dict[str, GaitSample], hi: float = 10.0) -> dict[str, float]:
+    """Per velocity field, the largest value whose samples' steps the legs reach (``hi`` without a bound):
+    the validator's step bound (engine/gait/leg_reach.py), which couples a sample's velocity and timings."""
+    out = {name: hi for name in set(VELOCITY_FIELD.values())}
+    if ctx.leg_reach is None:
+        return out
+    probe = SampleVelocities(1.0, 0.5, 1.0, 1.0)
+    for sample_name, field_name in VELOCITY_FIELD.items():
+        unit = tuple(math.copysign(1.0, v) if v else 0.0 for v in probe.velocity_of(sample_name))
+        out[field_name] = min(out[field_name], max_reachable_speed(ctx.leg_reach, samples[sample_name], unit, hi))
+    return out
 
-    x_max = neutral.x_max_mps * scale()
-    x_slow = min(neutral.x_slow_mps * scale(), 0.9 * x_max)
-    return SampleVelocities(x_max, x_slow, neutral.y_max_mps * scale(), neutral.yaw_max_radps * scale())
+
+def random_velocities(rng: np.random.Generator, neutral: SampleVelocities, extent: float,
+                      top: dict[str, float] | None = None) -> SampleVelocities:
+    """Within [0.5, 1.5] × neutral scaled by ``extent``, and below ``top`` (per field) where it is lower."""
+    top = top or {}
+
+    def draw(field_name: str, value: float) -> float:
+        cap = (1.0 - 1e-3) * top.get(field_name, math.inf)
+        lo, hi = value * (1.0 - 0.5 * extent), value * (1.0 + 0.5 * extent)
+        if cap <= lo:  # the legs reach less than the range's low end: below the cap
+            return float(rng.uniform(0.5 * cap, cap))
+        return float(rng.uniform(lo, min(hi, cap)))
+
+    x_max = draw("x_max_mps", neutral.x_max_mps)
+    x_slow = min(draw("x_slow_mps", neutral.x_slow_mps), 0.9 * x_max)
+    return SampleVelocities(x_max, x_slow, draw("y_max_mps", neutral.y_max_mps), draw("yaw_max_radps", neutral.yaw_max_radps))
 
 
 def random_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, extent: float = 1.0,
@@ -208,5 +236,6 @@ def random_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, ex
         curves = random_curves(rng, ctx, intervals, attributes, extent, base)
         samples[sample_name] = GaitSample(intervals, attributes, curves)
     eta = _around(rng, neutral.blend_eta, 0.0, 1.0, extent)
+    velocities = random_velocities(rng, neutral.velocities, extent, reachable_velocities(ctx, samples))
     return replace(neutral, name=name, description=f"random style (extent {extent:g})",
-                   velocities=random_velocities(rng, neutral.velocities, extent), samples=samples, blend_eta=eta)
+                   velocities=velocities, samples=samples, blend_eta=eta)

@@ -51,7 +51,7 @@ def gait_samples(draw, heel_toe: bool = True, ctx: StyleContext | None = None) -
         if draw(st.booleans()):
             curves[f"{side}_foot.y"] = _swing_curve(d, [(0.5, draw(st.floats(-0.03, 0.03)))])
         if draw(st.booleans()):
-            curves[f"{side}_foot.roll"] = _swing_curve(d, [(0.5, draw(st.floats(-0.3, 0.3)))])
+            curves[f"{side}_foot.roll"] = _swing_curve(d, [(0.5, draw(st.floats(-0.25, 0.25)))])  # (G1 ankle roll ±0.262)
         if draw(st.booleans()):
             curves[f"{side}_foot.yaw"] = _swing_curve(d, [(0.5, draw(st.floats(-0.3, 0.3)))])
         if heel_toe and draw(st.booleans()):
