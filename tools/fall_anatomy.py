@@ -102,6 +102,20 @@ def sweep_segment(t_s: float, command: np.ndarray) -> str:
     return SEGMENTS[leg] if moving else f"stop({SEGMENTS[leg]})"
 
 
+def leg_joint_names(robot: RobotModel, side: str) -> list[str]:
+    """The joints from the pelvis down to ``side``'s sole, hip first (G1: hip pitch … ankle roll; TALOS: leg 1 … 6),
+    read from the kinematic chain of the ``{side}_foot`` frame: the ankle's pitch and roll are the last two."""
+    model = robot.pin_model
+    joint = model.frames[robot.frame_id(f"{side}_foot")].parentJoint
+    chain = [model.names[j] for j in model.supports[joint] if j > 0 and model.joints[j].nv == 1]
+    return chain[-6:]
+
+
+def ankle_joint_name(robot: RobotModel, side: str, axis: str) -> str:
+    """The ankle's ``pitch`` or ``roll`` joint of ``side`` (the leg chain's second-last / last joint)."""
+    return leg_joint_names(robot, side)[-2 if axis == "pitch" else -1]
+
+
 def window_indicators(robot: RobotModel, rec: dict[str, np.ndarray], probe: TickProbe, t0: float, t1: float,
                       prefix: str = "") -> dict[str, Any]:
     """Stance-ankle limits, servo saturation, swing-foot loads and other joints at limits over (t0, t1]."""
@@ -114,7 +128,7 @@ def window_indicators(robot: RobotModel, rec: dict[str, np.ndarray], probe: Tick
     for axis in ("pitch", "roll"):
         best, side_best = 0.0, "-"
         for si, side in enumerate(("left", "right")):
-            j = m.joint(f"{side}_ankle_{axis}_joint")
+            j = m.joint(ankle_joint_name(robot, side, axis))
             lo, hi = m.jnt_range[j.id]
             v = q[sel, j.qposadr[0]]
             stance = con[sel, si]
@@ -133,11 +147,13 @@ def window_indicators(robot: RobotModel, rec: dict[str, np.ndarray], probe: Tick
     for axis in ("pitch", "roll"):
         best = 0.0
         for si, side in enumerate(("left", "right")):
-            k = names.index(f"{side}_ankle_{axis}_joint")
+            k = names.index(ankle_joint_name(robot, side, axis))
             if pc[:, si].sum():
                 best = max(best, float(np.mean(clipped[pc[:, si], k])))
         row[f"{prefix}sat_{axis[0]}"] = round(best, 2)
-    legs = [k for k, n in enumerate(names) if any(s in n for s in ("hip", "knee", "ankle"))]
+    leg_names = leg_joint_names(robot, "left") + leg_joint_names(robot, "right")
+    legs = [k for k, n in enumerate(names) if n in leg_names]
+    ankles = {ankle_joint_name(robot, side, axis) for side in ("left", "right") for axis in ("pitch", "roll")}
     row[f"{prefix}sat_leg"] = round(float(np.mean(clipped[:, legs].any(axis=1))), 2) if len(clipped) else 0.0
     dt = float(m.opt.timestep)
     loads = np.array([probe.load.get(round(x + dt, 6), np.zeros(2)) for x in tt[tsel]]).reshape(-1, 2)
@@ -145,7 +161,7 @@ def window_indicators(robot: RobotModel, rec: dict[str, np.ndarray], probe: Tick
     row[f"{prefix}strike"] = int(round(float(swing_load.max()))) if swing_load.size else 0
     hits = []
     for j in range(1, m.njnt):
-        if not m.jnt_limited[j] or "ankle" in m.joint(j).name:
+        if not m.jnt_limited[j] or m.joint(j).name in ankles:
             continue
         lo, hi = m.jnt_range[j]
         v = q[sel, m.jnt_qposadr[j]]
