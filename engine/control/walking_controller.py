@@ -70,6 +70,7 @@ class WalkingController:
         self.style = style
         self.planner = planner_for(robot, style, self.ctx)
         self.planner.preview_margin_m = self.params.cop_margin_m
+        self.planner.preview_lateral_extra_m = self.params.cop_lateral_extra_margin_m
         self.planner.preview_toe_trim_m = toe_trim_m(robot, self.params.cop_margin_m, self.params.ankle_load_factor)
         self.planner.path_follows_feet = self.params.path_follows_feet
         self.mpc = ComMpc(preview_s=self.params.mpc_preview_s)

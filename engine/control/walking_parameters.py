@@ -23,6 +23,10 @@ class WalkingParameters:
     relatch_after_plan_ticks: int = 2
     # The MPC plans the CoP this far inside the soles (headroom for the whole-body QP).
     cop_margin_m: float = 0.01
+    # ... and this much further inside the soles' sides (0: the same margin all round). A robot whose ankle roll
+    # range is small (G1 ±0.26 rad) cannot hold a CoP near the sole's side edge once the leg tilts: the plan keeps
+    # the lateral CoP nearer the sole's middle and leaves the rest to the whole-body controller.
+    cop_lateral_extra_margin_m: float = 0.0
     # LIP height: low-pass of the measured CoM height per planner tick (≈ 0.16 s time constant).
     com_z_filter: float = 0.05
     # A plan whose final capture point misses the last support by more is re-anchored.

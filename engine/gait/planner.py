@@ -156,6 +156,7 @@ class GaitPlanner:
         self.sole_corners_local = np.array([[hl, hw, 0.0], [hl, -hw, 0.0], [-hl, -hw, 0.0], [-hl, hw, 0.0]])
         self.region = SafeRegion.for_sole(sole_length_m, sole_width_m)
         self.preview_margin_m = 0.0  # shrink the preview's soles: the MPC plans the CoP this far inside
+        self.preview_lateral_extra_m = 0.0  # ... and this much further inside the soles' sides
         self.preview_toe_trim_m = 0.0  # and this much shorter at the toe (what the ankles cannot hold)
         # Share (0..1) of a landed foot's deviation from its nominal foothold (step adjustment,
         # re-latching to where it really landed) that moves the path frame with it, so later
@@ -579,7 +580,8 @@ class GaitPlanner:
             np.array([swing_left, swing_right]), self._edges_now(), np.array([landed["left"], landed["right"]]),
             touchdown_edges, liftoff_edges, stances,
             *table, PATH_TABLE_STEP_S, self._region_array[1],
-            self.sole_length_m - 2.0 * self.preview_margin_m, self.sole_width_m - 2.0 * self.preview_margin_m,
+            self.sole_length_m - 2.0 * self.preview_margin_m,
+            self.sole_width_m - 2.0 * (self.preview_margin_m + self.preview_lateral_extra_m),
             self.preview_toe_trim_m, EDGE_SUPPORT_DEPTH_M, 2.0)
         footholds = [left, right] + [Foothold(x, y, yaw) for x, y, yaw in holds[2:].tolist()]
         polygons.flags.writeable = False  # the phases' polygons are views of it

@@ -88,3 +88,34 @@ def test_talos_hurries_every_support_while_pushed() -> None:
     ctrl.observer.force_n = np.array([0.0, -100.0])
     assert hurry(ctrl, fb, com, single=True).kappa == 2.0
     assert hurry(ctrl, fb, com, single=False).kappa == 2.0  # κ_double's bound
+
+
+def test_lateral_cop_margin_narrows_the_planned_soles_sideways_only() -> None:
+    """cop_lateral_extra_margin_m (G1: its ankle roll range is half TALOS's): the controller's contact preview
+    plans single-support CoPs on a sole that much narrower on each side and exactly as long; the step
+    adjustment's best lateral CoP on the stance foot shrinks with it. TALOS keeps the margin all round."""
+    from engine.control.walking_controller import WalkingController
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+
+    assert WalkingParameters.for_robot("talos").cop_lateral_extra_margin_m == 0.0
+    robot = load_robot("g1")
+    style = load_style(styles_dir("g1") / "neutral.json")
+    base = replace(WalkingParameters.for_robot("g1"), cop_lateral_extra_margin_m=0.0)
+    extents = {}
+    for extra in (0.0, 0.008):
+        ctrl = WalkingController(robot, style, params=replace(base, cop_lateral_extra_margin_m=extra))
+        for _ in range(60):
+            ctrl.planner.step(0.008, np.array([0.3, 0.0, 0.0]))
+        singles = [p for p in ctrl.planner.preview() if len(p.footholds) == 1]
+        assert singles
+        phase = singles[0]
+        (foot,) = phase.footholds.values()
+        c, s = np.cos(foot.yaw), np.sin(foot.yaw)
+        rel = np.asarray(phase.polygon) - [foot.x, foot.y]
+        along, across = rel @ [c, s], rel @ [-s, c]
+        extents[extra] = (np.ptp(along), np.ptp(across), ctrl.step_adjustment.reach_side_m)
+    (len0, wid0, reach0), (len1, wid1, reach1) = extents[0.0], extents[0.008]
+    assert len1 == pytest.approx(len0, abs=1e-12)
+    assert wid1 == pytest.approx(wid0 - 0.016, abs=1e-12)
+    assert reach1 == pytest.approx(reach0 - base.step_reach_share * 0.008, abs=1e-12)
