@@ -120,3 +120,13 @@ def test_bad_feet_raise_one_line():
         detect_stance(np.full((4, 2, 3), np.nan), 20.0)
     with pytest.raises(ValueError, match=r"\(T, F, 3\)"):
         detect_stance(np.zeros((4, 2)), 20.0)
+
+
+def test_smr_on_a_complete_schedule_is_bit_identical_to_the_labels():
+    from engine.retarget.importers import import_source
+    from engine.retarget.quadruped.pipeline import RetargetOptions, retarget_detailed
+
+    hopturn = import_source(stmr_clip("hopturn"))
+    cleaned = retarget_detailed(hopturn, "go1", "smr").motion
+    labelled = retarget_detailed(hopturn, "go1", "smr", RetargetOptions(contacts="source")).motion
+    assert np.array_equal(cleaned.qpos, labelled.qpos) and cleaned.source["contact_labels_iou"] == 1.0

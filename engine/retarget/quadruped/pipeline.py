@@ -15,6 +15,7 @@ position, placed at the first frame's base position); SMR rebuilds the base from
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field, replace
 from threading import Event
@@ -60,8 +61,11 @@ def with_contact_schedule(source: KeypointMotion, contacts: str,
     contact = (clean_schedule(source.contact, feet, source.fps, params) if contacts == "cleaned"
                else detect_stance(feet, source.fps, params))
     origin = {"cleaned": "labels + stance measured from the foot keypoints", "detected": "measured from the foot keypoints"}
-    return replace(source, contact=contact, source={**source.source, "contact_schedule": origin[contacts],
-                                                    "contact_labels_iou": round(contact_iou(source.contact, contact), 4)})
+    out = copy.copy(source)  # not replace(): re-validating would renormalise the quaternions (SMR bit-identical when
+    out.contact = contact  # the schedule did not move, as on HopTurn)
+    out.source = {**source.source, "contact_schedule": origin[contacts],
+                  "contact_labels_iou": round(contact_iou(source.contact, contact), 4)}
+    return out
 
 
 def remove_base(source: KeypointMotion) -> KeypointMotion:
