@@ -32,6 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ret.add_argument("--robot", required=True, help="target quadruped: go1, go2, a1, b1, anymal_c")
     ret.add_argument("--method", default="smr", help="uvm | smr | stmr (SMR then TMR: re-timed, tracked in MuJoCo)")
     ret.add_argument("--baseless", action="store_true", help="remove the source's base trajectory and rebuild it (§VIII-E)")
+    ret.add_argument("--contacts", choices=("cleaned", "detected", "source"), default="cleaned",
+                     help="stance schedule SMR follows: the source's labels plus the stance measured from its foot "
+                          "keypoints (cleaned, default), the measured stance alone, or the labels as they are")
     ret.add_argument("--terrain", action="append", default=[], metavar="box:x,y,w,d,h",
                      help="a box on the floor (metres; repeatable)")
     ret.add_argument("--no-touchdowns", action="store_true",
@@ -139,7 +142,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
             check_segments(settings.segments, source.frames, source.fps)
         except DeformationError as exc:
             raise CliError(f"{Path(args.source).name}: keypoints: {exc}") from None
-    options = RetargetOptions(baseless=args.baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns, land_on_schedule=args.flight == "schedule"))
+    options = RetargetOptions(baseless=args.baseless, contacts=args.contacts, heightmap=heightmap, smr=SmrOptions(touchdowns=not args.no_touchdowns, land_on_schedule=args.flight == "schedule"))
     result = retarget_detailed(source, robot, "smr" if stmr else args.method, options)
     figures = result.motion.metrics
     motion = result.motion

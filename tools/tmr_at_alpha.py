@@ -3,6 +3,7 @@
     python tools/tmr_at_alpha.py hopturn --robot go1 --alpha 0.5            # a paper clip: SMR, then TMR at α
     python tools/tmr_at_alpha.py /tmp/backflip_b1.npz --alpha 1 --window-iterations 2
     python tools/tmr_at_alpha.py sidesteps --robot a1 --alpha 0.5 --crop-s 4
+    python tools/tmr_at_alpha.py trot0 --contacts source                    # SMR on the clip's contact labels
     python tools/tmr_at_alpha.py /tmp/backflip_b1.npz --set "final_scale=5 polish_iterations=0 other_windows_s="
 
 Prints one JSON line: the replay fell or not (and when), DTW keypoint L1 % against the kinematic motion at its
@@ -70,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", default="", metavar="OVERRIDES",
                         help="space-separated name=value overrides of TMRSettings or TrackingWeights fields, as "
                              "tools/tmr_tracker_ab.py takes them (a tuple field: comma-separated, empty for none)")
+    parser.add_argument("--contacts", choices=("cleaned", "detected", "source"), default="cleaned",
+                        help="paper clips: the stance schedule SMR follows (RetargetOptions.contacts)")
     parser.add_argument("--crop-s", type=float, default=None, help="track only the first seconds of the clip")
     parser.add_argument("--pd-only", action="store_true",
                         help="no iLQR: the robot's PD servo on the (re-timed) kinematic joints plus the stance "
@@ -85,13 +88,14 @@ def main(argv: list[str] | None = None) -> int:
     else:
         from engine.bench.retarget import clip_path, shared_dir
         from engine.retarget.importers import import_source
-        from engine.retarget.quadruped.pipeline import retarget_detailed
+        from engine.retarget.quadruped.pipeline import RetargetOptions, retarget_detailed
 
         shared = shared_dir()
         if shared is None:
             print("shared data folder absent: set MOTION_STUDIO_SHARED", file=sys.stderr)
             return 2
-        motion = retarget_detailed(import_source(clip_path(shared, args.clip)), args.robot, "smr").motion
+        motion = retarget_detailed(import_source(clip_path(shared, args.clip)), args.robot, "smr",
+                                   RetargetOptions(contacts=args.contacts)).motion
     robot = load_robot(motion.robot)
     fps = float(motion.fps)
     n = len(motion.qpos) if args.crop_s is None else min(len(motion.qpos), int(args.crop_s * fps) + 1)
@@ -114,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     H = target.horizon
     k_end = int(res.fall_fraction * H) if res.fell else H
     print(json.dumps({
-        "clip": args.clip, "robot": motion.robot, "overrides": args.set, "alpha": args.alpha, "window_iterations": None if args.pd_only else args.window_iterations,
+        "clip": args.clip, "robot": motion.robot, "contacts": args.contacts, "overrides": args.set, "alpha": args.alpha, "window_iterations": None if args.pd_only else args.window_iterations,
         "duration_s": {"before": round((n - 1) / fps, 3), "after": round(H * tracker.dt_s, 3)},
         "replay_fell": bool(res.fell), "fell_at_s": round(k_end * tracker.dt_s, 2) if res.fell else None,
         "dtw_keypoint_l1_pct": round(dtw_keypoint_l1_pct(res.keypoints, keypoint_trajectory(robot, qpos)), 3),

@@ -36,7 +36,8 @@ def schedules(draw) -> np.ndarray:
 def check(robot: str, contact: np.ndarray, heightmap: HeightMap, baseless: bool = False, touchdowns: bool = True) -> None:
     kin = quadruped_kinematics(robot)
     source = synthetic_trot("a1", frames=FRAMES, fps=30.0, contact=contact)
-    options = RetargetOptions(baseless=baseless, heightmap=heightmap, smr=SmrOptions(touchdowns=touchdowns))
+    options = RetargetOptions(baseless=baseless, contacts="source", heightmap=heightmap,  # the schedule under test
+                              smr=SmrOptions(touchdowns=touchdowns))
     motion = retarget_detailed(source, robot, "smr", options).motion
     enforced = np.array(motion.source["contact_enforced"], dtype=bool)
     assert enforced[contact].all()  # every source contact is kept

@@ -3,12 +3,19 @@
     source ──UVM (Eq. 1)──▶ target keypoints ──IK──▶ ᴵᴷq   (method "uvm" stops here: base transferred directly)
                                                     └──SMR (Algorithm 1, Eq. 14)──▶ q̄  (method "smr")
 
+``contacts``: the stance schedule SMR locks the feet to — ``"cleaned"`` (default, every clip): the source's
+labels plus the frames its foot keypoints are measured planted (``contacts.clean_schedule``: height + speed
+with hysteresis, a minimum segment length); ``"detected"``: the measured stance alone; ``"source"``: the
+schedule the source file carries, as it is. The STMR mocap labels leave trot0 on one foot 70 % of the time,
+while its feet stand in diagonal pairs (README, issue 10).
+
 ``baseless`` (§VIII-E) removes the source's base trajectory first (keypoints expressed relative to the base
 position, placed at the first frame's base position); SMR rebuilds the base from the anchored feet.
 """
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field, replace
 from threading import Event
@@ -16,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from engine.retarget.contacts import StanceDetection, clean_schedule, contact_iou, detect_stance
 from engine.retarget.motion import KEYPOINT_NAMES, LEGS, KeypointMotion, RobotMotion
 from engine.retarget.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import NotAQuadruped, QuadrupedKinematics, quadruped_kinematics
@@ -23,12 +31,14 @@ from engine.retarget.quadruped.smr import SmrOptions, smr
 from engine.retarget.quadruped.uvm import RetargetCancelled, ik_trajectory, uvm_keypoints
 
 METHODS = ("uvm", "smr")
+CONTACT_SCHEDULES = ("cleaned", "detected", "source")
 QUADRUPEDS = ("go1", "go2", "a1", "b1", "anymal_c")
 
 
 @dataclass(frozen=True)
 class RetargetOptions:
     baseless: bool = False
+    contacts: str = "cleaned"  # one of CONTACT_SCHEDULES
     heightmap: HeightMap = field(default_factory=HeightMap)
     smr: SmrOptions = field(default_factory=SmrOptions)
 
@@ -39,6 +49,23 @@ class RetargetOutput:
     target_keypoints: np.ndarray  # (T, 16, 3) the UVM keypoints the methods aim at
     wall_time_s: float
     cpu_time_s: float = float("nan")  # this process's CPU time (the machine may be shared)
+
+
+def with_contact_schedule(source: KeypointMotion, contacts: str,
+                          params: StanceDetection = StanceDetection()) -> KeypointMotion:
+    """``source`` with the schedule ``contacts`` names (see the module doc) from its foot keypoints
+    (keypoint ``4·leg + 3``); ``source["contact_labels_iou"]`` records how far it moved from the labels."""
+    if contacts == "source":
+        return source
+    feet = source.keypoints[:, 3::4]
+    contact = (clean_schedule(source.contact, feet, source.fps, params) if contacts == "cleaned"
+               else detect_stance(feet, source.fps, params))
+    origin = {"cleaned": "labels + stance measured from the foot keypoints", "detected": "measured from the foot keypoints"}
+    out = copy.copy(source)  # not replace(): re-validating would renormalise the quaternions (SMR bit-identical when
+    out.contact = contact  # the schedule did not move, as on HopTurn)
+    out.source = {**source.source, "contact_schedule": origin[contacts],
+                  "contact_labels_iou": round(contact_iou(source.contact, contact), 4)}
+    return out
 
 
 def remove_base(source: KeypointMotion) -> KeypointMotion:
@@ -63,9 +90,12 @@ def retarget_detailed(source: KeypointMotion, robot: str, method: str = "smr", o
     options = options or RetargetOptions()
     if method not in METHODS:
         raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    if options.contacts not in CONTACT_SCHEDULES:
+        raise ValueError(f"contacts: expected one of {', '.join(CONTACT_SCHEDULES)}, got {options.contacts!r}")
     kin = quadruped_kinematics(robot)  # NotAQuadruped for bipeds
     t0, c0 = time.perf_counter(), time.process_time()
-    src = remove_base(source) if options.baseless else source
+    src = with_contact_schedule(source, options.contacts)  # before the base goes: the feet are measured in the world
+    src = remove_base(src) if options.baseless else src
     report = (lambda lo, hi: (lambda f: progress(lo + (hi - lo) * f))) if progress else (lambda lo, hi: None)
     target, weights, base_pos, base_rot = uvm_keypoints(src, kin)
     ik_q = ik_trajectory(kin, target, weights, base_pos, base_rot, report(0.0, 0.5 if method == "smr" else 1.0), cancel)
@@ -109,10 +139,11 @@ def robot_motion_from_q(kin: QuadrupedKinematics, q: np.ndarray, source: Keypoin
         fps=source.fps, qpos=qpos, joint_names=joint_names, contact=contact, robot=robot.name, method=method,
         foot_names=list(LEGS), keypoints=kp, keypoint_names=list(KEYPOINT_NAMES),
         source={"from": source.source.get("file", ""), "source_format": source.source.get("format", ""),
-                "baseless": options.baseless, "terrain": options.heightmap.to_json(),
+                "baseless": options.baseless, "terrain": options.heightmap.to_json(), "contacts": options.contacts,
+                **({"contact_labels_iou": source.source["contact_labels_iou"]} if "contact_labels_iou" in source.source else {}),
                 **({"contact_enforced": contact_enforced.astype(int).tolist()} if contact_enforced is not None else {})},
     )
 
 
 __all__ = ["retarget", "retarget_detailed", "RetargetOptions", "RetargetOutput", "RetargetCancelled", "NotAQuadruped",
-           "METHODS", "QUADRUPEDS", "remove_base"]
+           "METHODS", "QUADRUPEDS", "CONTACT_SCHEDULES", "remove_base", "with_contact_schedule"]
