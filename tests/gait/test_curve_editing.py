@@ -60,6 +60,18 @@ def test_editor_limits_are_the_validators_ranges(g1):
         assert lo < hi and math.isfinite(lo) and math.isfinite(hi), channel
 
 
+def test_a_swing_roll_drag_stops_at_the_ankle_roll_joints_range(g1):
+    """The editor clamps a swing foot's roll where G1's ankle roll joint stops (±0.262 rad: the validator's
+    robot-level bound, engine/gait/leg_reach.py), not at the generic foot-angle bound."""
+    ctx, style = g1
+    sample = style.sample("forward_slow")
+    lo, hi = channel_limits("right_foot.roll", sample, ctx)
+    assert (lo, hi) == pytest.approx((-0.2618, 0.2618), abs=1e-4)
+    curve = _curve_for("right_foot.roll", sample, ctx)
+    moved, notes = move_knots("right_foot.roll", curve, [1], 0.0, 0.5, (lo, hi))
+    assert moved.knots[1].value == pytest.approx(hi) and any("clamped" in n for n in notes)
+
+
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data(), dv=st.floats(-5.0, 5.0), dt_frac=st.floats(-0.5, 0.5))
 def test_a_drag_anywhere_yields_a_valid_style(g1, data, dv, dt_frac):
@@ -85,7 +97,7 @@ def test_a_drag_anywhere_yields_a_valid_style(g1, data, dv, dt_frac):
     validate_style(style.with_sample(name, sample.with_curve(channel, flat)), ctx)
 
 
-@pytest.mark.parametrize("channel", ["left_foot.z", "left_foot.y", "pelvis.z", "pelvis.roll",
+@pytest.mark.parametrize("channel", ["left_foot.z", "left_foot.y", "left_foot.roll", "pelvis.z", "pelvis.roll",
                                      "joints.left_elbow_joint"])
 def test_one_step_past_the_editor_limit_is_refused_by_the_validator(g1, channel):
     ctx, style = g1
