@@ -20,6 +20,7 @@ from studio.cli import CliError, check_ray_address
 
 def register(sub: argparse._SubParsersAction) -> None:
     from engine.export import FORMATS as EXPORT_FORMATS
+    from engine.retarget.contacts import CONTACT_SCHEDULES
     from engine.retarget.importers import FORMATS as IMPORT_FORMATS
 
     imp = sub.add_parser("import", help="import a source motion (dog mocap, animation, video keypoints) as keypoints (npz)")
@@ -32,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     ret.add_argument("--robot", required=True, help="target quadruped: go1, go2, a1, b1, anymal_c")
     ret.add_argument("--method", default="smr", help="uvm | smr | stmr (SMR then TMR: re-timed, tracked in MuJoCo)")
     ret.add_argument("--baseless", action="store_true", help="remove the source's base trajectory and rebuild it (§VIII-E)")
-    ret.add_argument("--contacts", choices=("cleaned", "detected", "source"), default="cleaned",
+    ret.add_argument("--contacts", choices=CONTACT_SCHEDULES, default="cleaned",
                      help="stance schedule SMR follows: the source's labels plus the stance measured from its foot "
                           "keypoints (cleaned, default), the measured stance alone, or the labels as they are")
     ret.add_argument("--terrain", action="append", default=[], metavar="box:x,y,w,d,h",

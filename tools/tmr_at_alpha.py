@@ -28,6 +28,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from engine.retarget.contacts import CONTACT_SCHEDULES  # noqa: E402
 from engine.retarget.quadruped.tmr.deformation import TemporalDeformation  # noqa: E402
 from engine.retarget.quadruped.tmr.keypoints import keypoint_trajectory  # noqa: E402
 from engine.retarget.quadruped.tmr.scoring import dtw_keypoint_l1_pct, tracking_error_mm  # noqa: E402
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", default="", metavar="OVERRIDES",
                         help="space-separated name=value overrides of TMRSettings or TrackingWeights fields, as "
                              "tools/tmr_tracker_ab.py takes them (a tuple field: comma-separated, empty for none)")
-    parser.add_argument("--contacts", choices=("cleaned", "detected", "source"), default="cleaned",
+    parser.add_argument("--contacts", choices=CONTACT_SCHEDULES, default="cleaned",
                         help="paper clips: the stance schedule SMR follows (RetargetOptions.contacts)")
     parser.add_argument("--crop-s", type=float, default=None, help="track only the first seconds of the clip")
     parser.add_argument("--pd-only", action="store_true",

@@ -41,8 +41,7 @@ class StepAdjustment:
         self.reach_forward_m = params.step_reach_share * max(half - planner.preview_toe_trim_m, 0.0)
         self.half_sole_width_m = 0.5 * min(robot.config.soles[s].width_m for s in SIDES)
         self.reach_side_m = params.step_reach_share * (
-            0.5 * min(robot.config.soles[s].width_m for s in SIDES) - params.cop_margin_m
-            - params.cop_lateral_extra_margin_m)
+            self.half_sole_width_m - params.cop_margin_m - params.cop_lateral_extra_margin_m)
         self.pushed_at_s = -math.inf  # planner time the observer last saw a push
 
     def reset(self) -> None:

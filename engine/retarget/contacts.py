@@ -27,6 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 
+#: The stance schedules SMR can follow (engine.retarget.quadruped.pipeline.RetargetOptions.contacts): the labels
+#: plus the measured stance (``clean_schedule``), the measured stance alone (``detect_stance``), the labels as
+#: they are.
+CONTACT_SCHEDULES = ("cleaned", "detected", "source")
+
+
 @dataclass(frozen=True)
 class ContactThresholds:
     height_m: float = 0.03
@@ -44,10 +50,7 @@ def estimate_contacts(feet: np.ndarray, fps: float, ground_z_m: float | np.ndarr
     height = z - ground_z_m
     vel = foot_speeds(feet, fps)
     contact = (height < thresholds.height_m) & (vel < thresholds.speed_m_s)
-    n_min = max(1, int(round(thresholds.min_segment_s * fps)))
-    for j in range(contact.shape[1]):
-        contact[:, j] = _absorb_short(contact[:, j], n_min)
-    return contact
+    return _absorb_short_segments(contact, thresholds.min_segment_s, fps)
 
 
 @dataclass(frozen=True)
@@ -97,10 +100,7 @@ def detect_stance(feet: np.ndarray, fps: float, params: StanceDetection = Stance
     for k in range(n_frames):
         state = np.where(state, hold[k], touch[k])
         contact[k] = state
-    n_min = max(1, int(round(params.min_segment_s * fps)))
-    for j in range(n_feet):
-        contact[:, j] = _absorb_short(contact[:, j], n_min)
-    return contact
+    return _absorb_short_segments(contact, params.min_segment_s, fps)
 
 
 def clean_schedule(labels: np.ndarray, feet: np.ndarray, fps: float,
@@ -112,7 +112,12 @@ def clean_schedule(labels: np.ndarray, feet: np.ndarray, fps: float,
     if labels.shape != detected.shape:
         raise ValueError(f"labels: expected shape {detected.shape} (frames, feet), got {labels.shape}")
     contact = labels | detected
-    n_min = max(1, int(round(params.min_segment_s * fps)))
+    return _absorb_short_segments(contact, params.min_segment_s, fps)
+
+
+def _absorb_short_segments(contact: np.ndarray, min_segment_s: float, fps: float) -> np.ndarray:
+    """``contact`` (T, F) with each foot's interior segments shorter than ``min_segment_s`` absorbed (in place)."""
+    n_min = max(1, int(round(min_segment_s * fps)))
     for j in range(contact.shape[1]):
         contact[:, j] = _absorb_short(contact[:, j], n_min)
     return contact

@@ -23,7 +23,7 @@ from typing import Callable
 
 import numpy as np
 
-from engine.retarget.contacts import StanceDetection, clean_schedule, contact_iou, detect_stance
+from engine.retarget.contacts import CONTACT_SCHEDULES, StanceDetection, clean_schedule, contact_iou, detect_stance
 from engine.retarget.motion import KEYPOINT_NAMES, LEGS, KeypointMotion, RobotMotion
 from engine.retarget.heightmap import HeightMap
 from engine.retarget.quadruped.kinematics import NotAQuadruped, QuadrupedKinematics, quadruped_kinematics
@@ -31,7 +31,6 @@ from engine.retarget.quadruped.smr import SmrOptions, smr
 from engine.retarget.quadruped.uvm import RetargetCancelled, ik_trajectory, uvm_keypoints
 
 METHODS = ("uvm", "smr")
-CONTACT_SCHEDULES = ("cleaned", "detected", "source")
 QUADRUPEDS = ("go1", "go2", "a1", "b1", "anymal_c")
 
 
