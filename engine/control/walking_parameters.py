@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
 from dataclasses import dataclass
 
 from engine.robot.config import RobotConfig, RobotConfigError, load_robot_config
@@ -66,6 +67,14 @@ class WalkingParameters:
     # path frame; the legs' reach) instead of max_step_adjust_m from the nominal foothold.
     max_step_width_m: float = 0.45
     max_step_length_m: float = 0.45
+    # An adjusted step lands at most leg height × tan(ankle roll range − this margin) sideways from its hip at
+    # touchdown (the hip of the CoM the LIP predicts then, about the stance foot's best CoP; the legs' geometry from
+    # engine/gait/leg_reach.py), or no further than its nominal foothold if that is already beyond: a wider step
+    # tilts the landing leg more than its ankle roll follows, the foot rolls onto its edge and stops moving the CoP
+    # (issue 13, the sideways falls of G1's random styles). inf: off (the bound is not computed).
+    landing_leg_roll_margin_rad: float = math.inf
+    # ... and while that bound clips a step, the gait runs at the time scaling's upper bound (lands sooner).
+    hurry_when_leg_roll_bound: bool = True
     # Share of the CoP's reach a step may rely on (rest: margin for tracking), and while pushed.
     step_reach_share: float = 0.8
     pushed_reach_share: float = 0.25
@@ -86,6 +95,12 @@ class WalkingParameters:
     # ... and so may one whose planned sole's lowest corner is below this (0: off): a foot planned heel- or toe-down
     # reaches the floor with its centre still 10-20 mm up (issue 13, README "Why the swing foot meets the floor early").
     landing_corner_height_m: float = 0.0
+    # A foot on the ground whose sole is rolled about its long axis so that one side's corners stand this much
+    # higher than the other side's (measured, forward kinematics each tick) stands on its lower edge only: the QP
+    # may push on those corners alone (0: off, the plan's corners). G1's ankle roll reaches ±0.26 rad; when the
+    # leg tilts further the foot rolls onto its edge and the QP, still counting on the whole sole, plans a CoP it
+    # cannot get (issue 13, the sideways falls of random styles).
+    rolled_foot_edge_lift_m: float = 0.0
     # Vertical load (× m g) a single-support ankle must hold the CoP under (the MPC's toe trim).
     ankle_load_factor: float = 1.15
     # Per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0).
