@@ -17,7 +17,6 @@ from engine.constants import GRAVITY_MPS2
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedbackGains
 from engine.control.mpc import ComMpcSolution
 from engine.control.walking_parameters import WalkingParameters
-from engine.gait.footsteps import Foothold
 from engine.gait.planner import GaitPlanner
 from engine.gait.style import SIDES
 from engine.robot.model import RobotModel
@@ -28,7 +27,7 @@ class StepAdjustment:
     planner it reads (time to touchdown, nominal targets, latched feet, path yaw) and the time of the last push."""
 
     __slots__ = ("planner", "gains", "standing_com_z_m", "reach_back_m", "reach_forward_m", "half_sole_width_m",
-                 "reach_side_m", "pushed_at_s", "hip_y_m", "hip_below_com_m", "leg_roll_tan")
+                 "reach_side_m", "pushed_at_s")
 
     def __init__(self, robot: RobotModel, params: WalkingParameters, planner: GaitPlanner, gains: GaitFeedbackGains,
                  standing_com_z_m: float):
@@ -44,18 +43,6 @@ class StepAdjustment:
         self.reach_side_m = params.step_reach_share * (
             self.half_sole_width_m - params.cop_margin_m - params.cop_lateral_extra_margin_m)
         self.pushed_at_s = -math.inf  # planner time the observer last saw a push
-        # The landing leg's sideways reach with its ankle roll inside its range (landing_leg_roll_margin_rad):
-        # the hip joint beside the pelvis, the hip − ankle height below the CoM, tan of the usable roll.
-        self.hip_y_m = self.hip_below_com_m = 0.0
-        self.leg_roll_tan = math.inf
-        if math.isfinite(params.landing_leg_roll_margin_rad):
-            from engine.gait.leg_reach import LegReach
-
-            legs = LegReach.for_robot(robot)
-            self.hip_y_m = abs(legs.hip_offset_m[1])
-            com_above_pelvis_m = standing_com_z_m - float(robot.q_standing[2])
-            self.hip_below_com_m = com_above_pelvis_m - legs.hip_offset_m[2] + legs.ankle_height_m
-            self.leg_roll_tan = math.tan(max(legs.ankle_roll_range_rad - params.landing_leg_roll_margin_rad, 0.0))
 
     def reset(self) -> None:
         self.pushed_at_s = -math.inf  # planner time the observer last saw a push
@@ -98,7 +85,6 @@ class StepAdjustment:
                        and planner.t_s - self.pushed_at_s < params.stance_capture_after_push_s)
         shift_x, shift_y = mpc_shift.tolist()
         reach_bounded = from_stance
-        roll_bounded = False  # a step kept within the landing leg's ankle-roll reach of its hip
         for side in SIDES:
             t_td = planner.time_to_touchdown_s(side, fb.kappa)
             if t_td is None:
@@ -144,46 +130,14 @@ class StepAdjustment:
                 lateral_c = sign * min(sign * lateral, params.max_step_width_m)
                 d_along, d_lateral = along_c - along, lateral_c - lateral
                 ax, ay = ax + (d_along * c + d_lateral * -s_), ay + (d_along * s_ + d_lateral * c)
-            if math.isfinite(self.leg_roll_tan):
-                hx, hy = self.com_at_touchdown(side, com, com_vel, omega, t_td, mpc_shift).tolist()
-                reach = max(z - self.hip_below_com_m, 0.0) * self.leg_roll_tan
-                lx, ly = -s_ * sign, c * sign  # outward (path frame)
-                nominal_out = (nominal.x - hx) * lx + (nominal.y - hy) * ly  # beside the CoM at touchdown
-                out = nominal_out + ax * lx + ay * ly
-                hi = max(self.hip_y_m + reach, nominal_out)  # never narrower / wider than the nominal step asks
-                lo = min(self.hip_y_m - reach, nominal_out)
-                k = min(max(out, lo), hi) - out
-                if k != 0.0:
-                    roll_bounded = True
-                    ax, ay = ax + k * lx, ay + k * ly
         norm = math.sqrt(ax * ax + ay * ay)
         if norm > params.max_step_adjust_m and not reach_bounded:  # within the legs' reach
             f = params.max_step_adjust_m / norm
             ax, ay = ax * f, ay * f
-        if roll_bounded and params.hurry_when_leg_roll_bound:  # land sooner instead of wider
-            fb = dataclasses.replace(fb, kappa=max(fb.kappa, self.gains.kappa_single[1]))
         old_x, old_y = fb.step_adjust_m.tolist()
         if ax == old_x and ay == old_y:  # np.array_equal of two (2,) arrays
             return fb
         return dataclasses.replace(fb, step_adjust_m=np.array([ax, ay]))
-
-    def com_at_touchdown(self, swing_side: str, com: np.ndarray, com_vel: np.ndarray, omega: float,
-                         t_td: float, mpc_shift: np.ndarray) -> np.ndarray:
-        """The robot's CoM at the swing foot's touchdown (horizontal, against the real soles): the LIP from this
-        tick's CoM state (less the push's shift) about the CoP that best holds its ξ on the stance foot, as
-        :meth:`xi_at_touchdown`. Where the pelvis, hence the landing leg's hip, will be when the foot lands."""
-        foot = self.planner.latched["right" if swing_side == "left" else "left"]
-        cop = self._best_cop(foot, com + com_vel / omega - mpc_shift)
-        wt = omega * t_td
-        return cop + (com - mpc_shift - cop) * math.cosh(wt) + com_vel / omega * math.sinh(wt)
-
-    def _best_cop(self, foot: Foothold, chi: np.ndarray) -> np.ndarray:
-        """ξ ``chi`` clipped into the CoP's reach on ``foot`` (a latched foothold)."""
-        c, s_ = math.cos(foot.yaw), math.sin(foot.yaw)
-        rel = chi - np.array([foot.x, foot.y])
-        x = min(max(c * rel[0] + s_ * rel[1], -self.reach_back_m), self.reach_forward_m)
-        y = min(max(-s_ * rel[0] + c * rel[1], -self.reach_side_m), self.reach_side_m)
-        return np.array([foot.x + c * x - s_ * y, foot.y + s_ * x + c * y])
 
     def xi_at_touchdown(self, swing_side: str, com: np.ndarray, com_vel: np.ndarray, omega: float,
                         t_td: float, mpc_shift: np.ndarray) -> np.ndarray:
@@ -193,7 +147,11 @@ class StepAdjustment:
         Nothing of the MPC plan enters: a plan restarted from the robot's state cannot hide the error."""
         foot = self.planner.latched["right" if swing_side == "left" else "left"]
         chi = com + com_vel / omega - mpc_shift
-        cop = self._best_cop(foot, chi)
+        c, s_ = math.cos(foot.yaw), math.sin(foot.yaw)
+        rel = chi - np.array([foot.x, foot.y])
+        x = min(max(c * rel[0] + s_ * rel[1], -self.reach_back_m), self.reach_forward_m)
+        y = min(max(-s_ * rel[0] + c * rel[1], -self.reach_side_m), self.reach_side_m)
+        cop = np.array([foot.x + c * x - s_ * y, foot.y + s_ * x + c * y])
         return cop + (chi - cop) * math.exp(omega * t_td)
 
     def hurry_when_thrown_out(self, fb: FeedbackOutput, params: WalkingParameters, com: np.ndarray,

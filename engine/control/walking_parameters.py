@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import math
 from dataclasses import dataclass
 
 from engine.robot.config import RobotConfig, RobotConfigError, load_robot_config
@@ -67,14 +66,6 @@ class WalkingParameters:
     # path frame; the legs' reach) instead of max_step_adjust_m from the nominal foothold.
     max_step_width_m: float = 0.45
     max_step_length_m: float = 0.45
-    # An adjusted step lands at most leg height × tan(ankle roll range − this margin) sideways from its hip at
-    # touchdown (the hip of the CoM the LIP predicts then, about the stance foot's best CoP; the legs' geometry from
-    # engine/gait/leg_reach.py), or no further than its nominal foothold if that is already beyond: a wider step
-    # tilts the landing leg more than its ankle roll follows, the foot rolls onto its edge and stops moving the CoP
-    # (issue 13, the sideways falls of G1's random styles). inf: off (the bound is not computed).
-    landing_leg_roll_margin_rad: float = math.inf
-    # ... and while that bound clips a step, the gait runs at the time scaling's upper bound (lands sooner).
-    hurry_when_leg_roll_bound: bool = True
     # Share of the CoP's reach a step may rely on (rest: margin for tracking), and while pushed.
     step_reach_share: float = 0.8
     pushed_reach_share: float = 0.25
