@@ -194,6 +194,8 @@ class WalkingController:
         t_wbc = time.perf_counter()
         reference = self._wbc_reference(dt_since)
         reference.contact = self.touchdown.with_early_touchdown(est, reference, self.ref, self.params)
+        if self.params.rolled_foot_edge_lift_m > 0.0:
+            reference.contact = self.touchdown.on_rolled_edges(est, reference.contact, self.params.rolled_foot_edge_lift_m)
         self.wbc_contact = reference.contact
         reference.external_wrench = self._external_wrench(est)
         cmd = self.wbc.compute(est, reference)
