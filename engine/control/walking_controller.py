@@ -42,6 +42,7 @@ TICKS_PER_PLAN = int(round(1.0 / (PLANNER_RATE_HZ * CONTROL_PERIOD_S)))  # 4
 PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
 # The time since the planner's tick of each control tick until its next (compute's dt_since) → the tick's index k
 _TICK_OF_DT = {k * CONTROL_PERIOD_S: k for k in range(TICKS_PER_PLAN)}
+_ZEROS3 = (0.0, 0.0, 0.0)  # a foot in contact's feed-forward row
 
 
 @dataclass(slots=True)
@@ -328,13 +329,21 @@ class WalkingController:
             self._foot_ang_acc = np.zeros((2, 3))
             return
         limit = self.params.swing_feedforward_limit_mps2
-        # np.clip(a, −l, l) without its Python layers: the ufunc clip is min(max(a, −l), l) (NaN kept), the same numbers
-        self._foot_acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit), limit)
-        self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
-        for i, in_contact in enumerate(ref.contact.tolist()):
+        # On floats, per foot: the same IEEE operations as the (2, 3) array expressions, np.minimum(np.maximum(
+        # (v − v_prev) / dt, −l), l) (Python's max/min keep a NaN first argument as the ufuncs do) and the rows of the
+        # feet in contact set to 0 (tests/control/test_stack_speed_references.py keeps the array version)
+        lin, lin_prev = ref.foot_lin_vel.tolist(), prev.foot_lin_vel.tolist()
+        ang, ang_prev = ref.foot_ang_vel.tolist(), prev.foot_ang_vel.tolist()
+        acc, ang_acc = [], []
+        for in_contact, v, v_prev, w, w_prev in zip(ref.contact.tolist(), lin, lin_prev, ang, ang_prev):
             if in_contact:
-                self._foot_acc[i] = 0.0
-                self._foot_ang_acc[i] = 0.0
+                acc.append(_ZEROS3)
+                ang_acc.append(_ZEROS3)
+            else:
+                acc.append([min(max((a - b) / PLAN_DT_S, -limit), limit) for a, b in zip(v, v_prev)])
+                ang_acc.append([(a - b) / PLAN_DT_S for a, b in zip(w, w_prev)])
+        self._foot_acc = np.array(acc)
+        self._foot_ang_acc = np.array(ang_acc)
 
     def _feedback(self, com: np.ndarray, com_vel: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray) -> FeedbackOutput:
         planner = self.planner
@@ -369,11 +378,11 @@ class WalkingController:
         if batch[0] is not ref or batch[1] is not plan:  # the references of the ticks until the planner's next
             batch = self._reference_batch = self._interpolate_ticks(ref, plan)
         k = _TICK_OF_DT.get(dt_since)
-        if k is not None:  # dt_since = k · CONTROL_PERIOD_S, k < TICKS_PER_PLAN: the batch's k-th row
-            _, _, coms, feet_pos, feet_rot, pelvis_rots, turned, uppers = batch
-            com = coms[k]
-            pelvis_rot = pelvis_rots[k] if turned[k] else ref.pelvis_rot
-            foot_pos, foot_rot, upper_q = feet_pos[k], feet_rot[k], uppers[k]
+        if k is not None:  # dt_since = k · CONTROL_PERIOD_S, k < TICKS_PER_PLAN: the batch's k-th row, its
+            # WbcReference fields before and after the contact read once per planner tick (_interpolate_ticks)
+            head, upper_q = batch[2][k]
+            return WbcReference(*head, touchdown.ref_contact, upper_q, ref.upper_qd, None, self._foot_acc,
+                                self._foot_ang_acc)
         else:  # another time (not a control tick's; compute() never asks one): one compiled call
             # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
             # their angular velocities (Rodrigues), the upper body along its rates: the same numbers as the batch.
@@ -395,13 +404,26 @@ class WalkingController:
         :func:`interpolate_reference`, so the same numbers). The arrays are new per planner tick (a reference handed
         out earlier keeps its own)."""
         n = TICKS_PER_PLAN
-        batch = (ref, plan, np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
-                 np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0])))
+        coms, feet_pos, feet_rot, pelvis_rots = np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), \
+            np.empty((n, 3, 3))
+        turned, uppers = np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0]))
         interpolate_references(CONTROL_PERIOD_S, ref.t_s, plan.waypoint_times_s, plan.waypoints_xy_m,
                                plan.waypoint_com_xy_m, plan.waypoint_com_vel_xy_mps, float(plan.omega_rps),
                                ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot,
-                               ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, *batch[2:])
-        return batch
+                               ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, coms, feet_pos, feet_rot, pelvis_rots,
+                               turned, uppers)
+        # Per tick k: WbcReference's leading fields (com_xy_m … foot_ang_vel_radps: the k-th rows, the pelvis along
+        # its angular velocity where it turned, the pelvis height along its rate at k · CONTROL_PERIOD_S, as
+        # _wbc_reference's one-call path computes it) and the upper body
+        rows = []
+        for k in range(n):
+            com = coms[k]
+            dt_since = k * CONTROL_PERIOD_S
+            head = (com[0], com[1], com[2], ref.pelvis_z + ref.pelvis_z_rate * dt_since, ref.pelvis_z_rate,
+                    pelvis_rots[k] if turned[k] else ref.pelvis_rot, ref.pelvis_ang_vel, feet_pos[k], feet_rot[k],
+                    ref.foot_lin_vel, ref.foot_ang_vel)
+            rows.append((head, uppers[k]))
+        return ref, plan, rows
 
     @property
     def telemetry(self) -> WalkingTelemetry:
