@@ -883,8 +883,9 @@ def test_hurry_when_thrown_out_on_floats_equals_the_numpy_version() -> None:
 
 def feet_feedforward_reference(ref, prev, limit: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
     """WalkingController._feet_feedforward on the (2, 3) arrays, before it ran on floats."""
-    acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / dt_s, -limit), limit)
-    ang = (ref.foot_ang_vel - prev.foot_ang_vel) / dt_s
+    with np.errstate(invalid="ignore", over="ignore"):  # (inf − inf is NaN, as on floats)
+        acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / dt_s, -limit), limit)
+        ang = (ref.foot_ang_vel - prev.foot_ang_vel) / dt_s
     for i, in_contact in enumerate(ref.contact.tolist()):
         if in_contact:
             acc[i] = 0.0
