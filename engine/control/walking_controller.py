@@ -379,11 +379,11 @@ class WalkingController:
         if batch[0] is not ref or batch[1] is not plan:  # the references of the ticks until the planner's next
             batch = self._reference_batch = self._interpolate_ticks(ref, plan)
         k = _TICK_OF_DT.get(dt_since)
-        if k is not None:  # dt_since = k · CONTROL_PERIOD_S, k < TICKS_PER_PLAN: the batch's k-th row, its
-            # WbcReference fields before and after the contact read once per planner tick (_interpolate_ticks)
-            r = batch[2][k]
-            return WbcReference(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
-                                touchdown.ref_contact, r[11], ref.upper_qd, None, self._foot_acc, self._foot_ang_acc)
+        if k is not None:  # dt_since = k · CONTROL_PERIOD_S, k < TICKS_PER_PLAN: the batch's k-th row
+            _, _, coms, feet_pos, feet_rot, pelvis_rots, turned, uppers = batch
+            com = coms[k]
+            pelvis_rot = pelvis_rots[k] if turned[k] else ref.pelvis_rot
+            foot_pos, foot_rot, upper_q = feet_pos[k], feet_rot[k], uppers[k]
         else:  # another time (not a control tick's; compute() never asks one): one compiled call
             # The plan's CoM at t (com_at), the feet along their velocities, the turning feet and the pelvis along
             # their angular velocities (Rodrigues), the upper body along its rates: the same numbers as the batch.
@@ -399,31 +399,19 @@ class WalkingController:
         )
 
     def _interpolate_ticks(self, ref: GaitReference, plan: ComMpcSolution) -> tuple:
-        """(ref, plan, the WbcReference fields of each tick ``k · CONTROL_PERIOD_S`` after the planner's, k <
-        TICKS_PER_PLAN, but the contact and what follows the upper body) from :func:`interpolate_references`' arrays
-        (CoM, feet, feet's rotations, pelvis, whether it turned, upper body): one compiled call per planner tick
-        instead of one per control tick (the same operations per tick as :func:`interpolate_reference`, so the same
-        numbers). The arrays are new per planner tick (a reference handed out earlier keeps its own)."""
+        """(ref, plan, then :func:`interpolate_references`' arrays: CoM, feet, feet's rotations, pelvis, whether it
+        turned, upper body) for the ticks ``k · CONTROL_PERIOD_S`` after the planner's, k < TICKS_PER_PLAN: one
+        compiled call per planner tick instead of one per control tick (the same operations per tick as
+        :func:`interpolate_reference`, so the same numbers). The arrays are new per planner tick (a reference handed
+        out earlier keeps its own)."""
         n = TICKS_PER_PLAN
-        coms, feet_pos, feet_rot, pelvis_rots = np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), \
-            np.empty((n, 3, 3))
-        turned, uppers = np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0]))
+        batch = (ref, plan, np.empty((n, 3, 2)), np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 3, 3)),
+                 np.empty(n, dtype=np.bool_), np.empty((n, ref.upper_q.shape[0])))
         interpolate_references(CONTROL_PERIOD_S, ref.t_s, plan.waypoint_times_s, plan.waypoints_xy_m,
                                plan.waypoint_com_xy_m, plan.waypoint_com_vel_xy_mps, float(plan.omega_rps),
                                ref.foot_pos, ref.foot_lin_vel, ref.foot_rot, ref.foot_ang_vel, ref.pelvis_rot,
-                               ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, coms, feet_pos, feet_rot, pelvis_rots,
-                               turned, uppers)
-        # Per tick k: WbcReference's fields com_xy_m … foot_ang_vel_radps and upper_body_q_rad (the k-th rows, the
-        # pelvis along its angular velocity where it turned, the pelvis height along its rate at k · CONTROL_PERIOD_S,
-        # as _wbc_reference's one-call path computes it)
-        rows = []
-        for k in range(n):
-            com = coms[k]
-            dt_since = k * CONTROL_PERIOD_S
-            rows.append((com[0], com[1], com[2], ref.pelvis_z + ref.pelvis_z_rate * dt_since, ref.pelvis_z_rate,
-                         pelvis_rots[k] if turned[k] else ref.pelvis_rot, ref.pelvis_ang_vel, feet_pos[k], feet_rot[k],
-                         ref.foot_lin_vel, ref.foot_ang_vel, uppers[k]))
-        return ref, plan, rows
+                               ref.pelvis_ang_vel, ref.upper_q, ref.upper_qd, *batch[2:])
+        return batch
 
     @property
     def telemetry(self) -> WalkingTelemetry:

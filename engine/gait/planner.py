@@ -478,12 +478,10 @@ class GaitPlanner:
         left = side == "left"
         support = self.latched["right" if left else "left"]
         adjust_x, adjust_y = adjust_xy.tolist()
-        out = np.empty(3)
-        upcoming_foothold(0 if left else 1, float(self.phi), float(self.blend.time_at(self.phi)), events,
-                          np.array([support.x, support.y, support.yaw], dtype=float), stances[0 if left else 1],
-                          *self._path_table_args(), PATH_TABLE_STEP_S, self._region_values(), 2.0, adjust_x, adjust_y,
-                          out)
-        x, y, yaw = out.tolist()
+        x, y, yaw = upcoming_foothold(0 if left else 1, float(self.phi), float(self.blend.time_at(self.phi)), events,
+                                      float(support.x), float(support.y), float(support.yaw), stances,
+                                      *self._path_table_args(), PATH_TABLE_STEP_S, self._region_values(), 2.0,
+                                      adjust_x, adjust_y)
         return Foothold(x, y, yaw)
 
     def _path_table_args(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

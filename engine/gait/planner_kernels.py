@@ -289,15 +289,21 @@ def _predicted_foothold(side, phi_td, t_now, events, support, stance, table_time
 
 
 @njit(cache=True, nogil=True)
-def upcoming_foothold(side, phi, t_now, events, support, stance, table_times, table_poses, table_vels,  # noqa: ANN001, ANN201, PLR0913
-                      table_step_s, region, two, adjust_x, adjust_y, out):
-    """GaitPlanner._upcoming_foothold into ``out`` (x, y, yaw): the foothold of the contact after the current or next
-    swing of ``side`` (0 left, 1 right) at phase ``phi`` (gait time ``t_now``), moved by the step adjustment
-    (``adjust_x``, ``adjust_y``; added only when one is non-zero, as there) before the safe-region projection."""
+def upcoming_foothold(side, phi, t_now, events, support_x, support_y, support_yaw, stances, table_times,  # noqa: ANN001, ANN201, PLR0913
+                      table_poses, table_vels, table_step_s, region, two, adjust_x, adjust_y):
+    """GaitPlanner._upcoming_foothold as (x, y, yaw): the foothold of the contact after the current or next swing of
+    ``side`` (0 left, 1 right; its stance offset ``stances[side]``) at phase ``phi`` (gait time ``t_now``), moved by
+    the step adjustment (``adjust_x``, ``adjust_y``; added only when one is non-zero, as there) before the
+    safe-region projection beside the other foot (``support_*``). Floats in and out: an array argument or result
+    costs the call more than the arithmetic."""
     lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
     td = PREVIEW_EVENT_PHASES[1] if side == 0 else PREVIEW_EVENT_PHASES[3]
-    _adjusted_foothold(side, math.floor(phi - lo) + td, t_now, events, support, stance, table_times, table_poses,
-                       table_vels, table_step_s, region, two, adjust_x, adjust_y, out)
+    support = np.empty(3)
+    support[0], support[1], support[2] = support_x, support_y, support_yaw
+    out = np.empty(3)
+    _adjusted_foothold(side, math.floor(phi - lo) + td, t_now, events, support, stances[side], table_times,
+                       table_poses, table_vels, table_step_s, region, two, adjust_x, adjust_y, out)
+    return out[0], out[1], out[2]
 
 
 @njit(cache=True, nogil=True)
