@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import shutil
 import socket
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -90,9 +92,26 @@ def test_puppet_bad_input_is_one_line_and_writes_nothing(shipped_g1, tmp_path):
     truncated.write_text(src[: int(len(src) * 0.6)])
     no_arms = tmp_path / "legs.bvh"
     no_arms.write_text(src.replace("LeftForeArm", "LeftShin").replace("RightForeArm", "RightShin"))
+    # damaged weight files: the networks' tensors cut short; the feed-forward baseline missing or cut short
+    damaged = {}
+    for name, cut in (("cut", ".safetensors"), ("no_ff", None), ("cut_ff", "_ff.safetensors")):
+        folder = tmp_path / name
+        folder.mkdir()
+        for suffix in (".json", ".safetensors", "_ff.safetensors"):
+            src_file, dst_file = Path(f"{shipped_g1}{suffix}"), folder / f"g1_lwl2{suffix}"
+            if name == "no_ff" and suffix == "_ff.safetensors":
+                continue
+            if suffix == cut:
+                dst_file.write_bytes(src_file.read_bytes()[:3000])
+            else:
+                shutil.copyfile(src_file, dst_file)
+        damaged[name] = str(folder / "g1_lwl2")
     out = tmp_path / "x.npz"
     cases = [
         (["--robot", "g1", "--bvh", str(truncated), "--weights", str(shipped_g1)], "truncated"),
+        (["--robot", "g1", "--bvh", str(_clip("141_16.bvh")), "--weights", damaged["cut"]], "cannot load weights"),
+        (["--robot", "g1", "--bvh", str(_clip("141_16.bvh")), "--weights", damaged["no_ff"]], "feed-forward"),
+        (["--robot", "g1", "--bvh", str(_clip("141_16.bvh")), "--weights", damaged["cut_ff"]], "feed-forward"),
         (["--robot", "g1", "--bvh", str(no_arms), "--weights", str(shipped_g1)], "no arm joints"),
         (["--robot", "talos", "--bvh", str(_clip("141_16.bvh")), "--weights", str(shipped_g1)], "expected weights for talos"),
         (["--robot", "g1", "--bvh", str(tmp_path / "missing.bvh")], "no such"),

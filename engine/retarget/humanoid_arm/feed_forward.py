@@ -63,14 +63,22 @@ def save_feed_forward(ff: FeedForward, weights: Path) -> None:
 
 
 def load_feed_forward(weights: Path) -> FeedForward:
+    """The baseline saved beside ``weights``; ValueError (one line) on a missing, truncated or inconsistent file."""
+    from safetensors import SafetensorError
     from safetensors.torch import load_file
 
-    t = load_file(str(ff_path(weights)))
-    state = {k[4:]: v for k, v in t.items() if k.startswith("net.")}
-    d_in, hidden = state["inp.weight"].shape[1], state["inp.weight"].shape[0]
-    d_out = state["out.weight"].shape[0]
-    layers = 1 + sum(1 for k in state if k.startswith("blocks.") and k.endswith(".weight"))
-    net = ResNetMLP(d_in, d_out, hidden, layers)
-    net.load_state_dict(state)
+    path = ff_path(weights)
+    try:
+        t = load_file(str(path))
+        state = {k[4:]: v for k, v in t.items() if k.startswith("net.")}
+        d_in, hidden = state["inp.weight"].shape[1], state["inp.weight"].shape[0]
+        d_out = state["out.weight"].shape[0]
+        layers = 1 + sum(1 for k in state if k.startswith("blocks.") and k.endswith(".weight"))
+        net = ResNetMLP(d_in, d_out, hidden, layers)
+        net.load_state_dict(state)
+        stats = [t[k].numpy().astype(np.float64) for k in ("mean_in", "std_in", "mean_out", "std_out")]
+    except (OSError, ValueError, KeyError, IndexError, RuntimeError, SafetensorError) as exc:
+        detail = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
+        raise ValueError(f"{path}: cannot load the feed-forward baseline: {detail}") from None
     net.eval()
-    return FeedForward(net, *(t[k].numpy().astype(np.float64) for k in ("mean_in", "std_in", "mean_out", "std_out")))
+    return FeedForward(net, *stats)

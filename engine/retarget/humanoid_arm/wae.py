@@ -327,6 +327,7 @@ def save_weights(model: SharedLatentWAE, path: Path, extra_tensors: dict[str, np
 
 def load_weights(path: Path) -> tuple[SharedLatentWAE, dict[str, np.ndarray], dict]:
     """Inverse of :func:`save_weights`; ValueError (one line) on a missing or inconsistent file."""
+    from safetensors import SafetensorError
     from safetensors.torch import load_file
 
     meta_path, tensor_path = path.with_suffix(".json"), path.with_suffix(".safetensors")
@@ -337,7 +338,7 @@ def load_weights(path: Path) -> tuple[SharedLatentWAE, dict[str, np.ndarray], di
         tensors = load_file(str(tensor_path))
         model = SharedLatentWAE(meta["dims"], meta["latent_dim"], meta["hidden"])
         model.load_state_dict({k[4:]: v for k, v in tensors.items() if k.startswith("net.")})
-    except (OSError, ValueError, KeyError, RuntimeError) as exc:
+    except (OSError, ValueError, KeyError, RuntimeError, SafetensorError) as exc:  # a truncated file: SafetensorError
         raise ValueError(f"{tensor_path}: cannot load weights: {str(exc).splitlines()[0]}") from None
     model.eval()
     extra = {k[5:]: v.numpy() for k, v in tensors.items() if k.startswith("data.")}
