@@ -101,10 +101,10 @@ class WalkingParameters:
     # error has stayed below for ``recovery_hold_s``, over ``recovery_decay_s``. The share rises 0 → 1 in
     # ``recovery_rise_s`` and moves in steps of ``recovery_share_step`` (each step re-blends the gait). inf: off.
     recovery_xi_error_m: float = float("inf")
-    recovery_full_xi_error_m: float = 0.08
+    recovery_full_xi_error_m: float = 0.10
     recovery_rise_s: float = 0.1
-    recovery_hold_s: float = 1.0
-    recovery_decay_s: float = 2.0
+    recovery_hold_s: float = 0.5
+    recovery_decay_s: float = 1.5
     recovery_share_step: float = 0.05
 
     @classmethod

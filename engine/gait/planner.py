@@ -185,6 +185,8 @@ class GaitPlanner:
         self._fade_elapsed_s = 0.0
         # The gait balance recovery blends toward (set_recovery_style) and its share in the blend.
         self.recovery_banks: StyleBanks | None = None
+        self._recovery_style: Style | None = None
+        self._recovery_is_style = False
         self.recovery_share = 0.0
         self.t_s = 0.0
         self.phi = START_PHASE
@@ -237,12 +239,27 @@ class GaitPlanner:
         self._fade_elapsed_s = 0.0
         self._blend_stale = True
         self.banks = StyleBanks(style, self.layout, previous=self.banks)
+        self._recovery_is_style = self._same_gait(style, self._recovery_style)
 
     def set_recovery_style(self, style: Style | None) -> None:
         """The gait balance recovery blends toward (the robot's neutral style; None: no recovery blend).
         Its samples must carry the style's sample names (every valid style does)."""
+        self._recovery_style = style
         self.recovery_banks = None if style is None else StyleBanks(style, self.layout)
+        self._recovery_is_style = self._same_gait(self.style, style)
         self._blend_stale = True
+
+    @staticmethod
+    def _same_gait(a: Style, b: Style | None) -> bool:
+        """Whether walking ``a`` toward ``b`` changes nothing (the neutral style walked as itself: its blend stays
+        bit for bit the style's, rather than equal to rounding)."""
+        if b is None:
+            return False
+        from engine.gait.style import style_to_json_dict
+
+        gait = ("velocities", "blend_eta", "samples")  # (not its name or description)
+        da, db = style_to_json_dict(a), style_to_json_dict(b)
+        return all(da.get(k) == db.get(k) for k in gait)
 
     # ------------------------------------------------------------------ helpers
     def _blend(self) -> BlendedGait:
@@ -253,7 +270,7 @@ class GaitPlanner:
             old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * f, b) for w, b in members] + old
         share = self.recovery_share
-        if share > 0.0 and self.recovery_banks is not None:  # balance recovery: toward the neutral gait
+        if share > 0.0 and self.recovery_banks is not None and not self._recovery_is_style:  # toward neutral
             neutral = [(w * share, self.recovery_banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * (1.0 - share), b) for w, b in members] + neutral
         return self.banks.blend(members)

@@ -117,3 +117,21 @@ def test_a_share_change_keeps_the_reference_continuous(g1_styles):
         prev = (ref.pelvis_z, ref.foot_pos.copy())
     assert blend.time_in_recovery_s > 1.0
     assert max(jumps) < 0.02  # m per 8 ms tick (a swing foot moves ≈ 1 m/s at most: 8 mm)
+
+
+def test_the_neutral_style_recovering_toward_itself_is_bit_identical(g1_styles):
+    """Walking the neutral style, a recovery share changes nothing, bit for bit (the shipped neutral walk and
+    the push benchmark keep their numbers); an edit away from it brings the recovery blend back."""
+    robot, ctx, neutral, style = g1_styles
+    plain = planner_for(robot, neutral, ctx)
+    mixed = planner_for(robot, neutral, ctx)
+    mixed.set_recovery_style(load_style(styles_dir("g1") / "neutral.json", ctx))
+    command = np.array([0.3, 0.05, 0.1])
+    for k in range(200):
+        a = plain.step(DT, command)
+        b = mixed.step(DT, command, PlannerFeedback(recovery_share=0.5 if k % 50 > 20 else 0.0))
+        assert a.pelvis_z == b.pelvis_z and np.array_equal(a.foot_pos, b.foot_pos)
+    mixed.set_style(style)
+    mixed.step(DT, command, PlannerFeedback(recovery_share=0.5))
+    neutral_banks = set(map(id, mixed.recovery_banks.banks.values()))
+    assert any(id(b) in neutral_banks for _, b in mixed.blend.members)  # the edited style blends toward neutral
