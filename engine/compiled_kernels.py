@@ -86,10 +86,12 @@ def _warm_up_planner() -> None:
 
     planner = planner_for(load_robot("g1"), load_style(styles_dir("g1") / "neutral.json"), StyleContext.for_robot("g1"))
     planner.step(0.008, np.array([0.2, 0.0, 0.0]))  # the reference in one call (evaluate_reference_into), the preview
+    planner.nominal_target("left")  # the upcoming foothold (upcoming_foothold) while the command holds
     from engine.gait.planner import PlannerFeedback
 
     planner.step(0.008, np.array([0.2, 0.0, 0.0]), PlannerFeedback(  # the preview on a (read-only) path table
         command_goal=np.array([0.3, 0.0, 0.1]), command_rate_limits=np.ones(3)))
+    planner.nominal_target("right")  # ... and on the path table
     from engine.control.mpc import ComMpc, SupportInterval
 
     left = np.array([[-0.1, 0.06], [-0.1, 0.14], [0.1, 0.14], [0.1, 0.06]])[::-1]  # clockwise: either orientation

@@ -140,7 +140,9 @@ class StepAdjustment:
         old_x, old_y = fb.step_adjust_m.tolist()
         if ax == old_x and ay == old_y:  # np.array_equal of two (2,) arrays
             return fb
-        return dataclasses.replace(fb, step_adjust_m=np.array([ax, ay]))
+        # dataclasses.replace(fb, step_adjust_m=…) without its field introspection: FeedbackOutput's fields in order
+        return FeedbackOutput(fb.velocity_adjust_mps, np.array([ax, ay]), fb.kappa, fb.epsilon_m, fb.epsilon_rate_mps,
+                              fb.error_m)
 
     def xi_at_touchdown(self, swing_side: str, com: np.ndarray, com_vel: np.ndarray, omega: float,
                         t_td: float, mpc_shift: np.ndarray) -> np.ndarray:

@@ -88,6 +88,30 @@ class TouchdownTracker:
             contact[i] = heights < params.touchdown_height_m
         return contact
 
+    def on_rolled_edges(self, est: RobotState, contact: np.ndarray, lift_m: float) -> np.ndarray:
+        """``contact`` (2, 4) with each foot rolled about its long axis by more than ``lift_m`` (one side's corners
+        that much higher than the other's, on the mean, measured) standing on its lower side's corners only.
+        Corners front-left, front-right, back-right, back-left: the left side 0 and 3, the right side 1 and 2."""
+        flags = contact.tolist()
+        feet = [i for i in range(2) if any(flags[i])]
+        if not feet:
+            return contact
+        pin.framesForwardKinematics(self.model, self.data, est.q)
+        out = contact
+        for i in feet:
+            m = self.data.oMf[self.foot_frames[i]]
+            z = (m.rotation @ self.corner_offsets_m[i].T)[2].tolist()
+            lift = 0.5 * (z[0] + z[3]) - 0.5 * (z[1] + z[2])  # left side above the right
+            if abs(lift) <= lift_m:
+                continue
+            keep = [False, True, True, False] if lift > 0.0 else [True, False, False, True]
+            edge = [f and k for f, k in zip(flags[i], keep)]
+            if any(edge):
+                if out is contact:
+                    out = contact.copy()
+                out[i] = edge
+        return out
+
     def planned_low(self, reference: WbcReference, i: int, height: float, params: WalkingParameters) -> bool:
         """Foot ``i``'s planned sole centre below ``height``, or its lowest planned corner below ``landing_corner_height_m``."""
         z = float(reference.foot_pos_m[i, 2])

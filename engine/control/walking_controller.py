@@ -43,6 +43,7 @@ TICKS_PER_PLAN = int(round(1.0 / (PLANNER_RATE_HZ * CONTROL_PERIOD_S)))  # 4
 PLAN_DT_S = TICKS_PER_PLAN * CONTROL_PERIOD_S
 # The time since the planner's tick of each control tick until its next (compute's dt_since) → the tick's index k
 _TICK_OF_DT = {k * CONTROL_PERIOD_S: k for k in range(TICKS_PER_PLAN)}
+_ZEROS3 = (0.0, 0.0, 0.0)  # a foot in contact's feed-forward row
 
 
 @dataclass(slots=True)
@@ -213,6 +214,8 @@ class WalkingController:
         t_wbc = time.perf_counter()
         reference = self._wbc_reference(dt_since)
         reference.contact = self.touchdown.with_early_touchdown(est, reference, self.ref, self.params)
+        if self.params.rolled_foot_edge_lift_m > 0.0:
+            reference.contact = self.touchdown.on_rolled_edges(est, reference.contact, self.params.rolled_foot_edge_lift_m)
         self.wbc_contact = reference.contact
         reference.external_wrench = self._external_wrench(est)
         cmd = self.wbc.compute(est, reference)
@@ -349,13 +352,22 @@ class WalkingController:
             self._foot_ang_acc = np.zeros((2, 3))
             return
         limit = self.params.swing_feedforward_limit_mps2
-        # np.clip(a, −l, l) without its Python layers: the ufunc clip is min(max(a, −l), l) (NaN kept), the same numbers
-        self._foot_acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / PLAN_DT_S, -limit), limit)
-        self._foot_ang_acc = (ref.foot_ang_vel - prev.foot_ang_vel) / PLAN_DT_S
-        for i, in_contact in enumerate(ref.contact.tolist()):
+        # On floats, per foot: the same IEEE operations as the (2, 3) array expressions, np.minimum(np.maximum(
+        # (v − v_prev) / dt, −l), l) (Python's max/min keep a NaN first argument as the ufuncs do) and the rows of the
+        # feet in contact set to 0 (tests/control/test_stack_speed_references.py keeps the array version)
+        lin, lin_prev = ref.foot_lin_vel.tolist(), prev.foot_lin_vel.tolist()
+        ang, ang_prev = ref.foot_ang_vel.tolist(), prev.foot_ang_vel.tolist()
+        acc: list[Sequence[float]] = []
+        ang_acc: list[Sequence[float]] = []
+        for in_contact, v, v_prev, w, w_prev in zip(ref.contact.tolist(), lin, lin_prev, ang, ang_prev):
             if in_contact:
-                self._foot_acc[i] = 0.0
-                self._foot_ang_acc[i] = 0.0
+                acc.append(_ZEROS3)
+                ang_acc.append(_ZEROS3)
+            else:
+                acc.append([min(max((a - b) / PLAN_DT_S, -limit), limit) for a, b in zip(v, v_prev)])
+                ang_acc.append([(a - b) / PLAN_DT_S for a, b in zip(w, w_prev)])
+        self._foot_acc = np.array(acc)
+        self._foot_ang_acc = np.array(ang_acc)
 
     def _feedback(self, com: np.ndarray, com_vel: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray) -> FeedbackOutput:
         planner = self.planner

@@ -86,6 +86,12 @@ class WalkingParameters:
     # ... and so may one whose planned sole's lowest corner is below this (0: off): a foot planned heel- or toe-down
     # reaches the floor with its centre still 10-20 mm up (issue 13, README "Why the swing foot meets the floor early").
     landing_corner_height_m: float = 0.0
+    # A foot on the ground whose sole is rolled about its long axis so that one side's corners stand this much
+    # higher than the other side's (measured, forward kinematics each tick) stands on its lower edge only: the QP
+    # may push on those corners alone (0: off, the plan's corners). G1's ankle roll reaches ±0.26 rad; when the
+    # leg tilts further the foot rolls onto its edge and the QP, still counting on the whole sole, plans a CoP it
+    # cannot get (issue 13, the sideways falls of random styles).
+    rolled_foot_edge_lift_m: float = 0.0
     # Vertical load (× m g) a single-support ankle must hold the CoP under (the MPC's toe trim).
     ankle_load_factor: float = 1.15
     # Per planner tick, how far the MPC's initial CoM state moves toward the estimate (paper: 0).

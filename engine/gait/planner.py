@@ -28,7 +28,6 @@ from engine.gait.footsteps import (
     Foothold,
     SafeRegion,
     foothold_from_path,
-    project_to_safe_region,
     stance_offset,
     stance_offset_xy_yaw,
 )
@@ -44,6 +43,7 @@ from engine.gait.planner_kernels import (
     evaluate_reference_into,
     path_table,
     preview_intervals,
+    upcoming_foothold,
 )
 from engine.gait.velocity_sampler import SAMPLE_NAMES, sample_weight_list
 
@@ -507,17 +507,36 @@ class GaitPlanner:
         return k + td, k + 1 + lo
 
     def _upcoming_foothold(self, side: str, adjust_xy: np.ndarray) -> Foothold:
-        blend = self.blend
-        phi_td, phi_lo = self._contact_midpoint_phase(side, self.phi)
-        t_now = blend.time_at(self.phi)
-        t_mid = 0.5 * (blend.event_time(phi_td) + blend.event_time(phi_lo))
-        pose = self._path_pose_ahead(max(t_mid - t_now, 0.0))
-        target = foothold_from_path(pose, self._stance_xy_yaw(side))
+        """The foothold of the contact after ``side``'s current or next swing: the path pose at that contact's
+        middle (along the command ramp's path table) ⊕ the stance offset, moved by ``adjust_xy`` (world x, y),
+        projected to the safe region beside the other foot. One compiled call
+        (:func:`engine.gait.planner_kernels.upcoming_foothold`, the preview's predicted footholds with the step
+        adjustment: the same numbers as the Python it replaced, kept in tests/gait/test_planner_speed_references.py)."""
+        stances, _, _, events = self._blend_constants()
+        left = side == "left"
+        support = self.latched["right" if left else "left"]
         adjust_x, adjust_y = adjust_xy.tolist()
-        if adjust_x != 0.0 or adjust_y != 0.0:  # adjust_xy.any()
-            target = Foothold(target.x + adjust_x, target.y + adjust_y, target.yaw)
-        other = "right" if side == "left" else "left"
-        return project_to_safe_region(self.latched[other], target, side, self.region)
+        x, y, yaw = upcoming_foothold(0 if left else 1, float(self.phi), float(self.blend.time_at(self.phi)), events,
+                                      float(support.x), float(support.y), float(support.yaw), stances,
+                                      *self._path_table_args(), PATH_TABLE_STEP_S, self._region_values(), 2.0,
+                                      adjust_x, adjust_y)
+        return Foothold(x, y, yaw)
+
+    def _path_table_args(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The compiled kernels' path table (times, poses, velocities): this tick's table along the command ramp, or
+        one piece at the path pose with the command while the command holds (no goal)."""
+        if self.command_goal is None or self.command_rate_limits is None:  # the command holds: one piece
+            path = self.path
+            return (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
+                    np.asarray(self.command, dtype=float).reshape(1, 3))
+        return self._path_table_now()
+
+    def _region_values(self) -> np.ndarray:
+        """The safe region as the kernels read it (side, front, cross, max yaw), kept while the region is."""
+        region = self.region
+        if self._region_array is None or self._region_array[0] is not region:
+            self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
+        return self._region_array[1]
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, phi: float) -> GaitReference:
@@ -603,21 +622,12 @@ class GaitPlanner:
         right = self.target["right"] if swing_right else self.latched["right"]
         landed = self.landed
         stances, touchdown_edges, liftoff_edges, events = self._blend_constants()
-        if self.command_goal is None or self.command_rate_limits is None:  # the command holds: one piece
-            path = self.path
-            table = (_ONE_PIECE_TIMES, np.array([[float(path.x), float(path.y), float(path.yaw)]]),
-                     np.asarray(self.command, dtype=float).reshape(1, 3))
-        else:
-            table = self._path_table_now()
-        region = self.region
-        if self._region_array is None or self._region_array[0] is not region:
-            self._region_array = (region, np.array([region.side_m, region.front_m, region.cross_m, region.max_yaw_rad]))
         times, rows, holds, polygons = preview_intervals(
             float(phi), float(blend.time_at(phi)), float(kappa), _remaining_ease_delay(self.hold_s), float(horizon_s),
             events, np.array([[left.x, left.y, left.yaw], [right.x, right.y, right.yaw]], dtype=float),
             np.array([swing_left, swing_right]), self._edges_now(), np.array([landed["left"], landed["right"]]),
             touchdown_edges, liftoff_edges, stances,
-            *table, PATH_TABLE_STEP_S, self._region_array[1],
+            *self._path_table_args(), PATH_TABLE_STEP_S, self._region_values(),
             self.sole_length_m - 2.0 * self.preview_margin_m,
             self.sole_width_m - 2.0 * (self.preview_margin_m + self.preview_lateral_extra_m),
             self.preview_toe_trim_m, EDGE_SUPPORT_DEPTH_M, 2.0)

@@ -284,6 +284,33 @@ def _predicted_foothold(side, phi_td, t_now, events, support, stance, table_time
     """GaitPlanner._predicted_foothold into ``out`` (x, y, yaw): the path pose at the middle of the contact that
     starts at ``phi_td`` (path_ahead: the table's piece, then its arc), ⊕ the stance offset (foothold_from_path),
     projected to the safe region beside ``support`` (footsteps.project_to_safe_region)."""
+    _adjusted_foothold(side, phi_td, t_now, events, support, stance, table_times, table_poses, table_vels,
+                       table_step_s, region, two, 0.0, 0.0, out)
+
+
+@njit(cache=True, nogil=True)
+def upcoming_foothold(side, phi, t_now, events, support_x, support_y, support_yaw, stances, table_times,  # noqa: ANN001, ANN201, PLR0913
+                      table_poses, table_vels, table_step_s, region, two, adjust_x, adjust_y):
+    """GaitPlanner._upcoming_foothold as (x, y, yaw): the foothold of the contact after the current or next swing of
+    ``side`` (0 left, 1 right; its stance offset ``stances[side]``) at phase ``phi`` (gait time ``t_now``), moved by
+    the step adjustment (``adjust_x``, ``adjust_y``; added only when one is non-zero, as there) before the
+    safe-region projection beside the other foot (``support_*``). Floats in and out: an array argument or result
+    costs the call more than the arithmetic."""
+    lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
+    td = PREVIEW_EVENT_PHASES[1] if side == 0 else PREVIEW_EVENT_PHASES[3]
+    support = np.empty(3)
+    support[0], support[1], support[2] = support_x, support_y, support_yaw
+    out = np.empty(3)
+    _adjusted_foothold(side, math.floor(phi - lo) + td, t_now, events, support, stances[side], table_times,
+                       table_poses, table_vels, table_step_s, region, two, adjust_x, adjust_y, out)
+    return out[0], out[1], out[2]
+
+
+@njit(cache=True, nogil=True)
+def _adjusted_foothold(side, phi_td, t_now, events, support, stance, table_times, table_poses, table_vels,  # noqa: ANN001, ANN202, PLR0913
+                       table_step_s, region, two, adjust_x, adjust_y, out):
+    """:func:`_predicted_foothold` with the step adjustment added to the target before its projection (when
+    ``adjust_x`` or ``adjust_y`` is non-zero: x + 0.0 would turn a −0.0 into 0.0)."""
     lo = PREVIEW_EVENT_PHASES[0] if side == 0 else PREVIEW_EVENT_PHASES[2]
     phi_next_lo = math.floor(phi_td - lo) + 1 + lo
     t_mid = 0.5 * (_event_time(phi_td, events) + _event_time(phi_next_lo, events))
@@ -303,6 +330,8 @@ def _predicted_foothold(side, phi_td, t_now, events, support, stance, table_time
     px, py, pyaw = x0 + c * dx - s * dy, y0 + s * dx + c * dy, yaw0 + th
     c, s = math.cos(pyaw), math.sin(pyaw)  # foothold_from_path
     tx, ty, tyaw = px + c * stance[0] - s * stance[1], py + s * stance[0] + c * stance[1], pyaw + stance[2]
+    if adjust_x != 0.0 or adjust_y != 0.0:
+        tx, ty = tx + adjust_x, ty + adjust_y
     # project_to_safe_region
     sx, sy, syaw = support[0], support[1], support[2]
     c, s = math.cos(syaw), math.sin(syaw)

@@ -879,3 +879,70 @@ def test_hurry_when_thrown_out_on_floats_equals_the_numpy_version() -> None:
         hurried += want_hurry
         c.params = dataclasses.replace(c.params, lateral_capture_margin_m=margin)
     assert 300 < hurried < 2700
+
+
+def feet_feedforward_reference(ref, prev, limit: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """WalkingController._feet_feedforward on the (2, 3) arrays, before it ran on floats."""
+    with np.errstate(invalid="ignore", over="ignore"):  # (inf − inf is NaN, as on floats)
+        acc = np.minimum(np.maximum((ref.foot_lin_vel - prev.foot_lin_vel) / dt_s, -limit), limit)
+        ang = (ref.foot_ang_vel - prev.foot_ang_vel) / dt_s
+    for i, in_contact in enumerate(ref.contact.tolist()):
+        if in_contact:
+            acc[i] = 0.0
+            ang[i] = 0.0
+    return acc, ang
+
+
+def test_feet_feedforward_on_floats_equals_the_array_version() -> None:
+    """Every planner tick of G1 and TALOS sweeps (swings, touchdowns, the clip at a low limit too) and reference rates
+    with NaN, ±inf and −0.0 put in: the same arrays bit for bit (NaN where the arrays have NaN)."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from engine.control.walking_controller import PLAN_DT_S, WalkingController
+    from engine.gait.command_schedule import preset
+    from engine.gait.style import load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.sim import Simulation
+
+    rng = np.random.default_rng(5)
+    compared = clipped = 0
+    for name in ("g1", "talos"):
+        robot = load_robot(name)
+        style = load_style(styles_dir(name) / "neutral.json")
+        controller = WalkingController(robot, style)
+        sim = Simulation(robot, controller)
+        schedule = preset("sweep", style.velocities)
+        for k in range(1200):
+            prev = controller.ref
+            controller.set_command(schedule(k * 0.002))
+            sim.step()
+            ref = controller.ref
+            if prev is None or ref is prev:
+                continue
+            for limit in (controller.params.swing_feedforward_limit_mps2, 0.05):
+                want = feet_feedforward_reference(ref, prev, limit, PLAN_DT_S)
+                saved = controller.params
+                controller.params, controller.ref = dataclasses.replace(saved, swing_feedforward_limit_mps2=limit), prev
+                controller._feet_feedforward(ref)
+                controller.params, controller.ref = saved, ref
+                np.testing.assert_array_equal(controller._foot_acc, want[0])
+                np.testing.assert_array_equal(controller._foot_ang_acc, want[1])
+                assert np.array_equal(np.signbit(controller._foot_acc), np.signbit(want[0]))
+                clipped += bool((np.abs(want[0]) == limit).any())
+                compared += 1
+        assert not sim.fallen
+    odd = [math.nan, math.inf, -math.inf, -0.0, 0.0, 1e300]
+    for _ in range(300):
+        lin, lin_prev, ang, ang_prev = (rng.normal(0.0, 1.0, (2, 3)) for _ in range(4))
+        for a in (lin, lin_prev, ang, ang_prev):
+            a[rng.random((2, 3)) < 0.2] = rng.choice(odd)
+        ref = SimpleNamespace(foot_lin_vel=lin, foot_ang_vel=ang, contact=rng.random(2) < 0.5)
+        prev = SimpleNamespace(foot_lin_vel=lin_prev, foot_ang_vel=ang_prev)
+        controller.ref = prev
+        controller._feet_feedforward(ref)  # type: ignore[arg-type]
+        want = feet_feedforward_reference(ref, prev, controller.params.swing_feedforward_limit_mps2, PLAN_DT_S)
+        np.testing.assert_array_equal(controller._foot_acc, want[0])
+        np.testing.assert_array_equal(controller._foot_ang_acc, want[1])
+        assert np.array_equal(np.signbit(controller._foot_acc), np.signbit(want[0]))
+    assert compared > 1000 and clipped > 100, (compared, clipped)

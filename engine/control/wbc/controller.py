@@ -71,6 +71,7 @@ from engine.control.wbc import kernels as _kernels
 KERNELS = ("numba", "numpy")
 
 FloatArray = NDArray[np.float64]
+_FLOAT64 = np.dtype(np.float64)  # the dtype object of float64 arrays (snapshot() compares identity)
 
 
 # ----------------------------------------------------------------------------- the controller
@@ -109,6 +110,8 @@ class TaskSpaceInverseDynamics:
         self.model = robot.pin_model
         self.data = self.model.createData()
         self.nv = self.model.nv
+        # (nq,) and (nv,): the state's shapes, compared each tick (pinocchio's model.nq is a binding's property)
+        self._q_shape, self._v_shape = (self.model.nq,), (self.nv,)
         self.n_joints = robot.n_joints
         self.n_rho = len(SIDES) * N_CORNERS * N_BASIS
         self.mass_kg = robot.mass_kg
@@ -217,7 +220,9 @@ class TaskSpaceInverseDynamics:
         self._prepared = None
         if self.kernels != "numba" or not self._snapshot.exact:
             return None
-        if q.shape != (self.model.nq,) or v.shape != (self.nv,) or q.dtype != np.float64 or v.dtype != np.float64:
+        # (float64 arrays: numpy's dtype singleton, what every float array the simulation hands out has; any other
+        # dtype object, equal or not, returns None and compute() makes its own pass: the same numbers)
+        if q.shape != self._q_shape or v.shape != self._v_shape or q.dtype is not _FLOAT64 or v.dtype is not _FLOAT64:
             return None
         total = self._state_sum(q, v)
         if not math.isfinite(total):
@@ -262,7 +267,7 @@ class TaskSpaceInverseDynamics:
     def _compute(self, state: RobotState, ref: WbcReference, t0: float) -> JointCommand:
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        self._state_total = self._state_sum(q, v) if q.shape == (self.model.nq,) and v.shape == (self.nv,) else math.nan
+        self._state_total = self._state_sum(q, v) if q.shape == self._q_shape and v.shape == self._v_shape else math.nan
         if not math.isfinite(self._state_total):
             return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
         if self.q_des is None:
