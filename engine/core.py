@@ -449,6 +449,8 @@ class EngineCore:
                 fb = tel.feedback
                 signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
                                                 fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
+            # balance recovery: the neutral gait's share in the blend (0: the style as authored)
+            signals["recovery_share"] = np.array([tel.recovery_share])
             if len(ref.upper_q) and self.ctx is not None:
                 j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
                 idx = self.robot.joint_names.index(self.ctx.upper_joints[j])

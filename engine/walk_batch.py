@@ -98,7 +98,8 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - one broken job must not end the batch
         return {"error": f"{type(exc).__name__}: {exc}", "wall_s": time.perf_counter() - t_wall}
     result: dict[str, Any] = {k: summary[k] for k in ("fell", "fall_time_s", "max_stance_slip_mm",
-                                                      "cop_inside_fraction", "distance_m", "sim_time_s")}
+                                                      "cop_inside_fraction", "distance_m", "sim_time_s",
+                                                      "recovery_time_s", "recovery_mean_share")}
     result["wall_s"] = round(time.perf_counter() - t_wall, 2)
     result.update(tracking_errors(rec, None))
     for name, (t0, t1) in job.get("velocity_windows", {}).items():

@@ -227,6 +227,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         arr = np.asarray(values) * 1e6 if values else np.zeros(1)
         return {"median": round(float(np.median(arr)), 1), "p99": round(float(np.percentile(arr, 99)), 1)}
 
+    recovery = controller.recovery
     summary = {
         "robot": robot.name, "style": style.name, "wbc": wbc, "state": state_source,
         "fell": fell, "fall_time_s": fall_time, "sim_time_s": round(sim_time, 3), "wall_time_s": round(wall, 3),
@@ -237,6 +238,10 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
                          "max": round(1000 * max(com_err), 1) if com_err else None},
         "max_stance_slip_mm": round(1000 * slip.max_slip_m, 2),
         "cop_inside_fraction": round(cop_inside / cop_checks, 5) if cop_checks else None,
+        # balance recovery (engine/control/recovery_blend.py): how long the gait was blended toward neutral,
+        # and the neutral gait's mean share over the walk (0: the style as authored throughout)
+        "recovery_time_s": round(recovery.time_in_recovery_s, 3),
+        "recovery_mean_share": round(recovery.share_time_s / sim_time, 4) if sim_time > 0 else 0.0,
         "timing_us": {k: pct(v) for k, v in timings.items()},
     }
     if preview is None:

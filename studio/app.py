@@ -513,6 +513,8 @@ class Studio:
                 text = (f"Engine {state} · pid {pid} · {frame.mode} mode{walking} · t = {frame.sim_time_s:.1f} s · "
                         f"real-time factor {frame.real_time_factor:.2f} · pelvis at x {x:+.2f} m, y {y:+.2f} m, "
                         f"yaw {yaw_deg:+.0f}°")
+                tel = self.last_telemetry
+                text += recovery_text(tel.signals if tel is not None else {})
             self.robot_panel.show_status(text)
             self.record.tick_status()
             if tick % PLOT_EVERY_TICKS:
@@ -521,6 +523,15 @@ class Studio:
                 self.plots.render()
             except Exception:  # noqa: BLE001 - plots are cosmetic
                 pass
+
+
+def recovery_text(signals: dict) -> str:
+    """The status line's note while the controller recovers balance by walking part neutral
+    (engine/control/recovery_blend.py): the animator then sees less of the style than authored."""
+    share = signals.get("recovery_share")
+    if share is None or len(share) == 0 or not float(share[0]) > 0.0:
+        return ""
+    return f" · balance recovery: walking {100 * float(share[0]):.0f} % neutral"
 
 
 def serve(robot: str, host: str, port: int, token: str | None = None, shadows: bool = False) -> None:

@@ -68,6 +68,8 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
             "cop_in": r["cop_inside_fraction"],
             "pelvis_z_rms_mm": _mm(r.get("pelvis_height_rms")), "pelvis_yaw_rms_rad": _r3(r.get("pelvis_yaw_rms")),
             "elbow_rms_rad": _r3(r.get("elbow_rms")),
+            # balance recovery: the neutral gait's mean share in the blend over the walk (0: the style throughout)
+            "recovery_share": r.get("recovery_mean_share", 0.0),
             "flagged": bool(findings),
             "over_rating": bool(rating),
             "unreached": ",".join(sorted({f.sample for f in unreached})),
@@ -100,11 +102,14 @@ def totals(rows: list[dict], robot: str, seed: int) -> dict:
     silent = [r for r in fell if not r["flagged"]]
     alarms = [r for r in walked if r["flagged"]]
     rated = [r for r in walked if r.get("over_rating")]
+    recovered = [r for r in walked if (r.get("recovery_share") or 0.0) > 0.0]
+    mean_share = float(np.mean([r.get("recovery_share") or 0.0 for r in walked])) if walked else 0.0
     return {"section": "styles", "robot": robot, "seed": seed, "i": "total", "key": f"{len(done)} run",
             "fell": f"walked {len(walked)}/{len(done)}", "fall_s": "",
             "slip_mm": f"<2mm&CoP≥99.5%: {len(good)}/{len(walked)}", "cop_in": "",
             "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}",
-            "over_rating": f"walked above a rated joint speed {len(rated)}/{len(walked)}"}
+            "over_rating": f"walked above a rated joint speed {len(rated)}/{len(walked)}",
+            "recovery_share": f"recovered toward neutral {len(recovered)}/{len(walked)}, mean share {mean_share:.3f}"}
 
 
 def _mm(x: float | None) -> float | None:

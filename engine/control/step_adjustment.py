@@ -27,7 +27,7 @@ class StepAdjustment:
     planner it reads (time to touchdown, nominal targets, latched feet, path yaw) and the time of the last push."""
 
     __slots__ = ("planner", "gains", "standing_com_z_m", "reach_back_m", "reach_forward_m", "half_sole_width_m",
-                 "reach_side_m", "pushed_at_s")
+                 "reach_side_m", "pushed_at_s", "xi_error_m")
 
     def __init__(self, robot: RobotModel, params: WalkingParameters, planner: GaitPlanner, gains: GaitFeedbackGains,
                  standing_com_z_m: float):
@@ -43,9 +43,11 @@ class StepAdjustment:
         self.reach_side_m = params.step_reach_share * (
             self.half_sole_width_m - params.cop_margin_m - params.cop_lateral_extra_margin_m)
         self.pushed_at_s = -math.inf  # planner time the observer last saw a push
+        self.xi_error_m = 0.0  # |measured ξ − the plan's ξ| at the last call (before the deadband)
 
     def reset(self) -> None:
         self.pushed_at_s = -math.inf  # planner time the observer last saw a push
+        self.xi_error_m = 0.0
 
     def reachable_steps(self, fb: FeedbackOutput, params: WalkingParameters, plan: ComMpcSolution,
                         now: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], com_z_m: float | None,
@@ -76,6 +78,7 @@ class StepAdjustment:
         (px, py), (wx, wy) = pos_now.tolist(), vel_now.tolist()
         ex, ey = (cx + vx / omega) - (px + wx / omega), (cy + vy / omega) - (py + wy / omega)
         err = math.sqrt(ex * ex + ey * ey)  # ordinary tracking error is the MPC's to handle
+        self.xi_error_m = err  # (balance recovery reads it: engine/control/recovery_blend.py)
         f = max(err - params.dcm_error_deadband_m, 0.0) / err if err > 0.0 else 0.0
         ex, ey = ex * f, ey * f
         pushed = _any2(force_n)

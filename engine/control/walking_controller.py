@@ -25,6 +25,7 @@ from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedb
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
 from engine.control.wbc.reference import N_BASIS, N_CORNERS
 from engine.control.foot_geometry import toe_trim_m
+from engine.control.recovery_blend import RecoveryBlend
 from engine.control.step_adjustment import StepAdjustment
 from engine.control.walking_parameters import WalkingParameters
 from engine.control.touchdown import TouchdownTracker
@@ -118,6 +119,23 @@ class WalkingController:
         self.wbc_contact = np.ones((2, 4), dtype=bool)
         self.step_adjustment = StepAdjustment(robot, self.params, self.planner, self.feedback.gains,
                                               robot.q_standing[2] + self.com_offset_m)
+        self.recovery = RecoveryBlend(self.params)
+        if self.recovery.enabled:
+            self.planner.set_recovery_style(self._neutral_style())
+            self.recovery.enabled = self.planner.recovery_banks is not None
+
+    def _neutral_style(self) -> Style | None:
+        """The robot's neutral style (robots/<name>.toml ``default_style``), the gait balance recovery blends
+        toward; None when the robot has none that loads (then there is no recovery blend)."""
+        from engine.gait.style import StyleError, load_style, styles_dir
+
+        name = self.robot.config.default_style
+        if not name:
+            return None
+        try:
+            return load_style(styles_dir(self.robot.name) / f"{name}.json", self.ctx, expected_robot=self.robot.name)
+        except (OSError, StyleError, ValueError):
+            return None
 
     # ------------------------------------------------------------------ inputs
     def set_command(self, v: np.ndarray) -> None:
@@ -144,6 +162,7 @@ class WalkingController:
         self.estimator.reset(state)
         self.wbc.reset(state)
         self.feedback.reset()
+        self.recovery.reset()
         self.mpc.reset()
         self.command_filtered = np.zeros(3)
         self.tick = 0
@@ -245,9 +264,11 @@ class WalkingController:
         if self.plan is not None:
             fb = self.step_adjustment.reachable_steps(fb, self.params, self.plan, (ref_pos, ref_vel, com, com_vel),
                                                       self._com_z, self._mpc_shift, self.observer.force_n)
+        recovery_share = (self.recovery.update(self.step_adjustment.xi_error_m, PLAN_DT_S)
+                          if self.recovery.enabled and self.plan is not None else 0.0)
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
             time_scaling=fb.kappa, step_adjustment_xy_m=fb.step_adjust_m, command_goal=goal,
-            command_rate_limits=self._command_accel_limits))
+            command_rate_limits=self._command_accel_limits, recovery_share=recovery_share))
         self._feet_feedforward(ref)
         self.ref = ref
         since_touchdown = self.touchdown.relatch_landed_feet(est, ref, contact_before, self.params, planner)
@@ -421,6 +442,7 @@ class WalkingController:
         if self._telemetry_stale and self.ref is not None and self._last_fb is not None:
             update_telemetry(self._telemetry, self.ref, self.plan, self._last_com, self._last_fb, self._mpc_shift,
                              self.planner.command_clamped, self.wbc.diagnostics, self.observer.force_n)
+            self._telemetry.recovery_share = self.planner.recovery_share
             self._telemetry_stale = False
         return self._telemetry
 

@@ -101,6 +101,17 @@ class WalkingParameters:
     # The CoM MPC is solved every this many planner ticks (paper: 1, at the planner's 125 Hz);
     # between solves the whole-body controller follows the last plan, a function of time.
     mpc_every_plan_ticks: int = 1
+    # Balance recovery (engine/control/recovery_blend.py, issue 13): while the measured ξ is this far off the
+    # MPC plan's, the planner blends the style toward the robot's neutral style (robots/<name>.toml
+    # ``default_style``), fully neutral at ``recovery_full_xi_error_m``; the style's share comes back once the
+    # error has stayed below for ``recovery_hold_s``, over ``recovery_decay_s``. The share rises 0 → 1 in
+    # ``recovery_rise_s`` and moves in steps of ``recovery_share_step`` (each step re-blends the gait). inf: off.
+    recovery_xi_error_m: float = float("inf")
+    recovery_full_xi_error_m: float = 0.10
+    recovery_rise_s: float = 0.1
+    recovery_hold_s: float = 0.5
+    recovery_decay_s: float = 1.5
+    recovery_share_step: float = 0.05
 
     @classmethod
     def for_robot(cls, name: str) -> WalkingParameters:

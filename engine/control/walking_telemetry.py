@@ -33,6 +33,7 @@ class WalkingTelemetry:
     mpc_status: str = ""
     wbc_status: str = ""
     external_force_n: np.ndarray = field(default_factory=lambda: np.zeros(2))  # observed horizontal push
+    recovery_share: float = 0.0  # the neutral gait's share in the blend while balance recovers (0: the style)
 
 
 def update_telemetry(tel: WalkingTelemetry, ref: GaitReference, plan: ComMpcSolution | None, com: np.ndarray,

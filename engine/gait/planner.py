@@ -79,12 +79,15 @@ class PlannerFeedback:
     foothold (world x, y); ``command_goal`` and ``command_rate_limits`` are the command preview:
     where the joystick is heading and how fast the command may change (m/s², m/s², rad/s²), so
     footholds ahead are planned along that ramp (None: today's command holds for the preview).
+    ``recovery_share`` (0..1) is the robot's neutral gait's share in the blend while the controller recovers
+    balance (engine/control/recovery_blend.py; 0: the style as authored).
     """
 
     time_scaling: float = 1.0
     step_adjustment_xy_m: np.ndarray | None = None
     command_goal: np.ndarray | None = None
     command_rate_limits: np.ndarray | None = None
+    recovery_share: float = 0.0
 
 
 @dataclass
@@ -180,6 +183,11 @@ class GaitPlanner:
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
         self._fade_elapsed_s = 0.0
+        # The gait balance recovery blends toward (set_recovery_style) and its share in the blend.
+        self.recovery_banks: StyleBanks | None = None
+        self._recovery_style: Style | None = None
+        self._recovery_is_style = False
+        self.recovery_share = 0.0
         self.t_s = 0.0
         self.phi = START_PHASE
         self.path = PathFrame()
@@ -209,6 +217,7 @@ class GaitPlanner:
         self.command = np.zeros(3)
         self._weight_list = sample_weight_list((0.0, 0.0, 0.0), self.style.velocities, self.style.blend_eta)
         self.weights = np.array(self._weight_list)
+        self.recovery_share = 0.0
         self.blend = self._blend()
         self._blend_stale = True
         a = self.blend.attributes
@@ -230,6 +239,27 @@ class GaitPlanner:
         self._fade_elapsed_s = 0.0
         self._blend_stale = True
         self.banks = StyleBanks(style, self.layout, previous=self.banks)
+        self._recovery_is_style = self._same_gait(style, self._recovery_style)
+
+    def set_recovery_style(self, style: Style | None) -> None:
+        """The gait balance recovery blends toward (the robot's neutral style; None: no recovery blend).
+        Its samples must carry the style's sample names (every valid style does)."""
+        self._recovery_style = style
+        self.recovery_banks = None if style is None else StyleBanks(style, self.layout)
+        self._recovery_is_style = self._same_gait(self.style, style)
+        self._blend_stale = True
+
+    @staticmethod
+    def _same_gait(a: Style, b: Style | None) -> bool:
+        """Whether walking ``a`` toward ``b`` changes nothing (the neutral style walked as itself: its blend stays
+        bit for bit the style's, rather than equal to rounding)."""
+        if b is None:
+            return False
+        from engine.gait.style import style_to_json_dict
+
+        gait = ("velocities", "blend_eta", "samples")  # (not its name or description)
+        da, db = style_to_json_dict(a), style_to_json_dict(b)
+        return all(da.get(k) == db.get(k) for k in gait)
 
     # ------------------------------------------------------------------ helpers
     def _blend(self) -> BlendedGait:
@@ -239,6 +269,10 @@ class GaitPlanner:
             f = smoothstep(self._fade_elapsed_s / STYLE_FADE_S)
             old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * f, b) for w, b in members] + old
+        share = self.recovery_share
+        if share > 0.0 and self.recovery_banks is not None and not self._recovery_is_style:  # toward neutral
+            neutral = [(w * share, self.recovery_banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
+            members = [(w * (1.0 - share), b) for w, b in members] + neutral
         return self.banks.blend(members)
 
     def clamp_command(self, v: np.ndarray) -> np.ndarray:
@@ -298,6 +332,10 @@ class GaitPlanner:
         self.command_goal, self.command_rate_limits = fb.command_goal, fb.command_rate_limits
         clamped, self.command_clamped = self._clamped(command)
         self.command = np.array(clamped)
+        share = fb.recovery_share
+        if share != self.recovery_share:
+            self.recovery_share = float(min(max(share, 0.0), 1.0)) if math.isfinite(share) else 1.0
+            self._blend_stale = True
         style = self.style
         weights = sample_weight_list(clamped, style.velocities, style.blend_eta)  # (the command's floats)
         fading = self._fade_from is not None

@@ -102,6 +102,10 @@ def describe(summary: dict, rec: dict[str, np.ndarray], duration_s: float) -> Re
             problems.append(f"the feet roll onto their edges {100 * (1 - cop):.1f} % of the time")
         text = f"walks the {duration_s:.0f} s sweep without falling"
         text += (": " + " and ".join(problems) + " (a real robot may slip or stumble)") if problems else ", cleanly"
+        recovery_s = float(summary.get("recovery_time_s") or 0.0)
+        if recovery_s > 0.0:  # engine/control/recovery_blend.py: part of the walk was not the style as authored
+            text += (f"; to keep its balance it fell back toward the neutral gait for {recovery_s:.1f} s "
+                     f"({100 * float(summary.get('recovery_mean_share') or 0.0):.0f} % neutral on average)")
         return RehearsalResult(False, None, duration_s, None, None, None, None, slip, cop, text)
     fall_t = float(summary["fall_time_s"])
     t = np.asarray(rec["t"])

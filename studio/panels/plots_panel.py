@@ -12,7 +12,7 @@ from viser.uplot import Scale
 from engine.gait.velocity_sampler import SAMPLE_DISPLAY_NAMES
 
 WINDOW_S = 10.0
-PLOTTED = ("sample_weights", "feedback", "pelvis_z", "pelvis_yaw", "arm_joint")  # the signals the plots draw
+PLOTTED = ("sample_weights", "feedback", "recovery_share", "pelvis_z", "pelvis_yaw", "arm_joint")  # the signals the plots draw
 MAX_POINTS = 120  # per series sent to the browser
 SCALES: dict[str, Scale] = {"x": {"time": False, "auto": True}, "y": {"auto": True}}
 
@@ -40,8 +40,11 @@ class PlotsPanel:
         empty = np.zeros(2)
         self.weights = server.gui.add_uplot((empty, *([empty] * 9)), _series(SAMPLE_DISPLAY_NAMES, PALETTE),
                                             title="Sample activation", aspect=1.6, scales=SCALES)
-        self.feedback = server.gui.add_uplot((empty, empty, empty, empty),
-                                             _series(("Δvel x (m/s)", "Δstep x (m)", "κ − 1"), PALETTE[:3]),
+        # with the balance recovery's share of the neutral gait (engine/control/recovery_blend.py): while it is
+        # above 0 the robot walks part neutral, not the style as authored
+        self.feedback = server.gui.add_uplot((empty, empty, empty, empty, empty),
+                                             _series(("Δvel x (m/s)", "Δstep x (m)", "κ − 1", "neutral share"),
+                                                     PALETTE[:4]),
                                              title="Gait feedback", aspect=1.6, scales=SCALES)
         self.tracking = server.gui.add_uplot(
             (empty, *([empty] * 6)),
@@ -76,9 +79,10 @@ class PlotsPanel:
         pz = np.array([b[1]["pelvis_z"] for b in items], dtype=float)
         yaw = np.array([b[1]["pelvis_yaw"] for b in items], dtype=float)
         arm = np.array([b[1].get("arm_joint", np.zeros(2)) for b in items], dtype=float)
+        share = np.array([float(b[1].get("recovery_share", np.zeros(1))[0]) for b in items])
         yaw = np.unwrap(yaw, axis=0)
         scales = time_window_scales(float(t[-1]))
-        for plot, data in ((self.weights, (t, *w.T)), (self.feedback, (t, fb[:, 0], fb[:, 2], fb[:, 4] - 1.0)),
+        for plot, data in ((self.weights, (t, *w.T)), (self.feedback, (t, fb[:, 0], fb[:, 2], fb[:, 4] - 1.0, share)),
                            (self.tracking, (t, pz[:, 0], pz[:, 1], yaw[:, 0], yaw[:, 1], arm[:, 0], arm[:, 1]))):
             plot.data = data
             plot.scales = scales

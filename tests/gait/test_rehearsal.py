@@ -51,6 +51,9 @@ def test_a_clean_walk_says_so_and_an_unclean_one_names_what_is_wrong():
     sliding = describe(_summary(False, 1.6, slip_mm=4.2, cop=0.98), rec, 60.0)
     assert not sliding.clean and not sliding.fell
     assert "slides up to 4.2 mm" in sliding.message and "2.0 %" in sliding.message
+    assert "neutral" not in clean.message
+    recovered = describe({**_summary(False, 1.6), "recovery_time_s": 12.5, "recovery_mean_share": 0.083}, rec, 60.0)
+    assert "fell back toward the neutral gait for 12.5 s (8 % neutral on average)" in recovered.message
 
 
 @pytest.mark.parametrize(("command", "direction", "words"), [

@@ -341,11 +341,21 @@ def test_plots_follow_the_engine_clock():
         signals = {"sample_weights": np.eye(9)[2], "pelvis_z": np.array([0.7, 0.69]),
                    "pelvis_yaw": np.array([0.0, 0.01]), "feedback": np.array([0.0, 0.0, 0.01, 0.0, 1.0])}
         for k in range(400):  # 20 s of telemetry at 20 Hz, engine clock from 40 s
-            plots.add(40.0 + 0.05 * k, signals)
+            plots.add(40.0 + 0.05 * k, {**signals, "recovery_share": np.array([0.25 if k >= 390 else 0.0])})
         plots.render()
+        share = plots.feedback.data[4]  # the balance recovery's neutral share, last series of the feedback plot
+        assert share[-1] == pytest.approx(0.25) and share[0] == 0.0
         t = plots.weights.data[0]
         assert t[-1] == pytest.approx(59.95) and t[0] >= 59.95 - WINDOW_S - 1e-9 and len(t) <= 120
         assert plots.weights.scales["x"]["range"] == pytest.approx((59.95 - WINDOW_S, 59.95))
         assert plots.tracking.scales["x"]["range"] == plots.weights.scales["x"]["range"]
     finally:
         srv.stop()
+
+
+def test_status_line_names_a_balance_recovery():
+    from studio.app import recovery_text
+
+    assert recovery_text({}) == "" and recovery_text({"recovery_share": np.zeros(1, dtype=np.float32)}) == ""
+    assert recovery_text({"recovery_share": np.array([0.35], dtype=np.float32)}) == \
+        " · balance recovery: walking 35 % neutral"

@@ -1,0 +1,66 @@
+"""Balance recovery by blending toward the robot's neutral gait (issue 13).
+
+A style the animator authors is walked as authored while the robot is in balance. When the measured divergent
+component of motion ξ = x + ẋ/ω runs off the MPC plan's (a push, a stumble, a style at the edge of what the
+robot can hold), the planner blends the style's gait samples toward the same samples of the robot's neutral
+style — the gait its controller is tuned on — in phase space, as it blends samples and edits: the reference
+stays continuous. The style comes back once the error has stayed small for a while.
+
+``RecoveryBlend.update`` maps the ξ error e to a target share ``clip((e − e₀) / (e₁ − e₀), 0, 1)`` of the
+neutral gait; the share follows a rising target at once (at most 1 per ``recovery_rise_s``), and a falling one
+only after the error has stayed below the share's level for ``recovery_hold_s``, then at 1 per
+``recovery_decay_s``. The share the planner blends is quantised to ``recovery_share_step``: each new value
+re-blends the gait (a new :class:`engine.gait.blending.BlendedGait`), so it changes at most a few times per step.
+"""
+
+from __future__ import annotations
+
+import math
+
+from engine.control.walking_parameters import WalkingParameters
+
+
+class RecoveryBlend:
+    """The neutral gait's share (0..1) in the planner's blend, from the ξ error against the plan."""
+
+    def __init__(self, params: WalkingParameters):
+        self.params = params
+        self.enabled = math.isfinite(params.recovery_xi_error_m)
+        self.share = 0.0  # continuous
+        self.blend_share = 0.0  # quantised: what the planner blends
+        self._calm_s = math.inf  # time since the target last reached the share
+        self.time_in_recovery_s = 0.0
+        self.share_time_s = 0.0  # ∫ blend_share dt (the walk's mean share = this ÷ its duration)
+
+    def reset(self) -> None:
+        self.share = self.blend_share = 0.0
+        self._calm_s = math.inf
+        self.time_in_recovery_s = self.share_time_s = 0.0
+
+    def target(self, xi_error_m: float) -> float:
+        """The neutral share the error asks for."""
+        p = self.params
+        if not math.isfinite(xi_error_m):
+            return 1.0
+        span = max(p.recovery_full_xi_error_m - p.recovery_xi_error_m, 1e-6)
+        return min(max((xi_error_m - p.recovery_xi_error_m) / span, 0.0), 1.0)
+
+    def update(self, xi_error_m: float, dt_s: float) -> float:
+        """Advance by ``dt_s`` with this tick's ξ error (m); returns the quantised share to blend."""
+        if not self.enabled:
+            return 0.0
+        p = self.params
+        target = self.target(xi_error_m)
+        if target >= self.share:
+            self._calm_s = 0.0
+            self.share = min(target, self.share + dt_s / max(p.recovery_rise_s, 1e-6))
+        else:
+            self._calm_s += dt_s
+            if self._calm_s > p.recovery_hold_s:
+                self.share = max(target, self.share - dt_s / max(p.recovery_decay_s, 1e-6))
+        step = p.recovery_share_step
+        self.blend_share = min(max(round(self.share / step) * step, 0.0), 1.0) if step > 0.0 else self.share
+        if self.blend_share > 0.0:
+            self.time_in_recovery_s += dt_s
+            self.share_time_s += self.blend_share * dt_s
+        return self.blend_share

@@ -1,0 +1,137 @@
+"""Balance recovery: the planner blends a style toward the robot's neutral gait while ξ is off the plan (issue 13)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.control.recovery_blend import RecoveryBlend
+from engine.control.walking_parameters import WalkingParameters
+from engine.gait.offline_plan import planner_for
+from engine.gait.planner import PlannerFeedback
+from engine.gait.style import StyleContext, load_style, styles_dir
+from engine.gait.style_space import random_style
+from engine.robot.model import load_robot
+
+ON = dataclasses.replace(WalkingParameters(), recovery_xi_error_m=0.03, recovery_full_xi_error_m=0.08,
+                         recovery_rise_s=0.1, recovery_hold_s=1.0, recovery_decay_s=2.0, recovery_share_step=0.05)
+DT = 0.008
+
+
+def test_off_by_default_and_then_always_zero():
+    blend = RecoveryBlend(WalkingParameters())
+    assert not blend.enabled
+    assert all(blend.update(e, DT) == 0.0 for e in (0.0, 0.1, 1.0, math.inf))
+    assert blend.time_in_recovery_s == 0.0
+
+
+def test_rises_within_the_rise_time_holds_then_decays():
+    blend = RecoveryBlend(ON)
+    assert blend.update(0.02, DT) == 0.0  # below the start: the style as authored
+    shares = [blend.update(0.2, DT) for _ in range(int(0.1 / DT) + 2)]  # far off the plan
+    assert shares[0] == pytest.approx(0.10, abs=0.026)  # 0.08 of 1 per tick, quantised to 0.05
+    assert shares[-1] == 1.0 and all(b >= a for a, b in zip(shares, shares[1:]))
+    held = [blend.update(0.0, DT) for _ in range(int(ON.recovery_hold_s / DT) - 1)]
+    assert held == [1.0] * len(held)  # back in balance: the neutral gait holds for the hold time
+    decay = [blend.update(0.0, DT) for _ in range(int((ON.recovery_decay_s + 0.2) / DT))]
+    assert decay[-1] == 0.0 and all(b <= a for a, b in zip(decay, decay[1:]))
+    # it took about the decay time to come back (quantisation: within one step)
+    first_zero = decay.index(0.0) * DT
+    assert ON.recovery_decay_s * 0.9 <= first_zero <= ON.recovery_decay_s + DT
+    assert blend.time_in_recovery_s > ON.recovery_hold_s
+
+
+def test_target_is_proportional_between_the_two_errors():
+    blend = RecoveryBlend(ON)
+    assert blend.target(0.03) == 0.0 and blend.target(0.08) == 1.0
+    assert blend.target(0.055) == pytest.approx(0.5)
+    assert blend.target(math.nan) == 1.0  # a broken estimate recovers rather than trusting the style
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 0.3), min_size=1, max_size=400))
+def test_share_stays_in_range_and_on_the_grid(errors):
+    blend = RecoveryBlend(ON)
+    for e in errors:
+        s = blend.update(e, DT)
+        assert 0.0 <= s <= 1.0
+        assert abs(s / ON.recovery_share_step - round(s / ON.recovery_share_step)) < 1e-9
+
+
+@pytest.fixture(scope="module")
+def g1_styles():
+    robot = load_robot("g1")
+    ctx = StyleContext.for_robot("g1")
+    neutral = load_style(styles_dir("g1") / "neutral.json", ctx)
+    style = random_style(np.random.default_rng(3), ctx, neutral, 0.3, name="random-test")
+    return robot, ctx, neutral, style
+
+
+@pytest.mark.parametrize("share", [0.0, 0.35, 1.0])
+def test_planner_blends_the_neutral_gait_by_its_share(g1_styles, share):
+    """The blend's attributes (pelvis height, stance width, timings …) are the style's and the neutral gait's
+    mixed by the share, at every command; share 0 is the style exactly."""
+    robot, ctx, neutral, style = g1_styles
+    plain = planner_for(robot, style, ctx)
+    mixed = planner_for(robot, style, ctx)
+    only_neutral = planner_for(robot, neutral, ctx)
+    mixed.set_recovery_style(neutral)
+    command = np.array([0.5 * style.velocities.x_max_mps, 0.0, 0.0])
+    for _ in range(3):
+        plain.step(DT, command)
+        mixed.step(DT, command, PlannerFeedback(recovery_share=share))
+    weights = plain.weights
+    # the neutral gait at the style's sample weights (the style's velocities pick the samples)
+    only_neutral._weight_list = list(weights)
+    neutral_blend = only_neutral.banks.blend([(w, only_neutral.banks.banks[n]) for w, n in
+                                              zip(weights, plain.banks.banks) if w > 1e-9])
+    for name in ("pelvis_height_m", "stance_width_m"):
+        want = (1 - share) * plain.blend.attribute(name) + share * neutral_blend.attribute(name)
+        assert mixed.blend.attribute(name) == pytest.approx(want, abs=1e-12)
+    np.testing.assert_allclose(mixed.blend.events_array,
+                               (1 - share) * plain.blend.events_array + share * neutral_blend.events_array, atol=1e-12)
+    if share == 0.0:
+        assert mixed.blend.attribute("pelvis_height_m") == plain.blend.attribute("pelvis_height_m")
+
+
+def test_a_share_change_keeps_the_reference_continuous(g1_styles):
+    """Going from the style to the neutral gait in the controller's steps moves the feet and pelvis a little per
+    planner tick (a blend in phase space, like the sample blending), never a jump."""
+    robot, ctx, neutral, style = g1_styles
+    planner = planner_for(robot, style, ctx)
+    planner.set_recovery_style(neutral)
+    command = np.array([0.5 * style.velocities.x_max_mps, 0.0, 0.0])
+    blend = RecoveryBlend(ON)
+    prev = None
+    jumps = []
+    for k in range(int(4.0 / DT)):
+        error = 0.2 if 1.0 <= k * DT < 1.3 else 0.0  # a 0.3 s disturbance
+        ref = planner.step(DT, command, PlannerFeedback(recovery_share=blend.update(error, DT)))
+        if prev is not None:
+            jumps.append(max(abs(ref.pelvis_z - prev[0]), float(np.abs(ref.foot_pos - prev[1]).max())))
+        prev = (ref.pelvis_z, ref.foot_pos.copy())
+    assert blend.time_in_recovery_s > 1.0
+    assert max(jumps) < 0.02  # m per 8 ms tick (a swing foot moves ≈ 1 m/s at most: 8 mm)
+
+
+def test_the_neutral_style_recovering_toward_itself_is_bit_identical(g1_styles):
+    """Walking the neutral style, a recovery share changes nothing, bit for bit (the shipped neutral walk and
+    the push benchmark keep their numbers); an edit away from it brings the recovery blend back."""
+    robot, ctx, neutral, style = g1_styles
+    plain = planner_for(robot, neutral, ctx)
+    mixed = planner_for(robot, neutral, ctx)
+    mixed.set_recovery_style(load_style(styles_dir("g1") / "neutral.json", ctx))
+    command = np.array([0.3, 0.05, 0.1])
+    for k in range(200):
+        a = plain.step(DT, command)
+        b = mixed.step(DT, command, PlannerFeedback(recovery_share=0.5 if k % 50 > 20 else 0.0))
+        assert a.pelvis_z == b.pelvis_z and np.array_equal(a.foot_pos, b.foot_pos)
+    mixed.set_style(style)
+    mixed.step(DT, command, PlannerFeedback(recovery_share=0.5))
+    neutral_banks = set(map(id, mixed.recovery_banks.banks.values()))
+    assert any(id(b) in neutral_banks for _, b in mixed.blend.members)  # the edited style blends toward neutral
