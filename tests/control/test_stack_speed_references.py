@@ -899,39 +899,31 @@ def test_feet_feedforward_on_floats_equals_the_array_version() -> None:
     import dataclasses
     from types import SimpleNamespace
 
-    from engine.control.walking_controller import PLAN_DT_S, WalkingController
-    from engine.gait.command_schedule import preset
-    from engine.gait.style import load_style, styles_dir
-    from engine.robot.model import load_robot
-    from engine.sim import Simulation
+    from engine.control.walking_controller import PLAN_DT_S
+    from tests.neutral_sweeps import neutral_sweep_ticks
 
     rng = np.random.default_rng(5)
     compared = clipped = 0
-    for name in ("g1", "talos"):
-        robot = load_robot(name)
-        style = load_style(styles_dir(name) / "neutral.json")
-        controller = WalkingController(robot, style)
-        sim = Simulation(robot, controller)
-        schedule = preset("sweep", style.velocities)
-        for k in range(1200):
-            prev = controller.ref
-            controller.set_command(schedule(k * 0.002))
-            sim.step()
-            ref = controller.ref
-            if prev is None or ref is prev:
-                continue
-            for limit in (controller.params.swing_feedforward_limit_mps2, 0.05):
-                want = feet_feedforward_reference(ref, prev, limit, PLAN_DT_S)
-                saved = controller.params
-                controller.params, controller.ref = dataclasses.replace(saved, swing_feedforward_limit_mps2=limit), prev
-                controller._feet_feedforward(ref)
-                controller.params, controller.ref = saved, ref
-                np.testing.assert_array_equal(controller._foot_acc, want[0])
-                np.testing.assert_array_equal(controller._foot_ang_acc, want[1])
-                assert np.array_equal(np.signbit(controller._foot_acc), np.signbit(want[0]))
-                clipped += bool((np.abs(want[0]) == limit).any())
-                compared += 1
-        assert not sim.fallen
+    prev = None
+    for k, controller, sim in neutral_sweep_ticks(1200):
+        if k == 0:
+            prev = None
+        ref = controller.ref
+        if prev is None or ref is prev:
+            prev = ref
+            continue
+        for limit in (controller.params.swing_feedforward_limit_mps2, 0.05):
+            want = feet_feedforward_reference(ref, prev, limit, PLAN_DT_S)
+            saved = controller.params
+            controller.params, controller.ref = dataclasses.replace(saved, swing_feedforward_limit_mps2=limit), prev
+            controller._feet_feedforward(ref)
+            controller.params, controller.ref = saved, ref
+            np.testing.assert_array_equal(controller._foot_acc, want[0])
+            np.testing.assert_array_equal(controller._foot_ang_acc, want[1])
+            assert np.array_equal(np.signbit(controller._foot_acc), np.signbit(want[0]))
+            clipped += bool((np.abs(want[0]) == limit).any())
+            compared += 1
+        prev = ref
     odd = [math.nan, math.inf, -math.inf, -0.0, 0.0, 1e300]
     for _ in range(300):
         lin, lin_prev, ang, ang_prev = (rng.normal(0.0, 1.0, (2, 3)) for _ in range(4))

@@ -257,42 +257,30 @@ def test_upcoming_foothold_equals_the_python_it_replaced() -> None:
     """On closed-loop sweeps of both robots (command ramps, goals, step adjustments), at every planner tick, for both
     feet: no, random, tiny and large step adjustments (the safe region's projection taken and not) and the command
     holding (no goal), bit for bit."""
-    from engine.control.walking_controller import WalkingController
-    from engine.gait.command_schedule import preset
-    from engine.gait.style import load_style, styles_dir
-    from engine.robot.model import load_robot
-    from engine.sim import Simulation
+    from tests.neutral_sweeps import neutral_sweep_ticks
 
     rng = np.random.default_rng(12)
     compared = projected = 0
-    for name in ("g1", "talos"):
-        robot = load_robot(name)
-        style = load_style(styles_dir(name) / "neutral.json")
-        controller = WalkingController(robot, style)
-        sim = Simulation(robot, controller)
-        schedule = preset("sweep", style.velocities)
+    for k, controller, _ in neutral_sweep_ticks(1500):
+        if k % 4:
+            continue
         planner = controller.planner
-        for k in range(1500):
-            controller.set_command(schedule(k * 0.002))
-            sim.step()
-            if k % 4:
-                continue
-            goal, limits = planner.command_goal, planner.command_rate_limits
-            for holds in (False, True):
-                if holds:
-                    planner.command_goal = planner.command_rate_limits = None
-                for side in ("left", "right"):
-                    free = upcoming_foothold_reference(planner, side, np.zeros(2))
-                    for adjust in (np.zeros(2), rng.normal(0.0, 0.05, 2), np.array([1e-300, -0.0]),
-                                   rng.normal(0.0, 0.4, 2)):
-                        got = planner._upcoming_foothold(side, adjust)
-                        want = upcoming_foothold_reference(planner, side, adjust)
-                        assert (got.x, got.y, got.yaw) == (want.x, want.y, want.yaw), (name, k, side, adjust, holds)
-                        assert type(got.x) is float
-                        compared += 1
-                        # the safe region moved it (not just the adjustment added to the free foothold)
-                        projected += abs(want.x - free.x - adjust[0]) + abs(want.y - free.y - adjust[1]) > 1e-6
-                planner.command_goal, planner.command_rate_limits = goal, limits
-            planner._path_table = planner._path_rows = None  # (the table of this tick: rebuilt from the goal)
-        assert not sim.fallen
+        name = controller.robot.name
+        goal, limits = planner.command_goal, planner.command_rate_limits
+        for holds in (False, True):
+            if holds:
+                planner.command_goal = planner.command_rate_limits = None
+            for side in ("left", "right"):
+                free = upcoming_foothold_reference(planner, side, np.zeros(2))
+                for adjust in (np.zeros(2), rng.normal(0.0, 0.05, 2), np.array([1e-300, -0.0]),
+                               rng.normal(0.0, 0.4, 2)):
+                    got = planner._upcoming_foothold(side, adjust)
+                    want = upcoming_foothold_reference(planner, side, adjust)
+                    assert (got.x, got.y, got.yaw) == (want.x, want.y, want.yaw), (name, k, side, adjust, holds)
+                    assert type(got.x) is float
+                    compared += 1
+                    # the safe region moved it (not just the adjustment added to the free foothold)
+                    projected += abs(want.x - free.x - adjust[0]) + abs(want.y - free.y - adjust[1]) > 1e-6
+            planner.command_goal, planner.command_rate_limits = goal, limits
+        planner._path_table = planner._path_rows = None  # (the table of this tick: rebuilt from the goal)
     assert compared > 9000 and projected > 100, (compared, projected)
