@@ -37,6 +37,11 @@ class RecoveryBlend:
         self._calm_s = math.inf
         self.time_in_recovery_s = self.share_time_s = 0.0
 
+    def idle(self) -> None:
+        """No recovery blend this tick (the robot walks its neutral style itself): the share rests at 0."""
+        self.share = self.blend_share = 0.0
+        self._calm_s = math.inf
+
     def target(self, xi_error_m: float) -> float:
         """The neutral share the error asks for."""
         p = self.params

@@ -264,8 +264,12 @@ class WalkingController:
         if self.plan is not None:
             fb = self.step_adjustment.reachable_steps(fb, self.params, self.plan, (ref_pos, ref_vel, com, com_vel),
                                                       self._com_z, self._mpc_shift, self.observer.force_n)
-        recovery_share = (self.recovery.update(self.step_adjustment.xi_error_m, PLAN_DT_S)
-                          if self.recovery.enabled and self.plan is not None else 0.0)
+        recovery_share = 0.0
+        if self.recovery.enabled and self.plan is not None:
+            if planner.recovers_toward_other_gait:
+                recovery_share = self.recovery.update(self.step_adjustment.xi_error_m, PLAN_DT_S)
+            else:  # walking the neutral style itself: nothing to blend toward, nothing to report
+                self.recovery.idle()
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
             time_scaling=fb.kappa, step_adjustment_xy_m=fb.step_adjust_m, command_goal=goal,
             command_rate_limits=self._command_accel_limits, recovery_share=recovery_share))

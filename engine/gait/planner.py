@@ -249,6 +249,11 @@ class GaitPlanner:
         self._recovery_is_style = self._same_gait(self.style, style)
         self._blend_stale = True
 
+    @property
+    def recovers_toward_other_gait(self) -> bool:
+        """Whether a recovery share changes the gait: a recovery style is set and the style walked is not it."""
+        return self.recovery_banks is not None and not self._recovery_is_style
+
     @staticmethod
     def _same_gait(a: Style, b: Style | None) -> bool:
         """Whether walking ``a`` toward ``b`` changes nothing (the neutral style walked as itself: its blend stays

@@ -131,7 +131,26 @@ def test_the_neutral_style_recovering_toward_itself_is_bit_identical(g1_styles):
         a = plain.step(DT, command)
         b = mixed.step(DT, command, PlannerFeedback(recovery_share=0.5 if k % 50 > 20 else 0.0))
         assert a.pelvis_z == b.pelvis_z and np.array_equal(a.foot_pos, b.foot_pos)
+    assert not mixed.recovers_toward_other_gait  # (the controller then reports no recovery either)
     mixed.set_style(style)
+    assert mixed.recovers_toward_other_gait
     mixed.step(DT, command, PlannerFeedback(recovery_share=0.5))
     neutral_banks = set(map(id, mixed.recovery_banks.banks.values()))
     assert any(id(b) in neutral_banks for _, b in mixed.blend.members)  # the edited style blends toward neutral
+
+
+def test_a_push_sends_a_styled_walk_toward_neutral_and_the_neutral_walk_reports_nothing(g1_styles):
+    """Closed loop (G1, recovery on in robots/g1.toml): a 1.5 N/kg side push while walking in place drives ξ off
+    the plan; a random style then walks part neutral for a while and the walk's summary says so, the neutral style
+    (nothing to blend toward) reports no recovery, and neither falls."""
+    from engine.gait.command_schedule import parse_command
+    from engine.walk_runner import PushSpec, run_walk
+
+    robot, ctx, neutral, style = g1_styles
+    assert WalkingParameters.for_robot("g1").recovery_xi_error_m < 0.1  # on for G1
+    push = [PushSpec(2.0, (0.0, 1.5 * robot.mass_kg, 0.0), 1.0)]
+    styled, _ = run_walk(robot, style, parse_command("0,0,0", style.velocities), 5.0, push)
+    plain, _ = run_walk(robot, neutral, parse_command("0,0,0", neutral.velocities), 5.0, push)
+    assert not styled["fell"] and not plain["fell"]
+    assert styled["recovery_time_s"] > 0.3 and 0.0 < styled["recovery_mean_share"] <= 1.0
+    assert plain["recovery_time_s"] == 0.0 and plain["recovery_mean_share"] == 0.0
