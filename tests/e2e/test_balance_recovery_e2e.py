@@ -1,0 +1,57 @@
+"""Balance recovery as the animator sees it (issue 13): a style of their own, pushed in Test mode, walks part
+neutral until it is back in balance — the status line names it while it lasts, the Gait feedback plot draws it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.conftest import free_port
+from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, stall_s, wait_for_text, wait_until
+
+pytestmark = pytest.mark.e2e
+
+
+def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path, artifacts):
+    from engine.gait.style import StyleContext, load_style, save_style
+    from engine.gait.style_space import random_style
+    from studio.app import Studio
+
+    styles = copy_styles(tmp_path)
+    ctx = StyleContext.for_robot("g1")
+    neutral = load_style(styles / "g1" / "neutral.json", ctx)
+    # a valid style an animator could have made (the one tests/control/test_recovery_blend.py pushes in closed loop)
+    save_style(styles / "g1" / "wobbly.json", random_style(np.random.default_rng(3), ctx, neutral, 0.3, name="wobbly"))
+    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
+    try:
+        assert studio.loaded.wait(stall_s(240))
+        with open_page(studio.url, 1000, 700) as page:
+            wait_for_text(page, "Engine running", timeout_ms=240_000)
+            close_software_webgl_notice(page)
+            page.get_by_role("tab", name="Style").click(force=True)
+            browser = studio.style_browser
+            browser.dropdown.value = "wobbly"
+            page.get_by_role("button", name="Open").click()
+            wait_until(lambda: studio.session.style.name == "wobbly", 60, "the style to open")
+            page.get_by_role("tab", name="Robot").click(force=True)
+            page.get_by_role("button", name="Test").click()
+            wait_for_text(page, "test mode", timeout_ms=60_000)
+            start = studio.last_telemetry.sim_time_s if studio.last_telemetry else 0.0
+            wait_until(lambda: studio.last_telemetry is not None and studio.last_telemetry.sim_time_s > start + 1.5,
+                       300, "1.5 s of Test mode")
+            assert "balance recovery" not in page.inner_text("body")  # in balance: the style as authored
+            studio.robot_panel.push_direction.value = "right"  # 1.5 N/kg (the panel's default) from the right
+            page.get_by_role("button", name="Push (1 s)").click()
+            wait_for_text(page, "balance recovery: walking", timeout_ms=300_000)
+            page.screenshot(path=str(artifacts / "studio_balance_recovery_status.png"))
+            shares = [float(s["recovery_share"][0]) for _, s in list(studio.plots.buffer) if "recovery_share" in s]
+            assert max(shares) > 0.0  # what the Gait feedback plot draws as "neutral share"
+            page.get_by_text("Plots", exact=True).first.click()
+            page.screenshot(path=str(artifacts / "studio_balance_recovery_plot.png"))
+            page.get_by_role("tab", name="Robot").click(force=True)
+            # back in balance, the style returns (hold 0.5 s, then 1.5 s back): the note goes
+            page.wait_for_function("() => !document.body.innerText.includes('balance recovery')",
+                                   timeout=int(1000 * stall_s(300)))
+            assert "fallen" not in studio.robot_panel.status.content
+    finally:
+        studio.stop()
