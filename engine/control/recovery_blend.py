@@ -33,8 +33,7 @@ class RecoveryBlend:
         self.share_time_s = 0.0  # ∫ blend_share dt (the walk's mean share = this ÷ its duration)
 
     def reset(self) -> None:
-        self.share = self.blend_share = 0.0
-        self._calm_s = math.inf
+        self.idle()
         self.time_in_recovery_s = self.share_time_s = 0.0
 
     def idle(self) -> None:

@@ -120,9 +120,8 @@ class WalkingController:
         self.step_adjustment = StepAdjustment(robot, self.params, self.planner, self.feedback.gains,
                                               robot.q_standing[2] + self.com_offset_m)
         self.recovery = RecoveryBlend(self.params)
-        if self.recovery.enabled:
+        if self.recovery.enabled:  # (without a neutral style that loads, the planner never recovers toward one)
             self.planner.set_recovery_style(self._neutral_style())
-            self.recovery.enabled = self.planner.recovery_banks is not None
 
     def _neutral_style(self) -> Style | None:
         """The robot's neutral style (robots/<name>.toml ``default_style``), the gait balance recovery blends

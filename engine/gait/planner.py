@@ -275,7 +275,8 @@ class GaitPlanner:
             old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * f, b) for w, b in members] + old
         share = self.recovery_share
-        if share > 0.0 and self.recovery_banks is not None and not self._recovery_is_style:  # toward neutral
+        if share > 0.0 and self.recovers_toward_other_gait:  # balance recovery: toward the neutral gait
+            assert self.recovery_banks is not None  # (recovers_toward_other_gait says so)
             neutral = [(w * share, self.recovery_banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
             members = [(w * (1.0 - share), b) for w, b in members] + neutral
         return self.banks.blend(members)
