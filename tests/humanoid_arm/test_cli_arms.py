@@ -55,6 +55,9 @@ def test_quick_training_beats_an_untrained_model(quick_weights):
     poses = bvh_points(load_bvh(held_out)).pose15()[::8]
     # refine_iters = 0: the learned map alone (the refinement would polish an untrained model's poses too)
     trained = ArmRetargeter.load("g1", quick_weights, refine_iters=0)
+    import torch
+
+    torch.manual_seed(0)  # the untrained baseline's initial weights: the same in every run, whatever ran before
     blank = SharedLatentWAE(trained.model.dims, trained.model.latent_dim, trained.model.hidden)
     blank.load_state_dict({k: v for k, v in trained.model.state_dict().items() if k.startswith(("mean_", "std_"))},
                           strict=False)
