@@ -116,11 +116,13 @@ def _warm_up_planner() -> None:
 
 def _warm_up_lwl2() -> None:
     """LWL2's run-time kernels (the encoder's forward, the latent k-NN scan) on small arrays of the dtypes and
-    layouts the retargeter passes."""
+    layouts the retargeter passes, and training's LA-DPP batch loop."""
+    from engine.retarget.humanoid_arm.la_dpp import la_dpp_indices
     from engine.retarget.humanoid_arm.lwr import nearest_k
     from engine.retarget.humanoid_arm.wae import _mlp_forward
 
     rng = np.random.default_rng(0)
+    la_dpp_indices(rng.random((16, 3)), 4, rng)
     latents = rng.random((16, 4))
     k, m = 3, 8
     nearest_k(latents, np.ascontiguousarray(latents.T, dtype=np.float32), rng.random(4), k, m,

@@ -85,10 +85,11 @@ def _tmr_clips(**options) -> list[dict]:
     return call_with_known(bench_tmr_clips, options)
 
 
-def _arms() -> list[dict]:
+def _arms(**options) -> list[dict]:
     from engine.bench.arms import bench_arms
+    from engine.bench.options import call_with_known
 
-    return bench_arms()
+    return call_with_known(bench_arms, options)
 
 
 def _puppet(**options) -> list[dict]:

@@ -31,7 +31,12 @@ def _clip_groups() -> dict[str, list]:
     return groups
 
 
-def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agreement_poses: int = 300) -> list[dict]:
+def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agreement_poses: int = 300,
+               weights_dir: str | None = None) -> list[dict]:
+    """``weights_dir``: a folder of ``<robot>_lwl2.*`` weights (e.g. ``studio train-arms --out DIR/g1_lwl2``) instead
+    of the shipped ones."""
+    from pathlib import Path
+
     from engine.retarget.humanoid_arm.capsules import mujoco_agreement
     from engine.retarget.humanoid_arm.ik import ArmIK, arm_errors_m
     from engine.retarget.humanoid_arm.metadata import weights_path
@@ -44,12 +49,17 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
     if not groups:
         return [{"section": "arms", "note": "shared mocap clips absent (set MOTION_STUDIO_SHARED)"}]
     for robot in robots:
-        if not weights_path(robot).with_suffix(".json").is_file():
-            rows.append({"section": "arms", "robot": robot, "note": f"no trained weights (studio train-arms --robot {robot})"})
+        path = weights_path(robot, Path(weights_dir) if weights_dir else None)
+        if not path.with_suffix(".json").is_file():
+            rows.append({"section": "arms", "robot": robot, "note": f"no trained weights at {path} (studio train-arms --robot {robot})"})
             continue
-        arms = ArmRetargeter.load(robot)
+        try:
+            arms = ArmRetargeter.load(robot, path)
+        except ValueError as exc:  # weights of another robot, or damaged files: one line in the table
+            rows.append({"section": "arms", "robot": robot, "note": str(exc)})
+            continue
         ub, cm = arms.ub, arms.capsules
-        paper = ArmRetargeter.load(robot, capsules=cm, refine_iters=0)
+        paper = ArmRetargeter.load(robot, path, capsules=cm, refine_iters=0)
         ik = ArmIK(ub, cm)
         agree = mujoco_agreement(cm, agreement_poses)
         rows.append({"section": "arms", "robot": robot, "method": "capsules-vs-mujoco", "clips": f"{agree['poses']} random poses",

@@ -37,6 +37,8 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
                              "kinematic tables, go1,a1,anymal_c for UVM / SMR / STMR)")
     parser.add_argument("--budget", type=int, default=None,
                         help="retarget, tmr-clips: TMR's BO evaluations per clip (default 6)")
+    parser.add_argument("--weights-dir", default=None,
+                        help="arms: a folder of trained <robot>_lwl2.* weights (default: the shipped ones)")
     parser.add_argument("--kinematic", action="store_true",
                         help="retarget: the kinematic UVM / SMR tables only (no tracking in MuJoCo, no STMR)")
 
@@ -57,7 +59,7 @@ def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) ->
                "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
                "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir,
                "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None),
-               "robot_names": getattr(args, "robots", None),
+               "robot_names": getattr(args, "robots", None), "weights_dir": getattr(args, "weights_dir", None),
                # retarget's UVM / SMR / STMR comparison (minutes per clip) when the section is named, not in the
                # default run of every section
                "tracked": bool(getattr(args, "sections", None)) and not getattr(args, "kinematic", False)}

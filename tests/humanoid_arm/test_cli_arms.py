@@ -127,6 +127,24 @@ def test_puppet_bad_input_is_one_line_and_writes_nothing(shipped_g1, tmp_path):
         assert not out.exists()
 
 
+def test_bench_arms_reads_the_weights_dir_it_is_given(tmp_path, shipped_g1):
+    """``studio bench arms --weights-dir DIR`` looks for ``<robot>_lwl2`` there, not in the shipped folder: a robot
+    without weights there, or with another robot's, is one note row naming the file (nothing measured); a folder
+    that does not exist is one line and exit 2."""
+    _clip("141_16.bvh")
+    res = run_studio("bench", "arms", "--weights-dir", str(tmp_path / "missing"))
+    assert res.returncode == 2 and res.stderr.strip().count("\n") == 0 and "--weights-dir" in res.stderr, res.stderr
+    for suffix in (".json", ".safetensors", "_ff.safetensors"):
+        shutil.copyfile(f"{shipped_g1}{suffix}", tmp_path / f"talos_lwl2{suffix}")
+    res = run_studio("bench", "arms", "--json", "--weights-dir", str(tmp_path))
+    assert res.returncode == 0, res.stderr[-2000:]
+    rows = json.loads(res.stdout)["rows"]
+    notes = {row["robot"]: row["note"] for row in rows}
+    assert set(notes) == {"g1", "talos"} and len(rows) == 2, rows
+    assert str(tmp_path / "g1_lwl2") in notes["g1"] and "no trained weights" in notes["g1"]
+    assert "expected weights for talos" in notes["talos"] and str(tmp_path) in notes["talos"]
+
+
 def test_stream_bvh_sends_one_parseable_datagram_per_frame():
     clip = _clip("141_16.bvh")
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:

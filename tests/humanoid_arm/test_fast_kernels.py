@@ -308,3 +308,77 @@ def test_lwr_scan_on_the_shipped_table_equals_the_k_d_tree():
         ref_d, ref_i = arms.lwr.neighbours_kdtree(z)
         np.testing.assert_array_equal(idx, ref_i)
         np.testing.assert_allclose(dist, ref_d, rtol=1e-12, atol=0)
+
+
+def reference_la_dpp_indices(features: np.ndarray, m: int, rng: np.random.Generator, beta: float = 100.0,
+                             chunk: int = 10_000) -> np.ndarray:
+    """LA-DPP's greedy selection as it was written in numpy before the compiled loop."""
+    n = len(features)
+    if m >= n:
+        return rng.permutation(n)
+    pool = rng.choice(n, size=chunk, replace=False) if n > chunk else np.arange(n)
+    x = np.asarray(features[pool], dtype=np.float64)
+    sq = np.einsum("ij,ij->i", x, x)
+    score = rng.uniform(0.0, 1e-12, size=len(pool))
+    chosen = np.empty(m, dtype=np.int64)
+    j = int(rng.integers(len(pool)))
+    for k in range(m):
+        chosen[k] = j
+        d2 = np.maximum(sq + sq[j] - 2.0 * (x @ x[j]), 0.0)
+        score += np.exp(-beta * d2)
+        score[j] = np.inf
+        if k + 1 < m:
+            j = int(np.argmin(score))
+    return pool[chosen]
+
+
+def _g1_hand_elbow_features() -> np.ndarray:
+    """LA-DPP's robot-domain features (hands and elbows in the pelvis frame) of G1 poses: the shipped LWR table's
+    (the training set's robot domain) when present, else random poses within the limits."""
+    from engine.retarget.humanoid_arm.metadata import weights_path
+    from engine.retarget.humanoid_arm.training import robot_features
+
+    ub = UpperBody("g1")
+    path = weights_path("g1").with_suffix(".safetensors")
+    if path.is_file():
+        from safetensors.numpy import load_file
+
+        poses = load_file(str(path))["data.robot_poses"][::7]
+    else:
+        rng = np.random.default_rng(3)
+        poses = rng.uniform(ub.lower, ub.upper, size=(3000, ub.n))
+    return robot_features(ub, poses)
+
+
+def test_compiled_la_dpp_picks_the_numpy_loops_indices():
+    """Same indices and the same random draws as the numpy loop: on G1's hand/elbow features (training's robot
+    batches and the graph's nodes), normalised float32 mocap-like poses (most exps underflow to 0), points spaced so
+    that β d² falls around 708–746 (subnormal exps), well-separated triplicates (d² = 0 within, the picks left to
+    the jitter), and m ≥ n. (Where scores agree to ~1e-16 — partly covered duplicates — the last-bit differences
+    of the dot products may pick another of equals.)"""
+    from engine.retarget.humanoid_arm.la_dpp import la_dpp_indices
+
+    rng = np.random.default_rng(11)
+    robot = _g1_hand_elbow_features()
+    mocap = rng.standard_normal((3000, 15)).astype(np.float32)
+    subnormal = rng.standard_normal((1500, 15)) * rng.uniform(0.45, 0.52, size=(1500, 1))
+    duplicates = np.repeat(rng.standard_normal((300, 4)), 3, axis=0)
+    cases = [(robot, 128, 1024, 30), (robot, 128, 2048, 10), (robot, 600, 10_000, 1), (mocap, 128, 2048, 20),
+             (subnormal, 128, 1024, 20), (duplicates, 250, 10_000, 5), (duplicates, 64, 512, 10),
+             (duplicates, 900, 900, 1)]
+    seen_subnormal = False
+    for features, m, chunk, calls in cases:
+        r_new, r_ref = np.random.default_rng(5), np.random.default_rng(5)
+        for _ in range(calls):
+            got = la_dpp_indices(features, m, r_new, chunk=chunk)
+            want = reference_la_dpp_indices(features, m, r_ref, chunk=chunk)
+            np.testing.assert_array_equal(got, want)
+            assert r_new.bit_generator.state == r_ref.bit_generator.state
+        if features is duplicates and m < 300:  # a picked point covers its copies: never two of one triplet
+            assert len(set(got // 3)) == m
+        if features is subnormal:
+            x = subnormal[got[:20]]
+            bd2 = 100.0 * ((x[:, None] - x[None]) ** 2).sum(-1)
+            seen_subnormal = bool(np.any((bd2 > 708) & (bd2 < 746)))
+    assert seen_subnormal  # the case does exercise the compiled call's own exp
+    assert len(robot) > 1024 and len(set(la_dpp_indices(robot, 128, np.random.default_rng(0), chunk=1024))) == 128
