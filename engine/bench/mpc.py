@@ -71,10 +71,11 @@ def record_calls(robot_name: str = "g1", seconds: float = 4.0) -> list[tuple[tup
     calls: list[tuple[tuple, dict]] = []
     solve = ctrl.mpc.solve
 
-    def spy(t_s, com, vel, cop, z, supports):  # noqa: ANN001, ANN202
+    def spy(t_s, com, vel, cop, z, supports, packed=None):  # noqa: ANN001, ANN202
+        # (recorded without the planner's packing: the replay's solve packs the copied supports, the same numbers)
         calls.append(((float(t_s), np.array(com, float), np.array(vel, float), np.array(cop, float), float(z),
                        [SupportInterval(s.t_start_s, s.t_end_s, np.array(s.polygon, float)) for s in supports]), {}))
-        return solve(t_s, com, vel, cop, z, supports)
+        return solve(t_s, com, vel, cop, z, supports, packed)
 
     ctrl.mpc.solve = spy  # type: ignore[method-assign]
     dt = float(robot.mj_model.opt.timestep)

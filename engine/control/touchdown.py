@@ -48,8 +48,12 @@ class TouchdownTracker:
     def reference_tables(self, ref: GaitReference) -> None:
         """What the ticks until the planner's next one read of its reference ``ref``: the corners in contact and the
         feet that may be landing early (no corner in contact, not moving up)."""
-        contact = ref.corner_contact & ref.contact[:, None]
-        flags, up = contact.tolist(), ref.foot_lin_vel[:, 2].tolist()
+        # ref.corner_contact & ref.contact[:, None] and ref.foot_lin_vel[:, 2] on Python bools and floats (the same
+        # flags: a corner is in contact while its foot is; the feet's vertical velocities)
+        corners, feet = ref.corner_contact.tolist(), ref.contact.tolist()
+        flags = [[bool(c) and bool(down) for c in row] for row, down in zip(corners, feet)]
+        up = [vel[2] for vel in ref.foot_lin_vel.tolist()]
+        contact = np.array(flags, dtype=bool)
         self.contact_ref, self.ref_contact = ref, contact
         self.landing_candidates = [i for i in range(2) if not any(flags[i]) and up[i] <= 0.0]
 

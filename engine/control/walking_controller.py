@@ -316,28 +316,36 @@ class WalkingController:
             (cx, cy), (vx, vy) = com.tolist(), com_vel.tolist()
             com0 = np.array([px + pull * (cx - px), py + pull * (cy - py)])
             vel0 = np.array([wx + pull * (vx - wx), wy + pull * (vy - wy)])
-            qx, qy = self.plan.cop_at(ref.t_s).tolist()
+            qx, qy = self.plan.cop_at_floats(ref.t_s)
             cop0 = np.array([qx + (sx - old_x), qy + (sy - old_y)])
         # The only infeasible part of the QP is an initial CoP outside today's support (time
         # scaling and touchdowns move contact switches relative to the last plan): clip it in.
-        cop0 = _clip_to_polygon(cop0, supports[0].polygon)
-        plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports)
-        last = supports[-1].polygon
-        goal = last.sum(axis=0) / len(last)  # polygon.mean(axis=0), without np.mean's Python layer
-        miss = vector_norm(plan.final_capture_point_xy_m - goal) if plan.ok else math.inf  # np.linalg.norm's number
+        first = supports[0].polygon
+        cop0 = _clip_to_polygon(cop0, first)
+        # (the preview's phases as the MPC reads them, packed by the planner; None for the shifted copies)
+        packed = planner.packed_supports(supports) if supports is ref.preview else None
+        plan = self.mpc.solve(ref.t_s, com0, vel0, cop0, z_com, supports, packed)
+        # The last support's vertex mean and the plan's final capture point's distance to it, on floats (x, y): the
+        # numbers of polygon.mean(axis=0) (numpy's row-by-row sum along axis 0, then ÷ the count) and of
+        # np.linalg.norm(final_capture_point_xy_m − goal) (the 2-vector's dot through numpy: its rounding)
+        goal_x, goal_y = _vertex_mean(supports[-1].polygon)
+        miss = _distance(plan.final_capture_point_floats(), goal_x, goal_y) if plan.ok else math.inf
         lost = plan.ok and miss > self.params.capture_tolerance_m
         # In double support the robot's ξ belongs between its feet: beyond them (a push), a plan
-        # continued with the CoP ramping off the trailing foot throws it further.
-        xi_robot = com + com_vel / math.sqrt(omega2)
+        # continued with the CoP ramping off the trailing foot throws it further (ξ = com + com_vel / ω: computed
+        # when read, the same array).
+        omega = math.sqrt(omega2)
         thrown = (self.params.restart_when_thrown and all(ref.contact.tolist())  # bool(contact.all()), on a list
-                  and not _inside_polygon(xi_robot, supports[0].polygon))
+                  and not _inside_polygon(com + com_vel / omega, first))
         if not plan.ok or lost or thrown:
             # The plan cannot be continued (a push, a sudden change) or no longer captures the CoM
             # on its footholds: restart it from the robot's state and keep the more capturable one.
             # The restart's CoP starts where it best holds the robot's ξ (a CoP can move at once;
             # one left on the trailing foot while ξ runs past the new one throws the robot on).
-            retry = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(xi_robot, supports[0].polygon), z_com, supports)
-            if retry.ok and (not plan.ok or thrown or vector_norm(retry.final_capture_point_xy_m - goal) < miss):
+            xi_robot = com + com_vel / omega
+            retry = self.mpc.solve(ref.t_s, com, com_vel, _clip_to_polygon(xi_robot, first), z_com, supports, packed)
+            if retry.ok and (not plan.ok or thrown
+                             or _distance(retry.final_capture_point_floats(), goal_x, goal_y) < miss):
                 plan = retry
                 self.replans += 1
         if plan.ok or self.plan is None:
@@ -478,6 +486,25 @@ def _horizontal_ground_force(diag) -> np.ndarray | None:  # noqa: ANN001
             e = b[f][k]
             terms[f][k] = (e[0] * w[0] + e[2] * w[2]) + (e[1] * w[1] + e[3] * w[3])
     return np.array([terms[0][0] + terms[1][0], terms[0][1] + terms[1][1]])
+
+
+def _vertex_mean(polygon: np.ndarray) -> tuple[float, float]:
+    """``polygon.mean(axis=0)`` of an (M, 2) float array as floats (x, y): numpy's sum along axis 0 adds the rows in
+    order from the first, then divides by M (the same numbers, without the two array operations)."""
+    rows = polygon.tolist()
+    if not rows:  # (an empty polygon's mean: NaN)
+        return math.nan, math.nan
+    x, y = rows[0]
+    for rx, ry in rows[1:]:
+        x += rx
+        y += ry
+    return x / len(rows), y / len(rows)
+
+
+def _distance(point: tuple[float, float], x: float, y: float) -> float:
+    """``np.linalg.norm(np.array(point) − (x, y))``: the differences on floats, the norm by :func:`vector_norm`
+    (numpy's dot of the 2-vector, whose rounding a float expression need not repeat)."""
+    return vector_norm(np.array([point[0] - x, point[1] - y]))
 
 
 def _inside_polygon(p: np.ndarray, polygon: np.ndarray) -> bool:

@@ -41,6 +41,7 @@ from engine.gait.planner_kernels import (
     SWING_HEEL,
     SWING_TOE,
     evaluate_reference_into,
+    pack_supports,
     path_table,
     preview_intervals,
     upcoming_foothold,
@@ -179,6 +180,8 @@ class GaitPlanner:
         # ** 2) and CONTACT_TOL_M (the sole's size is fixed for the planner's life, like sole_corners_local)
         self._frame = np.array([sole_length_m, sole_width_m, ROLL_SMOOTHING, _ROLL_SMOOTHING_SQ, CONTACT_TOL_M])
         self._attribute_row: tuple[BlendedGait, np.ndarray] | None = None  # evaluate's blend attributes
+        # the last preview's phases and their packing for the CoM MPC (packed_supports)
+        self._packed_preview: tuple[list[ContactPhase], np.ndarray, np.ndarray] | None = None
         self.layout = ChannelLayout(ctx.upper_joints, np.array([ctx.standing_angles[j] for j in ctx.upper_joints]))
         self.banks = StyleBanks(style, self.layout)
         self._fade_from: StyleBanks | None = None
@@ -555,11 +558,11 @@ class GaitPlanner:
         t = blend.time_at(phi)
         f = phi - math.floor(phi)  # in_swing of both feet
         swing_left, swing_right = _LEFT_LIFTOFF <= f < _LEFT_TOUCHDOWN, _RIGHT_LIFTOFF <= f < _RIGHT_TOUCHDOWN
-        feet = np.empty((2, 2, 3))  # per side (swing start, target) while swinging, else (latched, latched)
-        for j, side, swinging in ((0, "left", swing_left), (1, "right", swing_right)):
-            a, b = (self.swing_start[side], self.target[side]) if swinging else (self.latched[side],) * 2
-            feet[j, 0, 0], feet[j, 0, 1], feet[j, 0, 2] = a.x, a.y, a.yaw
-            feet[j, 1, 0], feet[j, 1, 1], feet[j, 1, 2] = b.x, b.y, b.yaw
+        # per side (swing start, target) while swinging, else (latched, latched): (2, 2, 3) float64, one array call
+        la, lb = (self.swing_start["left"], self.target["left"]) if swing_left else (self.latched["left"],) * 2
+        ra, rb = (self.swing_start["right"], self.target["right"]) if swing_right else (self.latched["right"],) * 2
+        feet = np.array([[[la.x, la.y, la.yaw], [lb.x, lb.y, lb.yaw]], [[ra.x, ra.y, ra.yaw], [rb.x, rb.y, rb.yaw]]],
+                        dtype=float)
         prev = self._last_pose
         if prev is not None:
             dt = self.t_s - prev["t"]
@@ -585,18 +588,13 @@ class GaitPlanner:
         pelvis_z = scalars[0]
         # (the soles' rotations are rots[1:], their positions foot_pos: rows left, right)
         self._last_pose = {"t": self.t_s, "pelvis_z": pelvis_z, "rots": rots, "foot_pos": foot_pos, "upper": upper}
-        return GaitReference(
-            t_s=self.t_s, phase=phi, command=self.command.copy(),
-            sample_weights=self.weights.copy(), path_pose=self.path.pose(),
-            pelvis_z=pelvis_z, pelvis_z_rate=0.0 if prev is None or dt <= 0 else scalars[1], pelvis_rot=rots[0],
-            pelvis_ang_vel=ang[0], foot_pos=foot_pos.copy(), foot_rot=rots[1:], foot_lin_vel=lin, foot_ang_vel=ang[1:],
-            contact=np.array([not swing_left, not swing_right]),
-            corner_contact=corner_contact, sole_corners=corners,
-            upper_q=upper, upper_qd=upper_qd,
-            footholds={"left": self.target["left"] if swing_left else self.latched["left"],  # (SIDES' order)
-                       "right": self.target["right"] if swing_right else self.latched["right"]},
-            cycle_s=blend.events_s[3],
-            swing_progress=progress,
+        return GaitReference(  # (positional: the field order, t_s … swing_progress; keywords cost more per tick)
+            self.t_s, phi, self.command.copy(), self.weights.copy(), self.path.pose(), pelvis_z,
+            0.0 if prev is None or dt <= 0 else scalars[1], rots[0], ang[0], foot_pos.copy(), rots[1:], lin, ang[1:],
+            np.array([not swing_left, not swing_right]), corner_contact, corners, upper, upper_qd,
+            {"left": self.target["left"] if swing_left else self.latched["left"],  # (SIDES' order)
+             "right": self.target["right"] if swing_right else self.latched["right"]},
+            [], blend.events_s[3], progress,
         )
 
     def _blend_attributes(self) -> np.ndarray:
@@ -619,7 +617,8 @@ class GaitPlanner:
         that contact ⊕ its stance offset, in the safe region of the other foot). One foot down: its sole,
         shortened at the toe by what the ankle cannot hold; both: the hull of both soles, the one of a foot
         rolling on its heel or toe (heel strike after its touchdown, toe-off before its liftoff) cut to that
-        edge's strip. Compiled (:func:`engine.gait.planner_kernels.preview_intervals`)."""
+        edge's strip. Compiled (:func:`engine.gait.planner_kernels.preview_intervals`; the same supports packed for the
+        CoM MPC by :func:`~engine.gait.planner_kernels.pack_supports`, read through :meth:`packed_supports`)."""
         blend = self.blend
         phi = self.phi
         f = phi - math.floor(phi)  # in_swing of both feet
@@ -642,12 +641,22 @@ class GaitPlanner:
         t_s = self.t_s
         phases: list[ContactPhase] = []
         append = phases.append
-        for (t0, t1), (down_left, down_right, i_left, i_right, m), polygon in zip(times.tolist(), rows.tolist(),
-                                                                                   polygons):
+        for i, ((t0, t1), (down_left, down_right, i_left, i_right, m)) in enumerate(zip(times.tolist(),
+                                                                                       rows.tolist())):
             on = {"left": footholds[i_left], "right": footholds[i_right]} if down_left and down_right else (
                 {"left": footholds[i_left]} if down_left else {"right": footholds[i_right]})
-            append(ContactPhase(t_s + t0, t_s + t1, on, polygon[:m]))
+            append(ContactPhase(t_s + t0, t_s + t1, on, polygons[i, :m]))  # (one view per phase)
+        self._packed_preview = (phases, *pack_supports(t_s, times, rows, polygons))
         return phases
+
+    def packed_supports(self, phases: object) -> tuple[np.ndarray, np.ndarray] | None:
+        """The CoM MPC's packed supports (``ComMpc.solve``'s ``packed``: per phase its start, end [s] and vertex count
+        (n, 3), the polygons' vertices one after the other) of ``phases`` when they are this planner's last preview
+        (the same object: :func:`engine.gait.planner_kernels.pack_supports` packed them with it), else None."""
+        packed = self._packed_preview
+        if packed is None or packed[0] is not phases:
+            return None
+        return packed[1], packed[2]
 
     def _edges_now(self) -> np.ndarray:
         """Edge codes (EDGE_CODES) of the sole edge each foot stands on at the last evaluated pose (from its pitch:

@@ -449,6 +449,27 @@ def preview_intervals(phi, t_now, kappa, hold_s, horizon_s, events, holds, swing
     return times, rows, footholds[:n_holds], polygons
 
 
+@njit(cache=True, nogil=True)
+def pack_supports(t_s, times, rows, polygons):  # noqa: ANN001, ANN201
+    """The CoM MPC's packed supports of :func:`preview_intervals`' intervals (what
+    :meth:`engine.control.mpc.ComMpc.solve` otherwise builds from the contact phases): per interval its start and
+    end in absolute time ``t_s +`` (the contact phases' float sums) and its vertex count (n, 3), and the polygons'
+    vertices one after the other (Σ counts, 2), as ``np.concatenate`` of the phases' polygons."""
+    n = times.shape[0]
+    table = np.empty((n, 3))
+    total = 0
+    for i in range(n):
+        table[i, 0], table[i, 1], table[i, 2] = t_s + times[i, 0], t_s + times[i, 1], float(rows[i, 4])
+        total += rows[i, 4]
+    points = np.empty((total, 2))
+    r = 0
+    for i in range(n):
+        for j in range(rows[i, 4]):
+            points[r, 0], points[r, 1] = polygons[i, j, 0], polygons[i, j, 1]
+            r += 1
+    return table, points
+
+
 # ------------------------------------------------------------------------------------------ the reference's frames
 #: Layout of :func:`reference_frames_into`'s ``params``: the path yaw, the pelvis yaw/pitch/roll curves, the sole's
 #: length and width, heel_toe.ROLL_SMOOTHING and its square (Python's ** 2), then per foot (left, right)

@@ -229,7 +229,8 @@ def clip_into_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     c + s (p − c) with s the largest multiple of 2⁻³⁰ inside (what a 30-step bisection on the
     segment finds), computed from the half-planes directly."""
     normals, offsets, bound = halfplanes_cached(polygon)
-    if len(offsets) == 0 or (normals @ p <= bound).all():  # the array's own all(): np.all's number, less overhead
+    # np.all's answer on the list of flags (without ndarray.all's Python layer and reduction; NaN compares False)
+    if len(offsets) == 0 or all((normals @ p <= bound).tolist()):
         return p
     c = polygon_centroid(polygon)
     d = p - c
@@ -240,7 +241,7 @@ def clip_into_polygon(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     k = min(max(math.floor(s_max / unit), 0), 2 ** 30 - 1)
 
     def inside(j: int) -> bool:
-        return bool((normals @ (c + (j * unit) * d) <= bound).all())
+        return all((normals @ (c + (j * unit) * d) <= bound).tolist())
 
     while k > 0 and not inside(k):  # rounding at the boundary: step to the dyadic the bisection ends on
         k -= 1

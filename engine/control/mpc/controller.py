@@ -183,11 +183,15 @@ class ComMpc:
         cop_xy_m: ArrayLike,
         com_height_m: float,
         supports: Sequence[SupportPhase],
+        packed: tuple[FloatArray, FloatArray] | None = None,
     ) -> ComMpcSolution:
         """Plan CoP waypoints and the CoM over ``[t_now_s, t_now_s + preview_s]``.
 
         Never raises: invalid input or solver failure yield a fallback solution whose
-        ``status`` says so (see :class:`ComMpcSolution`).
+        ``status`` says so (see :class:`ComMpcSolution`). ``packed``: the same supports packed as the one-call plan
+        reads them, when the caller has them (:meth:`engine.gait.planner.GaitPlanner.packed_supports`): per support
+        its start, end [s] and vertex count (n, 3) and the polygons' vertices one after the other (Σ counts, 2),
+        float64; otherwise it builds them from ``supports`` (the same numbers).
         """
         t_start = time.perf_counter()
         try:
@@ -197,7 +201,7 @@ class ComMpc:
         args = (t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports)
         solution: ComMpcSolution | None = None
         try:
-            solution = self._solve(*args, t_start=t_start)
+            solution = self._solve(*args, t_start=t_start, packed=packed)
         except Exception as exc:  # noqa: BLE001 - a controller must never raise
             try:
                 solution = self._fallback(*args, reason="solver_failed", message=f"exception: {exc!r}", t_start=t_start)
@@ -224,11 +228,12 @@ class ComMpc:
         supports: Sequence[SupportPhase],
         *,
         t_start: float,
+        packed: tuple[FloatArray, FloatArray] | None = None,
     ) -> ComMpcSolution:
         if self.solver == "active_set" and math.isinf(self.time_limit_s):
             try:  # the one-call plan is only a shortcut: whatever it cannot do, the steps below do as before
                 solution = self._solve_window(t_now_s, com_xy_m, com_vel_xy_mps, cop_xy_m, com_height_m, supports,
-                                              t_start)
+                                              t_start, packed)
             except Exception:  # noqa: BLE001
                 solution = None
             if solution is not None:
@@ -361,7 +366,8 @@ class ComMpc:
         return solution
 
     def _solve_window(self, t_now_s: float, com_xy_m: ArrayLike, com_vel_xy_mps: ArrayLike, cop_xy_m: ArrayLike,
-                      com_height_m: float, supports: Sequence[SupportPhase], t_start: float) -> ComMpcSolution | None:
+                      com_height_m: float, supports: Sequence[SupportPhase], t_start: float,
+                      packed: tuple[FloatArray, FloatArray] | None = None) -> ComMpcSolution | None:
         """The default solve (active set, no wall-time limit) from the supports to the plan in one compiled call
         (:func:`engine.control.mpc.active_set_kernel.plan_window`: :meth:`_build_problem` and :meth:`_solve_compiled`
         compiled together, the same numbers). None (nothing changed) for anything else than the usual input (a
@@ -371,16 +377,20 @@ class ComMpc:
         history = self._warm_history
         if state is None or len(history) > 2:
             return None
-        try:
-            polygons = [s.polygon for s in supports]
-            # (start, end, vertex count) of each support: the times converted as _build_problem converts them
-            table = np.array([(s.t_start_s, s.t_end_s, len(p)) for s, p in zip(supports, polygons)], dtype=float)
-            points = np.concatenate(polygons, casting="no")  # float64 polygons only (no conversion)
-        except (TypeError, ValueError, AttributeError):
-            return None
-        if table.ndim != 2 or table.shape[1] != 3 or points.dtype != np.float64 or points.ndim != 2 \
-                or points.shape[1] != 2:
-            return None
+        packed = _checked_packing(packed)
+        if packed is not None:  # packed by the caller (the planner's preview): the arrays built below
+            table, points = packed
+        else:
+            try:
+                polygons = [s.polygon for s in supports]
+                # (start, end, vertex count) of each support: the times converted as _build_problem converts them
+                table = np.array([(s.t_start_s, s.t_end_s, len(p)) for s, p in zip(supports, polygons)], dtype=float)
+                points = np.concatenate(polygons, casting="no")  # float64 polygons only (no conversion)
+            except (TypeError, ValueError, AttributeError):
+                return None
+            if table.ndim != 2 or table.shape[1] != 3 or points.dtype != np.float64 or points.ndim != 2 \
+                    or points.shape[1] != 2:
+                return None
         (keys_a, nrm_a), (keys_b, nrm_b) = two_newest(history)
         t_now, com_x, com_y, vel_x, vel_y, cop_x, cop_y, height = state
         w = self.weights
@@ -579,3 +589,20 @@ class ComMpc:
             solution = hold_solution(t_now, com, vel, cop, height, self.preview_s)
         return replace_status(solution, f"{reason}_centroid_fallback", message, time.perf_counter() - t_start)
 
+
+def _checked_packing(packed: object) -> tuple[FloatArray, FloatArray] | None:
+    """``packed`` (``ComMpc.solve``'s: the supports' table (n, 3) and points (Σ counts, 2), float64, the points
+    C-contiguous) when it has that form, else None (the supports are then packed from the sequence)."""
+    if not isinstance(packed, tuple) or len(packed) != 2:
+        return None
+    table, points = packed
+    if not isinstance(table, np.ndarray) or not isinstance(points, np.ndarray):
+        return None
+    if table.ndim != 2 or table.shape[1] != 3 or points.ndim != 2 or points.shape[1] != 2 \
+            or not (table.dtype is _FLOAT64 or table.dtype == _FLOAT64) \
+            or not (points.dtype is _FLOAT64 or points.dtype == _FLOAT64) or not points.flags.c_contiguous:
+        return None
+    return table, points
+
+
+_FLOAT64 = np.dtype(np.float64)

@@ -132,6 +132,12 @@ class ComMpcSolution:
         """Capture point ``x_T + v_T / omega`` at the end of the preview window [m]."""
         return self.waypoint_com_xy_m[-1] + self.waypoint_com_vel_xy_mps[-1] / self.omega_rps
 
+    def final_capture_point_floats(self) -> tuple[float, float]:
+        """:attr:`final_capture_point_xy_m` as floats (x, y): the same operations on the last waypoint's numbers."""
+        _, _, coms, vels, omega = self._lists()
+        (cx, cy), (vx, vy) = coms[-1], vels[-1]
+        return cx + vx / omega, cy + vy / omega
+
     @property
     def t_start_s(self) -> float:
         return float(self.waypoint_times_s[0])
@@ -197,15 +203,26 @@ class ComMpcSolution:
     def _cop_at_scalar(self, t: float) -> FloatArray:
         """:meth:`cop_at` for one (non-NaN) time, on floats: numpy's ``interp`` arithmetic (its clamping outside
         the waypoints, exact waypoint values at their times, its NaN fallbacks), the same numbers."""
+        return np.array(self.cop_at_floats(t))
+
+    def cop_at_floats(self, t: float) -> tuple[float, float]:
+        """:meth:`cop_at` of one time as floats (x, y): the numbers of its array, for callers that read them as
+        floats (numpy's ``interp`` on floats for a non-NaN float time and at least two waypoints, as :meth:`cop_at`)."""
+        if not (isinstance(t, float) and t == t and len(self.waypoint_times_s) > 1):
+            x, y = self._cop_at_array(t).tolist()
+            return x, y
         times, wps, _, _, _ = self._lists()
         n = len(times)
         if t > times[-1]:
-            return np.array(wps[-1])
+            x, y = wps[-1]
+            return x, y
         if t < times[0]:
-            return np.array(wps[0])
+            x, y = wps[0]
+            return x, y
         j = bisect.bisect_right(times, t) - 1
         if j >= n - 1 or times[j] == t:
-            return np.array(wps[j])
+            x, y = wps[j]
+            return x, y
         h = times[j + 1] - times[j]
         out = []
         for a, b in zip(wps[j], wps[j + 1]):
@@ -216,7 +233,8 @@ class ComMpcSolution:
                 if value != value and a == b:
                     value = a
             out.append(value)
-        return np.array(out)
+        x, y = out
+        return x, y
 
     def _com_at_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """:meth:`com_at` for one time, on floats (the controller asks several times a tick)."""

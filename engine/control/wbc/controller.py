@@ -72,6 +72,8 @@ KERNELS = ("numba", "numpy")
 
 FloatArray = NDArray[np.float64]
 _FLOAT64 = np.dtype(np.float64)  # the dtype object of float64 arrays (snapshot() compares identity)
+_BOOL = np.dtype(np.bool_)
+_CONTACT_SHAPE = (len(SIDES), N_CORNERS)
 
 
 # ----------------------------------------------------------------------------- the controller
@@ -265,8 +267,11 @@ class TaskSpaceInverseDynamics:
         return float(q.sum() + v.sum())
 
     def _compute(self, state: RobotState, ref: WbcReference, t0: float) -> JointCommand:
-        q = np.asarray(state.q, dtype=float)
-        v = np.asarray(state.v, dtype=float)
+        q, v = state.q, state.v
+        if type(q) is not np.ndarray or q.dtype is not _FLOAT64:  # (np.asarray returns a float64 ndarray itself)
+            q = np.asarray(q, dtype=float)
+        if type(v) is not np.ndarray or v.dtype is not _FLOAT64:
+            v = np.asarray(v, dtype=float)
         self._state_total = self._state_sum(q, v) if q.shape == self._q_shape and v.shape == self._v_shape else math.nan
         if not math.isfinite(self._state_total):
             return self._fallback(state, "fallback_invalid_state", "state is not a finite (q, v)", t0)
@@ -315,7 +320,9 @@ class TaskSpaceInverseDynamics:
         assembly and bounds in one call (:func:`engine.control.wbc.kernels.build_qp`), the torques and
         set-points in another (:func:`engine.control.wbc.kernels.finish_tick`): the same numbers. With the
         default solver and no task priority, build, solve and finish are one call (:meth:`_compute_one_call`)."""
-        contact = np.asarray(ref.contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
+        contact = ref.contact  # (2, 4) bool (read only), as np.asarray(…, dtype=bool).reshape(2, 4) makes it
+        if type(contact) is not np.ndarray or contact.dtype is not _BOOL or contact.shape != _CONTACT_SHAPE:
+            contact = np.asarray(contact, dtype=bool).reshape(len(SIDES), N_CORNERS)
         prepared, self._prepared = self._prepared, None
         if prepared is not None and prepared[0] is q and prepared[1] is v and prepared[2] == self._state_total:
             snap = prepared[3]  # computed by snapshot() for this state (the same arrays, unchanged: the same pass)
