@@ -379,8 +379,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not 0 <= args.tab_nice <= 19:
         raise CliError(f"--tab-nice: expected a niceness 0 ≤ N ≤ 19, got {args.tab_nice}")
     weights_dir = getattr(args, "weights_dir", None)
-    if weights_dir is not None and not Path(weights_dir).is_dir():
-        raise CliError(f"--weights-dir: expected a folder of trained weights, got {weights_dir!r} (no such folder)")
+    if weights_dir is not None and (not weights_dir.strip() or not Path(weights_dir).is_dir()):
+        raise CliError(f"--weights-dir: expected the folder train-arms --out DIR/<robot>_lwl2 wrote into, "
+                       f"got {weights_dir!r} (no such folder)")
     from engine.bench.retarget import check_clip_options
 
     problem = check_clip_options(args.clips, args.budget, args.robots)

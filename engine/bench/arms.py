@@ -49,7 +49,7 @@ def bench_arms(robots: tuple[str, ...] = ("g1", "talos"), fps: float = 30.0, agr
     if not groups:
         return [{"section": "arms", "note": "shared mocap clips absent (set MOTION_STUDIO_SHARED)"}]
     for robot in robots:
-        path = weights_path(robot, Path(weights_dir) if weights_dir else None)
+        path = weights_path(robot, Path(weights_dir) if weights_dir is not None else None)
         if not path.with_suffix(".json").is_file():
             rows.append({"section": "arms", "robot": robot, "note": f"no trained weights at {path} (studio train-arms --robot {robot})"})
             continue

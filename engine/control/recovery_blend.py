@@ -7,10 +7,19 @@ style — the gait its controller is tuned on — in phase space, as it blends s
 stays continuous. The style comes back once the error has stayed small for a while.
 
 ``RecoveryBlend.update`` maps the ξ error e to a target share ``clip((e − e₀) / (e₁ − e₀), 0, 1)`` of the
-neutral gait; the share follows a rising target at once (at most 1 per ``recovery_rise_s``), and a falling one
-only after the error has stayed below the share's level for ``recovery_hold_s``, then at 1 per
-``recovery_decay_s``. The share the planner blends is quantised to ``recovery_share_step``: each new value
-re-blends the gait (a new :class:`engine.gait.blending.BlendedGait`), so it changes at most a few times per step.
+neutral gait. Where the robot enables it, the step adjustment's size maps the same way (``recovery_step_adjust_m``
+→ ``recovery_full_step_adjust_m``) and the larger share wins. The MPC re-plans from the measured state every tick, so
+a robot that does not go where the gait steps (a strafe it cannot follow: the nominal footholds run away from it) can
+keep ξ near its plan while the step adjustment moves every swing foot far from its nominal foothold. That size is
+the controller's (engine/control/step_adjustment.py): measured from the nominal footholds of the gait being walked,
+recovery blend included, and in double support the capture-point feedback alone — so as the share rises the
+nominal footholds move toward neutral's and the signal shrinks; a style the robot cannot follow then comes back,
+drifts off again and recovers again (episodes of a few seconds; ``studio bench styles`` measures the mean share).
+
+The share follows a rising target at once (at most 1 per ``recovery_rise_s``), and a falling one only after the
+target has stayed below the share for ``recovery_hold_s``, then at 1 per ``recovery_decay_s``. The share the planner
+blends is quantised to ``recovery_share_step``: each new value re-blends the gait (a new
+:class:`engine.gait.blending.BlendedGait`), so it changes at most a few times per step.
 """
 
 from __future__ import annotations
@@ -21,11 +30,12 @@ from engine.control.walking_parameters import WalkingParameters
 
 
 class RecoveryBlend:
-    """The neutral gait's share (0..1) in the planner's blend, from the ξ error against the plan."""
+    """The neutral gait's share (0..1) in the planner's blend, from the ξ error against the plan (and the step
+    adjustment's size, where enabled)."""
 
     def __init__(self, params: WalkingParameters):
         self.params = params
-        self.enabled = math.isfinite(params.recovery_xi_error_m)
+        self.enabled = math.isfinite(params.recovery_xi_error_m) or math.isfinite(params.recovery_step_adjust_m)
         self.share = 0.0  # continuous
         self.blend_share = 0.0  # quantised: what the planner blends
         self._calm_s = math.inf  # time since the target last reached the share
@@ -41,20 +51,19 @@ class RecoveryBlend:
         self.share = self.blend_share = 0.0
         self._calm_s = math.inf
 
-    def target(self, xi_error_m: float) -> float:
-        """The neutral share the error asks for."""
+    def target(self, xi_error_m: float, step_adjust_m: float = 0.0) -> float:
+        """The neutral share the ξ error and the step adjustment's size ask for (the larger)."""
         p = self.params
-        if not math.isfinite(xi_error_m):
-            return 1.0
-        span = max(p.recovery_full_xi_error_m - p.recovery_xi_error_m, 1e-6)
-        return min(max((xi_error_m - p.recovery_xi_error_m) / span, 0.0), 1.0)
+        return max(_ramp(xi_error_m, p.recovery_xi_error_m, p.recovery_full_xi_error_m),
+                   _ramp(step_adjust_m, p.recovery_step_adjust_m, p.recovery_full_step_adjust_m))
 
-    def update(self, xi_error_m: float, dt_s: float) -> float:
-        """Advance by ``dt_s`` with this tick's ξ error (m); returns the quantised share to blend."""
+    def update(self, xi_error_m: float, dt_s: float, step_adjust_m: float = 0.0) -> float:
+        """Advance by ``dt_s`` with this tick's ξ error and step adjustment size (m); returns the quantised share
+        to blend."""
         if not self.enabled:
             return 0.0
         p = self.params
-        target = self.target(xi_error_m)
+        target = self.target(xi_error_m, step_adjust_m)
         if target >= self.share:
             self._calm_s = 0.0
             self.share = min(target, self.share + dt_s / max(p.recovery_rise_s, 1e-6))
@@ -68,3 +77,13 @@ class RecoveryBlend:
             self.time_in_recovery_s += dt_s
             self.share_time_s += self.blend_share * dt_s
         return self.blend_share
+
+
+def _ramp(value_m: float, start_m: float, full_m: float) -> float:
+    """0 below ``start_m``, 1 from ``full_m``, linear between; a signal that is off (``start_m`` inf) asks for 0, and a
+    non-finite reading of one that is on for 1 (a broken estimate recovers rather than trusting the style)."""
+    if not math.isfinite(start_m):
+        return 0.0
+    if not math.isfinite(value_m):
+        return 1.0
+    return min(max((value_m - start_m) / max(full_m - start_m, 1e-6), 0.0), 1.0)

@@ -266,7 +266,9 @@ class WalkingController:
         recovery_share = 0.0
         if self.recovery.enabled and self.plan is not None:
             if planner.recovers_toward_other_gait:
-                recovery_share = self.recovery.update(self.step_adjustment.xi_error_m, PLAN_DT_S)
+                ax, ay = fb.step_adjust_m.tolist()  # how far the swing feet land from the style's footholds
+                recovery_share = self.recovery.update(self.step_adjustment.xi_error_m, PLAN_DT_S,
+                                                      math.sqrt(ax * ax + ay * ay))
             else:  # walking the neutral style itself: nothing to blend toward, nothing to report
                 self.recovery.idle()
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(

@@ -108,6 +108,11 @@ class WalkingParameters:
     # ``recovery_rise_s`` and moves in steps of ``recovery_share_step`` (each step re-blends the gait). inf: off.
     recovery_xi_error_m: float = float("inf")
     recovery_full_xi_error_m: float = 0.10
+    # ... and while the step adjustment is this large (m; from the nominal footholds of the gait being walked: the
+    # robot does not go where the gait steps, and the MPC, re-planning from the robot each tick, keeps ξ near its
+    # plan), fully neutral at ``recovery_full_step_adjust_m``. inf: the step adjustment does not count.
+    recovery_step_adjust_m: float = float("inf")
+    recovery_full_step_adjust_m: float = 0.3
     recovery_rise_s: float = 0.1
     recovery_hold_s: float = 0.5
     recovery_decay_s: float = 1.5

@@ -53,6 +53,22 @@ def test_target_is_proportional_between_the_two_errors():
     assert blend.target(math.nan) == 1.0  # a broken estimate recovers rather than trusting the style
 
 
+def test_the_step_adjustment_counts_only_when_enabled_and_the_larger_signal_wins():
+    assert RecoveryBlend(ON).target(0.0, 0.5) == 0.0  # recovery_step_adjust_m is off (inf) by default
+    both = dataclasses.replace(ON, recovery_step_adjust_m=0.1, recovery_full_step_adjust_m=0.3)
+    blend = RecoveryBlend(both)
+    assert blend.target(0.0, 0.1) == 0.0 and blend.target(0.0, 0.3) == 1.0
+    assert blend.target(0.0, 0.2) == pytest.approx(0.5)
+    assert blend.target(0.055, 0.15) == pytest.approx(0.5)  # ξ asks 0.5, the step adjustment 0.25
+    assert blend.target(0.04, 0.25) == pytest.approx(0.75)  # ξ asks 0.2, the step adjustment 0.75
+    assert blend.target(0.0, math.inf) == 1.0
+    assert RecoveryBlend(ON).target(0.0, math.nan) == 0.0  # off: not even a broken reading counts
+    alone = RecoveryBlend(dataclasses.replace(WalkingParameters(), recovery_step_adjust_m=0.1))
+    assert alone.enabled and alone.target(math.inf, 0.0) == 0.0  # the step adjustment alone switches recovery on
+    shares = [blend.update(0.0, DT, 0.35) for _ in range(int(0.1 / DT) + 2)]  # footholds far from the style's
+    assert shares[-1] == 1.0
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(0.0, 0.3), min_size=1, max_size=400))
 def test_share_stays_in_range_and_on_the_grid(errors):

@@ -260,3 +260,16 @@ def test_stance_width_edit_mid_step_keeps_the_stance_foot_and_the_timing():
     gap = lambda p: math.hypot(p.latched["left"].x - p.latched["right"].x, p.latched["left"].y - p.latched["right"].y)  # noqa: E731
     assert gap(plain) == pytest.approx(sample.attributes.stance_width_m, abs=2e-3)
     assert gap(edit) == pytest.approx(sample.attributes.stance_width_m + 0.02, abs=2e-3)
+
+
+def test_gait_reference_field_order_is_what_evaluate_builds_positionally():
+    """GaitPlanner.evaluate builds GaitReference positionally (keywords cost more per tick): inserting or reordering a
+    field would silently shift its values, so the order is pinned here — update evaluate's call with it."""
+    import dataclasses
+
+    from engine.gait.planner import GaitReference
+
+    assert [f.name for f in dataclasses.fields(GaitReference)] == [
+        "t_s", "phase", "command", "sample_weights", "path_pose", "pelvis_z", "pelvis_z_rate", "pelvis_rot",
+        "pelvis_ang_vel", "foot_pos", "foot_rot", "foot_lin_vel", "foot_ang_vel", "contact", "corner_contact",
+        "sole_corners", "upper_q", "upper_qd", "footholds", "preview", "cycle_s", "swing_progress"]

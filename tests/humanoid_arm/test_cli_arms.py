@@ -134,6 +134,8 @@ def test_bench_arms_reads_the_weights_dir_it_is_given(tmp_path, shipped_g1):
     _clip("141_16.bvh")
     res = run_studio("bench", "arms", "--weights-dir", str(tmp_path / "missing"))
     assert res.returncode == 2 and res.stderr.strip().count("\n") == 0 and "--weights-dir" in res.stderr, res.stderr
+    res = run_studio("bench", "arms", "--weights-dir", "")  # not "the shipped weights" in disguise
+    assert res.returncode == 2 and "--weights-dir" in res.stderr, res.stderr
     for suffix in (".json", ".safetensors", "_ff.safetensors"):
         shutil.copyfile(f"{shipped_g1}{suffix}", tmp_path / f"talos_lwl2{suffix}")
     res = run_studio("bench", "arms", "--json", "--weights-dir", str(tmp_path))

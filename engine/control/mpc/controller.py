@@ -378,6 +378,8 @@ class ComMpc:
         if state is None or len(history) > 2:
             return None
         packed = _checked_packing(packed)
+        if packed is not None and packed[0].shape[0] != len(supports):  # packed from other supports: not these
+            packed = None
         if packed is not None:  # packed by the caller (the planner's preview): the arrays built below
             table, points = packed
         else:
@@ -600,7 +602,8 @@ def _checked_packing(packed: object) -> tuple[FloatArray, FloatArray] | None:
         return None
     if table.ndim != 2 or table.shape[1] != 3 or points.ndim != 2 or points.shape[1] != 2 \
             or not (table.dtype is _FLOAT64 or table.dtype == _FLOAT64) \
-            or not (points.dtype is _FLOAT64 or points.dtype == _FLOAT64) or not points.flags.c_contiguous:
+            or not (points.dtype is _FLOAT64 or points.dtype == _FLOAT64) or not points.flags.c_contiguous \
+            or not table.flags.c_contiguous:  # (another layout would compile another plan_window mid-walk)
         return None
     return table, points
 
