@@ -382,9 +382,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if weights_dir is not None and (not weights_dir.strip() or not Path(weights_dir).is_dir()):
         raise CliError(f"--weights-dir: expected the folder train-arms --out DIR/<robot>_lwl2 wrote into, "
                        f"got {weights_dir!r} (no such folder)")
+    from engine.bench.options import check_style_options
     from engine.bench.retarget import check_clip_options
 
-    problem = check_clip_options(args.clips, args.budget, args.robots)
+    problem = (check_style_options(args.n, args.extent, args.duration, args.phases, args.n_per_kg)
+               or check_clip_options(args.clips, args.budget, args.robots))
     if problem:
         raise CliError(problem)
     check_ray_address(args.address)

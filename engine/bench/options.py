@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import math
 from collections.abc import Callable
 
 
@@ -17,6 +18,22 @@ def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed:
     parser.add_argument("--seed", type=int, default=seed, help="as the bench's --seed")
     parser.add_argument("--extent", type=float, default=extent, help="as the bench's --extent")
     parser.add_argument("--duration", type=float, default=duration_s, help="seconds of the sweep")
+
+
+def check_style_options(n: int, extent: float, duration_s: float, phases: int, n_per_kg: float) -> str | None:
+    """The one-line complaint about the styles / push sections' ``--n``, ``--extent``, ``--duration``, ``--phases``
+    or ``--n-per-kg``, or None."""
+    if not 1 <= n <= 10_000:
+        return f"--n: expected 1 ≤ styles ≤ 10000, got {n}"
+    if not (math.isfinite(extent) and 0.0 < extent <= 1.0):
+        return f"--extent: expected a share 0 < E ≤ 1 of each validated range, got {extent}"
+    if not (math.isfinite(duration_s) and 0.0 < duration_s <= 600.0):
+        return f"--duration: expected 0 < seconds ≤ 600, got {duration_s}"
+    if not 1 <= phases <= 64:
+        return f"--phases: expected 1 ≤ phases ≤ 64, got {phases}"
+    if not (math.isfinite(n_per_kg) and 0.0 <= n_per_kg <= 20.0):
+        return f"--n-per-kg: expected 0 ≤ N/kg ≤ 20, got {n_per_kg}"
+    return None
 
 
 def add_bench_options(parser: argparse.ArgumentParser) -> None:
