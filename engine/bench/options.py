@@ -21,8 +21,8 @@ def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed:
 
 
 def check_style_options(n: int, extent: float, duration_s: float, phases: int, n_per_kg: float) -> str | None:
-    """The one-line complaint about the styles / push sections' ``--n``, ``--extent``, ``--duration``, ``--phases``
-    or ``--n-per-kg``, or None."""
+    """The one-line complaint about the styles / push sections' ``--n``, ``--extent``, ``--duration`` (puppet's too),
+    ``--phases`` or ``--n-per-kg``, or None."""
     if not 1 <= n <= 10_000:
         return f"--n: expected 1 ≤ styles ≤ 10000, got {n}"
     if not (math.isfinite(extent) and 0.0 < extent <= 1.0):

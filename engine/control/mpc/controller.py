@@ -40,7 +40,7 @@ from engine.control.mpc.lip import _Segments
 from engine.control.mpc.osqp_backend import PaddedOsqp
 from engine.control.mpc.problem import _Condensed, _Problem, problem_numpy
 from engine.control.mpc.regions import _CONTAIN_TOL_M, _support_geometry_complex, _support_geometry_xy
-from engine.control.mpc.state_input import sanitize_state, state_floats
+from engine.control.mpc.state_input import FLOAT64_DTYPE, sanitize_state, state_floats
 from engine.control.mpc.types import (
     CONSTRAINT_TOL_M,
     MAX_STABILITY_WEIGHT,
@@ -380,19 +380,18 @@ class ComMpc:
         packed = _checked_packing(packed)
         if packed is not None and packed[0].shape[0] != len(supports):  # packed from other supports: not these
             packed = None
-        if packed is not None:  # packed by the caller (the planner's preview): the arrays built below
-            table, points = packed
-        else:
+        if packed is None:  # not packed by the caller (the planner's preview): the same arrays built here
             try:
                 polygons = [s.polygon for s in supports]
                 # (start, end, vertex count) of each support: the times converted as _build_problem converts them
-                table = np.array([(s.t_start_s, s.t_end_s, len(p)) for s, p in zip(supports, polygons)], dtype=float)
-                points = np.concatenate(polygons, casting="no")  # float64 polygons only (no conversion)
+                packed = _checked_packing((
+                    np.array([(s.t_start_s, s.t_end_s, len(p)) for s, p in zip(supports, polygons)], dtype=float),
+                    np.concatenate(polygons, casting="no")))  # float64 polygons only (no conversion)
             except (TypeError, ValueError, AttributeError):
                 return None
-            if table.ndim != 2 or table.shape[1] != 3 or points.dtype != np.float64 or points.ndim != 2 \
-                    or points.shape[1] != 2:
+            if packed is None:
                 return None
+        table, points = packed
         (keys_a, nrm_a), (keys_b, nrm_b) = two_newest(history)
         t_now, com_x, com_y, vel_x, vel_y, cop_x, cop_y, height = state
         w = self.weights
@@ -601,11 +600,9 @@ def _checked_packing(packed: object) -> tuple[FloatArray, FloatArray] | None:
     if not isinstance(table, np.ndarray) or not isinstance(points, np.ndarray):
         return None
     if table.ndim != 2 or table.shape[1] != 3 or points.ndim != 2 or points.shape[1] != 2 \
-            or not (table.dtype is _FLOAT64 or table.dtype == _FLOAT64) \
-            or not (points.dtype is _FLOAT64 or points.dtype == _FLOAT64) or not points.flags.c_contiguous \
+            or not (table.dtype is FLOAT64_DTYPE or table.dtype == FLOAT64_DTYPE) \
+            or not (points.dtype is FLOAT64_DTYPE or points.dtype == FLOAT64_DTYPE) or not points.flags.c_contiguous \
             or not table.flags.c_contiguous:  # (another layout would compile another plan_window mid-walk)
         return None
     return table, points
 
-
-_FLOAT64 = np.dtype(np.float64)

@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 from engine.control.mpc.types import FALLBACK_COM_HEIGHT_M
 
 FloatArray = NDArray[np.float64]
-_FLOAT64 = np.dtype(np.float64)  # (compared by identity first: a dtype compared with a type converts it each time)
+FLOAT64_DTYPE = np.dtype(np.float64)  # (compared by identity first: a dtype compared with a type converts it each time)
 
 
 def state_floats(t_now_s: object, com_xy_m: object, com_vel_xy_mps: object, cop_xy_m: object,
@@ -23,7 +23,7 @@ def state_floats(t_now_s: object, com_xy_m: object, com_vel_xy_mps: object, cop_
         return None
     values = [float(t_now_s)]  # type: ignore[arg-type]
     for v in (com_xy_m, com_vel_xy_mps, cop_xy_m):
-        if type(v) is not np.ndarray or (v.dtype is not _FLOAT64 and v.dtype != np.float64) or v.shape != (2,):
+        if type(v) is not np.ndarray or (v.dtype is not FLOAT64_DTYPE and v.dtype != np.float64) or v.shape != (2,):
             return None
         values += v.tolist()
     height = float(com_height_m)  # type: ignore[arg-type]
