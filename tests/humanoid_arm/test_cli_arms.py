@@ -224,3 +224,27 @@ def test_refinement_brings_lwl2_near_ik_and_stays_collision_free(shipped_g1):
     mean = {k: float(np.mean(v)) for k, v in hand.items()}
     assert mean["refined"] < 0.5 * mean["paper"], mean
     assert mean["refined"] < 1.5 * mean["ik"] + 0.005, mean
+
+
+@pytest.mark.parametrize("robot", ["g1", "talos"])
+def test_shipped_transition_graph_is_one_component_of_one_period_collision_free_edges(robot):
+    """§IV-C on the shipped weights: 10 k LA-DPP nodes (+ bridges) in one component, so BFS always finds a path;
+    every edge within one control period at the URDF velocity limits; the bridge poses and a sample of the
+    edges collision-free (the capsules); trained on CMU + synthetic poses only."""
+    from engine.retarget.humanoid_arm.metadata import check_metadata, weights_path
+
+    path = weights_path(robot)
+    if not path.with_suffix(".json").is_file():
+        pytest.skip(f"no shipped {robot} weights")
+    meta = check_metadata(path, robot)
+    assert meta["datasets"]["training_clips"] == ["131_01.bvh"] and "Bandai" not in meta["licence_of_training_data"]
+    arms = ArmRetargeter.load(robot)
+    g, ub = arms.graph, arms.ub
+    assert g is not None and g.sampled == meta["plan"]["graph_nodes"] == 10_000
+    assert g.component_sizes() == [len(g.nodes)] == [meta["graph"]["nodes"]]
+    max_step = np.maximum(np.array(ub.pin_model.velocityLimit)[ub.v_index] * meta["plan"]["control_period_s"], 0.05)
+    rows = np.repeat(np.arange(len(g.nodes)), np.diff(g.indptr))
+    assert np.all(np.abs(g.nodes[rows] - g.nodes[g.indices]) <= max_step)
+    assert all(arms.capsules.is_free(x) for x in g.bridges)
+    pick = np.random.default_rng(0).choice(len(rows), 100, replace=False)
+    assert all(arms.capsules.interpolation_free(g.nodes[rows[e]], g.nodes[g.indices[e]]) for e in pick)

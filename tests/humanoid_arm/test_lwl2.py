@@ -123,6 +123,38 @@ def test_transition_graph_edges_respect_step_and_collisions():
     assert g.components() == 2
 
 
+def test_bridges_join_an_isolated_node_one_period_per_edge():
+    """A node farther than one period from every other is linked by poses on the straight line to its nearest
+    (travel time), every edge within one period; a wall on every line keeps it apart."""
+    nodes = np.array([[0.0], [0.1], [0.2], [0.6]])
+    free = lambda a, b: True  # noqa: E731
+    assert TransitionGraph.build(nodes, np.array([0.15]), free, neighbours=4).component_sizes() == [3, 1]
+    g = TransitionGraph.build(nodes, np.array([0.15]), free, neighbours=4, bridge_candidates=5)
+    assert g.components() == 1 and g.sampled == 4
+    assert np.allclose(np.sort(g.bridges[:, 0]), [0.2 + 0.4 / 3, 0.2 + 0.8 / 3])  # 0.4 in three pieces of < 0.15
+    for i in range(len(g.nodes)):
+        for j in g.indices[g.indptr[i]:g.indptr[i + 1]]:
+            assert abs(g.nodes[i, 0] - g.nodes[j, 0]) <= 0.15
+    assert [float(p[0]) for p in g.path(np.array([0.0]), np.array([0.6]))] == pytest.approx([0.0, 0.1, 0.2, 0.2 + 0.4 / 3, 0.2 + 0.8 / 3, 0.6])
+    walled = lambda a, b: not (min(a[0], b[0]) < 0.4 < max(a[0], b[0]))  # noqa: E731
+    g = TransitionGraph.build(nodes, np.array([0.15]), walled, neighbours=4, bridge_candidates=5)
+    assert g.component_sizes() == [3, 1] and len(g.bridges) == 0
+
+
+def test_bridges_join_every_component_into_one():
+    """Clusters two to three periods apart on a line: each joins the rest (smallest first), no walls."""
+    rng = np.random.default_rng(0)
+    centres = [0.0, 1.0, 2.5, 3.2]
+    nodes = np.concatenate([c + rng.uniform(-0.05, 0.05, (5 if c else 20, 2)) for c in centres])
+    g0 = TransitionGraph.build(nodes, np.array([0.3, 0.3]), lambda a, b: True, neighbours=6)
+    assert g0.component_sizes() == [20, 5, 5, 5]
+    g = TransitionGraph.build(nodes, np.array([0.3, 0.3]), lambda a, b: True, neighbours=6, bridge_candidates=3)
+    assert g.components() == 1 and len(g.bridges) > 0
+    for i in range(len(g.nodes)):
+        for j in g.indices[g.indptr[i]:g.indptr[i + 1]]:
+            assert np.all(np.abs(g.nodes[i] - g.nodes[j]) <= 0.3)
+
+
 def test_cancelled_training_resumes_to_the_same_weights(tmp_path):
     """A run cancelled mid-way and resumed from its checkpoint ends with exactly the weights of a run that
     was never interrupted (saved optimiser and random states); a checkpoint of another config is refused."""

@@ -2,7 +2,15 @@
 two poses whose straight-line interpolation is collision-free and short enough to be covered within one
 control period at the joints' velocity limits. When the direct interpolation from the current pose to a
 new target collides, both are matched to their nearest nodes and breadth-first search gives the
-shortest (fewest-edges) path, which is then followed one node per control period.
+shortest (fewest-edges) path, which is then followed one node per control period. The current pose is matched
+to the nearest node the straight move from it reaches (:meth:`TransitionGraph.entry`): the paper's nearest node
+can be behind a collision, and the arm then holds its pose until the target moves.
+
+A sampled pose whose every neighbour is more than one period away (or behind a collision) would make its own
+component, and BFS from it finds nothing. :meth:`TransitionGraph.build` therefore joins the components: the
+nearest pair of poses (in travel time) between a component and the rest whose straight interpolation is
+collision-free is linked through poses on that line, spaced at most one period apart (*bridge* nodes, appended
+after the sampled ones) — so every edge still keeps the one-period, collision-free rule.
 """
 
 from __future__ import annotations
@@ -11,7 +19,11 @@ from collections import deque
 from typing import Callable
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+
+InterpolationFree = Callable[[np.ndarray, np.ndarray], bool]
 
 
 def bfs_path(indptr: np.ndarray, indices: np.ndarray, start: int, goal: int) -> list[int] | None:
@@ -35,57 +47,132 @@ def bfs_path(indptr: np.ndarray, indices: np.ndarray, start: int, goal: int) -> 
     return None
 
 
+def _csr(adj: list[set[int]]) -> tuple[np.ndarray, np.ndarray]:
+    indptr = np.zeros(len(adj) + 1, dtype=np.int64)
+    indptr[1:] = np.cumsum([len(a) for a in adj])
+    indices = np.array([j for a in adj for j in sorted(a)], dtype=np.int64)
+    return indptr, indices
+
+
+def _labels(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Connected-component label of every node (scipy's union of the CSR adjacency)."""
+    n = len(indptr) - 1
+    graph = csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def _join_components(nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_free: InterpolationFree,
+                     adj: list[set[int]], candidates: int) -> list[np.ndarray]:
+    """Link every component but the largest to another one (smallest first) through bridge poses on the straight,
+    collision-free line between their nearest pair; ``adj`` grows by the bridges' edges. Each component tries its
+    ``candidates`` nearest outside pairs (travel time: max_j |Δq_j| / max_step_j); one that none of them reaches
+    stays apart. Returns the bridge poses (node ids len(nodes), len(nodes) + 1, …)."""
+    scaled = nodes / max_step_rad
+    bridges: list[np.ndarray] = []
+    labels = _labels(*_csr(adj))[: len(nodes)]
+    tried: set[int] = set()  # labels of components none of whose candidates could be linked
+    while True:
+        sizes = np.bincount(labels)
+        live = [int(c) for c in np.argsort(sizes, kind="stable") if sizes[c] > 0]  # the largest last
+        pending = [c for c in live[:-1] if c not in tried]
+        if not pending:
+            break
+        c = pending[0]
+        members = np.nonzero(labels == c)[0]
+        others = np.nonzero(labels != c)[0]
+        dist, near = cKDTree(scaled[others]).query(scaled[members], k=min(candidates, len(others)), p=np.inf)
+        dist, near = np.reshape(dist, (len(members), -1)), np.reshape(near, (len(members), -1))
+        pairs = sorted((float(dist[a, b]), int(members[a]), int(others[near[a, b]]))
+                       for a in range(len(members)) for b in range(dist.shape[1]))[:candidates]
+        linked = False
+        for d, i, j in pairs:
+            segments = int(np.floor(d)) + 1  # each piece strictly shorter than one period
+            line = [nodes[i] + (t / segments) * (nodes[j] - nodes[i]) for t in range(1, segments)]
+            chain = [nodes[i], *line, nodes[j]]
+            if not all(np.all(np.abs(b - a) <= max_step_rad) and interpolation_free(a, b) for a, b in zip(chain, chain[1:])):
+                continue
+            ids = [i, *range(len(nodes) + len(bridges), len(nodes) + len(bridges) + len(line)), j]
+            bridges.extend(line)
+            adj.extend(set() for _ in line)
+            for a, b in zip(ids, ids[1:]):
+                adj[a].add(b)
+                adj[b].add(a)
+            labels[labels == c] = labels[j]
+            linked = True
+            break
+        if not linked:
+            tried.add(c)
+    return bridges
+
+
 class TransitionGraph:
-    def __init__(self, nodes: np.ndarray, indptr: np.ndarray, indices: np.ndarray):
+    def __init__(self, nodes: np.ndarray, indptr: np.ndarray, indices: np.ndarray, sampled: int | None = None):
+        """``nodes``: the sampled poses, then the bridge poses (``sampled``: how many are sampled; default all)."""
         self.nodes, self.indptr, self.indices = nodes, indptr, indices
+        self.sampled = len(nodes) if sampled is None else int(sampled)
         self.tree = cKDTree(nodes)
 
     @classmethod
-    def build(cls, nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_free: Callable[[np.ndarray, np.ndarray], bool],
-              neighbours: int = 12, progress: Callable[[int, int], None] | None = None) -> "TransitionGraph":
-        """Edges to up to ``neighbours`` nearest nodes reachable in one period (|Δq_j| ≤ max_step_rad_j)."""
-        tree = cKDTree(nodes / max_step_rad)
+    def build(cls, nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_free: InterpolationFree,
+              neighbours: int = 12, progress: Callable[[int, int], None] | None = None,
+              bridge_candidates: int = 0) -> "TransitionGraph":
+        """Each node tries the nodes within one period (|Δq_j| ≤ max_step_rad_j), nearest in travel time first,
+        until it has ``neighbours`` collision-free edges (at most 3 × ``neighbours`` tried). ``bridge_candidates``
+        > 0: the components are then joined (:func:`_join_components`)."""
+        scaled = nodes / max_step_rad
+        tree = cKDTree(scaled)
         adj: list[set[int]] = [set() for _ in range(len(nodes))]
+        k = min(3 * neighbours + 1, len(nodes))
         for i in range(len(nodes)):
-            _, idx = tree.query(nodes[i] / max_step_rad, k=min(neighbours + 1, len(nodes)))
-            for j in np.atleast_1d(idx):
-                j = int(j)
-                if j == i or j in adj[i]:
-                    continue
-                if np.all(np.abs(nodes[j] - nodes[i]) <= max_step_rad) and interpolation_free(nodes[i], nodes[j]):
-                    adj[i].add(j)
-                    adj[j].add(i)
+            if len(adj[i]) < neighbours:
+                dist, idx = tree.query(scaled[i], k=k, p=np.inf, distance_upper_bound=1.0 + 1e-9)
+                for d, j in zip(np.atleast_1d(dist), np.atleast_1d(idx)):
+                    j = int(j)
+                    if not np.isfinite(d) or len(adj[i]) >= neighbours:
+                        break
+                    if j == i or j in adj[i] or not np.all(np.abs(nodes[j] - nodes[i]) <= max_step_rad):
+                        continue
+                    if interpolation_free(nodes[i], nodes[j]):
+                        adj[i].add(j)
+                        adj[j].add(i)
             if progress is not None and (i + 1) % 200 == 0:
                 progress(i + 1, len(nodes))
-        indptr = np.zeros(len(nodes) + 1, dtype=np.int64)
-        indptr[1:] = np.cumsum([len(a) for a in adj])
-        indices = np.array([j for a in adj for j in sorted(a)], dtype=np.int64)
-        return cls(nodes, indptr, indices)
+        bridges = _join_components(nodes, max_step_rad, interpolation_free, adj, bridge_candidates) if bridge_candidates > 0 else []
+        all_nodes = np.concatenate([nodes, np.array(bridges).reshape(-1, nodes.shape[1])]) if bridges else nodes
+        return cls(all_nodes, *_csr(adj), sampled=len(nodes))
+
+    @property
+    def bridges(self) -> np.ndarray:
+        """The bridge poses (appended after the sampled nodes)."""
+        return self.nodes[self.sampled:]
 
     def nearest(self, x: np.ndarray) -> int:
         return int(self.tree.query(x)[1])
 
-    def path(self, x_from: np.ndarray, x_to: np.ndarray) -> list[np.ndarray] | None:
-        """Node poses from near ``x_from`` to near ``x_to`` (None when not connected)."""
-        ids = bfs_path(self.indptr, self.indices, self.nearest(x_from), self.nearest(x_to))
+    def entry(self, x: np.ndarray, reachable: InterpolationFree, candidates: int = 8) -> int | None:
+        """The nearest of the ``candidates`` nodes nearest to ``x`` that the straight move from ``x`` reaches
+        (``reachable(x, node)``; a node at ``x`` itself always), else None."""
+        _, near = self.tree.query(x, k=min(candidates, len(self.nodes)))
+        for j in np.atleast_1d(near):
+            if np.max(np.abs(self.nodes[j] - x)) < 1e-9 or reachable(x, self.nodes[j]):
+                return int(j)
+        return None
+
+    def path(self, x_from: np.ndarray, x_to: np.ndarray, reachable: InterpolationFree | None = None,
+             candidates: int = 8) -> list[np.ndarray] | None:
+        """Node poses from near ``x_from`` to near ``x_to`` (None when not connected). The path starts at the node
+        nearest to ``x_from`` (the paper), or with ``reachable`` at the nearest one the straight move from ``x_from``
+        reaches (:meth:`entry`; None when none of the ``candidates`` nearest is), so its first step is feasible."""
+        start = self.nearest(x_from) if reachable is None else self.entry(x_from, reachable, candidates)
+        ids = None if start is None else bfs_path(self.indptr, self.indices, start, self.nearest(x_to))
         return None if ids is None else [self.nodes[i] for i in ids]
 
+    def component_sizes(self) -> list[int]:
+        """Node count of every connected component, largest first."""
+        return sorted(np.bincount(_labels(self.indptr, self.indices)).tolist(), reverse=True)
+
     def components(self) -> int:
-        seen = np.zeros(len(self.nodes), dtype=bool)
-        count = 0
-        for s in range(len(self.nodes)):
-            if seen[s]:
-                continue
-            count += 1
-            seen[s] = True
-            queue = deque([s])
-            while queue:
-                u = queue.popleft()
-                for v in self.indices[self.indptr[u]:self.indptr[u + 1]]:
-                    if not seen[v]:
-                        seen[v] = True
-                        queue.append(v)
-        return count
+        return len(self.component_sizes())
 
 
 __all__ = ["bfs_path", "TransitionGraph"]

@@ -8,7 +8,8 @@ collision-free upper-body joint targets with collision-free transitions.
 
 Per call: encode (mocap WAE encoder) → LWR with k = 3 → 1 (:mod:`lwr`) → refinement (below) → if the
 straight interpolation from the previous output to the new pose collides, one step along the BFS path of
-the transition graph (:mod:`graph`), or hold the previous pose when the graph offers nothing collision-free.
+the transition graph (:mod:`graph`; entered at the nearest node the straight move reaches), or hold the previous
+pose when the graph offers nothing collision-free.
 
 Refinement (``refine_iters``, default :data:`REFINE_ITERS`; 0 = the paper's LWL2 unchanged): a few damped
 Gauss–Newton steps of the optimisation-based objective (:meth:`ik.ArmIK.gauss_newton`: bone directions and hand
@@ -113,8 +114,10 @@ class ArmRetargeter:
         poses = extra["robot_poses"].astype(np.float64)
         graph = None
         if "graph_nodes" in extra:
-            graph = TransitionGraph(poses[extra["graph_nodes"].astype(np.int64)], extra["graph_indptr"].astype(np.int64),
-                                    extra["graph_indices"].astype(np.int64))
+            sampled = poses[extra["graph_nodes"].astype(np.int64)]
+            bridges = extra.get("graph_bridge_poses", np.zeros((0, ub.n))).astype(np.float64).reshape(-1, ub.n)
+            graph = TransitionGraph(np.concatenate([sampled, bridges]), extra["graph_indptr"].astype(np.int64),
+                                    extra["graph_indices"].astype(np.int64), sampled=len(sampled))
         ff = None
         if meta.get("feed_forward"):
             from engine.retarget.humanoid_arm.feed_forward import load_feed_forward
@@ -166,7 +169,9 @@ class ArmRetargeter:
     def _graph_step(self, target: np.ndarray) -> tuple[np.ndarray, str]:
         assert self.current is not None
         if self.graph is not None:
-            path = self.graph.path(self.current, target)
+            # entered at the nearest node the straight move reaches (the paper's nearest node may be behind a
+            # collision: the arm would hold there until the target moves)
+            path = self.graph.path(self.current, target, self.capsules.interpolation_free)
             if path is not None:
                 # the first node not yet reached, if the move there is collision-free
                 for node in path:

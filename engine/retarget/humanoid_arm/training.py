@@ -33,21 +33,21 @@ class ArmTrainingPlan:
     train: TrainConfig
     latent_dim: int = 8
     hidden: int = 128
-    graph_nodes: int = 3000
-    graph_neighbours: int = 10
+    graph_nodes: int = 10_000  # the paper's 10 k, LA-DPP-sampled over the whole robot table
+    graph_neighbours: int = 10  # collision-free edges each node looks for among the nodes within one period
     # A graph edge must be coverable within this period at the joints' URDF velocity limits. One mocap frame
-    # (1/30 s) gives G1 (30–37 rad/s) ~1 rad edges but TALOS (2.7–5.4 rad/s) 0.1–0.2 rad: no edges among a
-    # few thousand nodes in 10-D; 0.2 s keeps both graphs connected enough (the paper: 10 k nodes).
+    # (1/30 s) allows G1 (30–37 rad/s) ~1 rad but TALOS (2.7–5.4 rad/s) 0.1–0.2 rad per joint: among 10 k nodes
+    # in 10-D, TALOS's nearest node is then a median 3.7 periods away (no graph). At 0.2 s G1's bound (6–7 rad)
+    # exceeds its joint ranges (only collisions limit its edges); TALOS's (0.54–1.08 rad) leaves ~1 % of its
+    # 10 k nodes with no node within one period: the bridges join them (graph.py), still one period per edge.
     control_period_s: float = 0.2
+    graph_bridge_candidates: int = 20  # nearest outside pairs a component tries for a bridge (0: no bridges)
     ff_iterations: int = 2000
 
     @classmethod
     def full(cls, robot: str = "g1") -> "ArmTrainingPlan":
-        """The plan of the shipped weights (``studio train-arms --robot R`` reproduces them). TALOS: smaller
-        sets and fewer iterations (its slower joints make a sparser graph: more nodes instead)."""
-        if robot == "talos":
-            return cls(DatasetSizes(glue_clip_stride=4, glue_synthetic=200, robot=10_000),
-                       TrainConfig(iterations=1500, la_dpp_chunk=1024), graph_nodes=5000)
+        """The plan of the shipped weights (``studio train-arms --robot R`` reproduces them); the same for every
+        robot (TALOS trains in about as much CPU time as G1)."""
         return cls(DatasetSizes(), TrainConfig(iterations=3000, la_dpp_chunk=2048))
 
     @classmethod
@@ -66,13 +66,16 @@ def robot_features(ub: UpperBody, poses: np.ndarray) -> np.ndarray:
 
 
 def build_transition_graph(cm: CapsuleModel, poses: np.ndarray, feats: np.ndarray, plan: ArmTrainingPlan,
-                           rng: np.random.Generator, progress: Callable[[int, int], None] | None = None):
-    """LA-DPP-sampled nodes of the robot table and their collision-free, one-period edges."""
+                           rng: np.random.Generator, progress: Callable[[int, int], None] | None = None
+                           ) -> tuple[np.ndarray, TransitionGraph]:
+    """LA-DPP-sampled nodes of the robot table (the greedy selection over the whole table, not a random chunk of
+    it), their collision-free, one-period edges and the bridges joining the components."""
     ub = cm.ub
-    node_idx = np.sort(la_dpp_indices(feats, min(plan.graph_nodes, len(poses)), rng))
+    node_idx = np.sort(la_dpp_indices(feats, min(plan.graph_nodes, len(poses)), rng, chunk=len(poses)))
     velocity = np.array(ub.pin_model.velocityLimit)[ub.v_index]
     max_step = np.maximum(velocity * plan.control_period_s, 0.05)
-    graph = TransitionGraph.build(poses[node_idx], max_step, cm.interpolation_free, plan.graph_neighbours, progress)
+    graph = TransitionGraph.build(poses[node_idx], max_step, cm.interpolation_free, plan.graph_neighbours, progress,
+                                  bridge_candidates=plan.graph_bridge_candidates)
     return node_idx, graph
 
 
@@ -159,6 +162,7 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
     node_idx, graph = build_transition_graph(cm, ds.robot, feats, plan, rng, lambda i, n: say("graph", i, n))
     if should_stop is not None and should_stop():
         raise KeyboardInterrupt
+    sizes = graph.component_sizes()
     meta = {
         "format": "lwl2-arms/1", "robot": robot, "joint_names": ub.joint_names,
         "normalisation": {k: dict(zip(("mean", "std"), (a.tolist() for a in model.normalisation_of(k))))
@@ -166,8 +170,9 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
         "dataset_sizes": ds.sizes(), "datasets": ds.info, "licence_of_training_data": ds.info["licence"],
         "plan": {"sizes": asdict(plan.sizes), "train": asdict(plan.train), "latent_dim": plan.latent_dim,
                  "hidden": plan.hidden, "graph_nodes": int(len(node_idx)), "graph_neighbours": plan.graph_neighbours,
-                 "control_period_s": plan.control_period_s},
-        "graph": {"nodes": int(len(node_idx)), "edges": int(len(graph.indices) // 2), "components": graph.components()},
+                 "control_period_s": plan.control_period_s, "graph_bridge_candidates": plan.graph_bridge_candidates},
+        "graph": {"nodes": int(len(graph.nodes)), "sampled_nodes": int(len(node_idx)), "bridge_nodes": int(len(graph.bridges)),
+                  "edges": int(len(graph.indices) // 2), "components": len(sizes), "component_sizes": sizes[:10]},
         "capsules": [{"name": c.name, "radius_m": round(c.radius, 4), "length_m": round(float(np.linalg.norm(c.b - c.a)), 4)}
                      for c in cm.capsules],
         "feed_forward": True,
@@ -175,6 +180,7 @@ def train_arms(robot: str, plan: ArmTrainingPlan, out: Path | None = None, progr
     }
     save_weights(model, out, {"robot_poses": ds.robot.astype(np.float64),  # float64: k = 1 must stay exactly collision-free
                               "graph_nodes": node_idx.astype(np.int32),
+                              "graph_bridge_poses": graph.bridges.astype(np.float64).reshape(-1, ub.n),
                               "graph_indptr": graph.indptr.astype(np.int64), "graph_indices": graph.indices.astype(np.int32)},
                  meta)
     save_feed_forward(ff, out)
