@@ -63,6 +63,32 @@ def open_page(url: str, width: int = 900, height: int = 640):
             browser.close()
 
 
+@contextlib.contextmanager
+def started_studio(robot: str = "g1", styles_folder: Path | None = None):
+    """A :class:`studio.app.Studio` of ``robot`` started on a free local port (``styles_folder``: a copy made by
+    :func:`copy_styles`, or None for the retarget-only robots), stopped however the test ends."""
+    from studio.app import Studio
+    from tests.conftest import free_port
+
+    kwargs = {} if styles_folder is None else {"styles_folder": styles_folder}
+    studio = Studio(robot, port=free_port(), **kwargs).start()
+    try:
+        yield studio
+    finally:
+        studio.stop()
+
+
+@contextlib.contextmanager
+def engine_page(studio, width: int, height: int, ready_text: str = "Engine running", load_s: float = 240.0):
+    """A page on ``studio`` once its models have loaded and the page shows ``ready_text``, with viser's
+    software-WebGL notice closed (a loaded machine builds the models slowly: ``load_s`` is a stall guard)."""
+    assert studio.loaded.wait(stall_s(load_s)), "the studio's models did not load"
+    with open_page(studio.url, width, height) as page:
+        wait_for_text(page, ready_text, timeout_ms=240_000)
+        close_software_webgl_notice(page)
+        yield page
+
+
 def wait_for_text(page, text: str, timeout_ms: int = 60_000) -> None:
     page.wait_for_function("t => document.body.innerText.includes(t)", arg=text, timeout=stall_ms(timeout_ms))
 

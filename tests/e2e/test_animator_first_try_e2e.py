@@ -15,8 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from tests.conftest import free_port
-from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, stall_s, wait_for_text
+from tests.e2e.browser import copy_styles, engine_page, started_studio, wait_for_text
 from tests.e2e.browser import wait_value as _wait
 
 pytestmark = pytest.mark.e2e
@@ -52,16 +51,11 @@ def _uplot(page, uuid: str) -> dict | None:
 
 
 def test_an_animators_first_try(tmp_path, artifacts):
-    from studio.app import Studio
     from studio.panels.curve_editor import KnotRef, project_to_screen
 
     styles = copy_styles(tmp_path)
-    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
-    try:
-        assert studio.loaded.wait(stall_s(120))
-        with open_page(studio.url, 1000, 680) as page:
-            wait_for_text(page, "Engine running", timeout_ms=240_000)
-            close_software_webgl_notice(page)
+    with started_studio("g1", styles) as studio:
+        with engine_page(studio, 1000, 680, load_s=120) as page:
 
             # ---- The side panel: its tabs on one row; a text field found by its label (the Style tab's name)
             tabs = page.get_by_role("tab")
@@ -198,5 +192,3 @@ def test_an_animators_first_try(tmp_path, artifacts):
             rotated = 1 - abs(float(np.dot(np.asarray(client.camera.wxyz), wxyz_before)))
             assert rotated < 1e-4, "the drag rotated the camera instead of moving the knot"
             assert studio.session.dirty
-    finally:
-        studio.stop()

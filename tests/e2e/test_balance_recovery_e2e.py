@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.conftest import free_port
-from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, stall_s, wait_for_text, wait_until
+from tests.e2e.browser import copy_styles, engine_page, stall_s, started_studio, wait_for_text, wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -15,19 +14,14 @@ pytestmark = pytest.mark.e2e
 def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path, artifacts):
     from engine.gait.style import StyleContext, load_style, save_style
     from engine.gait.style_space import random_style
-    from studio.app import Studio
 
     styles = copy_styles(tmp_path)
     ctx = StyleContext.for_robot("g1")
     neutral = load_style(styles / "g1" / "neutral.json", ctx)
     # a valid style an animator could have made (the one tests/control/test_recovery_blend.py pushes in closed loop)
     save_style(styles / "g1" / "wobbly.json", random_style(np.random.default_rng(3), ctx, neutral, 0.3, name="wobbly"))
-    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
-    try:
-        assert studio.loaded.wait(stall_s(240))
-        with open_page(studio.url, 1000, 700) as page:
-            wait_for_text(page, "Engine running", timeout_ms=240_000)
-            close_software_webgl_notice(page)
+    with started_studio("g1", styles) as studio:
+        with engine_page(studio, 1000, 700) as page:
             page.get_by_role("tab", name="Style").click(force=True)
             browser = studio.style_browser
             browser.dropdown.value = "wobbly"
@@ -53,5 +47,3 @@ def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path,
             page.wait_for_function("() => !document.body.innerText.includes('balance recovery')",
                                    timeout=int(1000 * stall_s(300)))
             assert "fallen" not in studio.robot_panel.status.content
-    finally:
-        studio.stop()

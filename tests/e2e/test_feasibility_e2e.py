@@ -8,21 +8,16 @@ from __future__ import annotations
 import pytest
 
 from engine.gait.curve_editing import KnotRef
-from tests.e2e.browser import copy_styles, open_page, stall_s, wait_for_text
+from tests.e2e.browser import copy_styles, engine_page, started_studio, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
 
 def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
-    from studio.app import Studio
-    from tests.conftest import free_port
 
     styles = copy_styles(tmp_path)
-    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
-    try:
-        assert studio.loaded.wait(stall_s(240))  # a loaded machine builds the models slowly
-        with open_page(studio.url, 1000, 720) as page:
-            wait_for_text(page, "Engine running", timeout_ms=240_000)
+    with started_studio("g1", styles) as studio:
+        with engine_page(studio, 1000, 720) as page:
             page.get_by_role("tab", name="Sample").click(force=True)
             editor = studio.sample_editor
             editor.select("forward_fast")
@@ -49,8 +44,6 @@ def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
             assert "forward_fast" in text and "% of the cycle" in text and "further apart" in text
             page.screenshot(path=str(artifacts / "studio_sample_feasibility_curve_rate.png"))
             _undo_until_the_warning_goes(page, "left_foot.z curve")
-    finally:
-        studio.stop()
 
 
 def _undo_until_the_warning_goes(page, warning: str) -> None:

@@ -9,6 +9,7 @@ same phase. No wait depends on machine speed (wall-clock limits are only generou
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 
@@ -17,8 +18,7 @@ import pytest
 
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from engine.retarget.humanoid_arm.puppet_session import puppet_clips
-from tests.conftest import free_port
-from tests.e2e.browser import close_software_webgl_notice, copy_styles, open_page, stall_ms, stall_s, wait_for_text
+from tests.e2e.browser import close_software_webgl_notice, copy_styles, engine_page, stall_ms, started_studio, wait_for_text
 from tests.e2e.browser import wait_value as _wait
 
 pytestmark = pytest.mark.e2e
@@ -167,19 +167,14 @@ def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, j
 def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, artifacts):
     from engine.retarget.humanoid_arm.style_curves import gesture_curves
     from engine.retarget.humanoid_arm.upper_body import SPECS
-    from studio.app import Studio
 
     clips = puppet_clips()
     if not clips:
         pytest.skip("shared mocap clips absent (set MOTION_STUDIO_SHARED)")
     joints = list(SPECS["g1"]().joints)
-    studio = Studio("g1", port=free_port(), styles_folder=copy_styles(tmp_path)).start()
-    tap = EngineTap(studio, joints)
-    try:
-        assert studio.loaded.wait(stall_s(240))
-        with open_page(studio.url, 1000, 760) as page:
-            wait_for_text(page, "Engine running", 240_000)
-            close_software_webgl_notice(page)
+    with started_studio("g1", copy_styles(tmp_path)) as studio:
+        tap = EngineTap(studio, joints)
+        with engine_page(studio, 1000, 760) as page:
             page.get_by_role("tab", name="Mocap").click()  # the mocap workspaces share one tab (one row of tabs)
             page.get_by_role("tab", name="Puppet").click()
             wait_for_text(page, "Puppet: idle")
@@ -241,8 +236,6 @@ def test_a_puppet_gesture_becomes_the_walks_arm_curves_and_is_undone(tmp_path, a
             print(f"walk after undo: RMS {rms_previous:.3f} rad to the previous curves, {rms_gesture:.3f} to the gesture")
             assert rms_previous < 0.12 and rms_previous < 0.4 * rms_gesture, (rms_previous, rms_gesture, studio.notices[-5:])
             page.screenshot(path=str(artifacts / "puppet_gesture_undone.png"))
-    finally:
-        studio.stop()
 
 
 def _tinted_pixels(rgb: np.ndarray) -> int:
@@ -269,14 +262,10 @@ def test_puppet_capsules_ride_the_robot_and_a_recorded_take_exports(tmp_path, ar
         pytest.skip("shared mocap clips absent (set MOTION_STUDIO_SHARED)")
     motions = tmp_path / "motions"
     monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(motions))
-    studio = _start_g1_studio(tmp_path)
     busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     busy.bind(("127.0.0.1", 0))
-    try:
-        assert studio.loaded.wait(stall_s(240))
-        with open_page(studio.url, 820, 560) as page:
-            wait_for_text(page, "Engine running", 240_000)
-            close_software_webgl_notice(page)
+    with contextlib.closing(busy), started_studio("g1", copy_styles(tmp_path)) as studio:
+        with engine_page(studio, 820, 560) as page:
             page.get_by_role("tab", name="Mocap").click()
             page.get_by_role("tab", name="Puppet").click()
             wait_for_text(page, "Puppet: idle")
@@ -341,12 +330,3 @@ def test_puppet_capsules_ride_the_robot_and_a_recorded_take_exports(tmp_path, ar
             for k, tk in enumerate(t_rec[0] + grid):  # each frame: the latest recorded LWL2 output
                 np.testing.assert_array_equal(arm_q[k], q_rec[np.flatnonzero(t_rec <= tk + 1e-9)[-1]])
             np.testing.assert_allclose(motion.joints[:, [motion.joint_names.index(j) for j in joints]], arm_q)
-    finally:
-        busy.close()
-        studio.stop()
-
-
-def _start_g1_studio(tmp_path):
-    from studio.app import Studio
-
-    return Studio("g1", port=free_port(), styles_folder=copy_styles(tmp_path)).start()

@@ -10,7 +10,7 @@ import pytest
 
 from engine.motion_files import shared_root
 from tests.conftest import ServedStudio
-from tests.e2e.browser import open_page, stall_ms, stall_s, wait_for_text
+from tests.e2e.browser import engine_page, open_page, stall_ms, started_studio, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -151,8 +151,6 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
     from engine.jobs import body_poses
     from engine.retarget.importers import import_source
     from engine.retarget.motion import RobotMotion
-    from studio.app import Studio
-    from tests.conftest import free_port
     from tests.e2e.browser import close_software_webgl_notice, wait_value
 
     shared = shared_root()
@@ -162,13 +160,9 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
     monkeypatch.setenv("MOTION_STUDIO_MOTIONS", str(motions))
     (motions / "source").mkdir(parents=True)
     import_source(shared / "motions-src" / TROT0).save(motions / "source" / "trot0.npz")
-    studio = Studio("go1", port=free_port()).start()
-    try:
-        assert studio.loaded.wait(stall_s(180))
+    with started_studio("go1") as studio:
         panel = studio.retarget
-        with open_page(studio.url, 900, 700) as page:
-            wait_for_text(page, "Job: idle", 240_000)
-            close_software_webgl_notice(page)
+        with engine_page(studio, 900, 700, ready_text="Job: idle", load_s=180) as page:
             for label, option in (("Source", "source/trot0.npz"), ("Method", "stmr")):
                 text_input(page, label).click()
                 page.get_by_role("option", name=option, exact=True).click()
@@ -253,5 +247,3 @@ def test_stmr_result_plays_in_physics_beside_the_smr_ghost(tmp_path, monkeypatch
                                    arg=float(np.linalg.norm(eye)), timeout=stall_ms(60_000))
             close_software_webgl_notice(page)
             page.locator("canvas").first.screenshot(path=str(artifacts / "retarget_stmr_closeup.png"))
-    finally:
-        studio.stop()

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from tests.e2e.browser import copy_styles, open_page, stall_s, wait_for_text
+from tests.e2e.browser import copy_styles, engine_page, open_page, started_studio, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
@@ -153,29 +153,24 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
 
     import numpy as np
 
-    from studio.app import Studio
     from studio.panels.curve_editor import KnotRef, project_to_screen
-    from tests.conftest import free_port
     from tests.e2e.browser import wait_until
 
     styles = copy_styles(tmp_path)
-    studio = Studio("g1", port=free_port(), styles_folder=styles).start()
-    heights: list[tuple[float, float]] = []
-    lock = threading.Lock()
-    original_update = studio.view.update
+    with started_studio("g1", styles) as studio:
+        heights: list[tuple[float, float]] = []
+        lock = threading.Lock()
+        original_update = studio.view.update
 
-    def record(frame):
-        original_update(frame)
-        names = studio.view.body_names
-        if "left_ankle_roll_link" in names:
-            with lock:
-                heights.append((frame.sim_time_s, float(frame.body_pos[names.index("left_ankle_roll_link")][2])))
+        def record(frame):
+            original_update(frame)
+            names = studio.view.body_names
+            if "left_ankle_roll_link" in names:
+                with lock:
+                    heights.append((frame.sim_time_s, float(frame.body_pos[names.index("left_ankle_roll_link")][2])))
 
-    studio.view.update = record
-    try:
-        assert studio.loaded.wait(stall_s(60))
-        with open_page(studio.url, 1100, 720) as page:
-            wait_for_text(page, "Engine running")
+        studio.view.update = record
+        with engine_page(studio, 1100, 720, load_s=60) as page:
             studio.drive.follow.value = False
             page.get_by_role("button", name="Edit").click()
             wait_for_text(page, "edit mode", timeout_ms=30_000)
@@ -232,5 +227,3 @@ def test_dragging_a_curve_knot_changes_the_style_and_the_robots_motion(tmp_path,
             apex_after = swing_apex(t_after + 1.0, t_after + 3.0)
             page.screenshot(path=str(artifacts / "studio_edit_mode_curve_drag.png"))
             assert apex_after > apex_before + 0.01, (apex_before, apex_after)
-    finally:
-        studio.stop()
