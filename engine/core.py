@@ -253,10 +253,12 @@ class EngineCore:
         self._stand_by_s = None
 
     def _start_puppet(self, options: dict) -> None:
-        from engine.retarget.humanoid_arm.puppet_session import LIVE_CLEARANCE_M, PuppetSession, open_source
+        from engine.retarget.humanoid_arm.puppet_session import PuppetSession, open_source
         from engine.retarget.humanoid_arm.puppeteer import ArmRetargeter
 
-        arms = ArmRetargeter.load(self.robot.name, clearance_m=LIVE_CLEARANCE_M)  # ValueError: no weights
+        # the targets keep robots/<name>.toml's [upper_body] puppet_clearance_m between the capsules (the simulated arms
+        # lag them); ValueError: no weights
+        arms = ArmRetargeter.load(self.robot.name, clearance_m=self.robot.config.puppet_clearance_m)
         source = open_source(options)
         self._close_puppet()
         assert self.ctx is not None  # a walking robot has its style context

@@ -136,3 +136,16 @@ def test_curve_rate_bounds_come_from_the_config(tmp_path):
         load_config(_write(tmp_path, "g1", text.replace("foot_angle_radps = 3.8", 'foot_angle_radps = "fast"')))
     with pytest.raises(RobotConfigError, match=r"gait.curve_rates.foot_angle_rps: unknown field \(did you mean 'foot_angle_radps'\?\)"):
         load_config(_write(tmp_path, "g1", text.replace("foot_angle_radps = 3.8", "foot_angle_rps = 3.8")))
+
+
+def test_puppet_clearance_comes_from_the_config(tmp_path):
+    """[upper_body] puppet_clearance_m: metres in [0, 0.1]; left out (TALOS) it is 1 cm."""
+    assert load_robot_config("talos").puppet_clearance_m == 0.01
+    assert load_robot_config("g1").puppet_clearance_m == 0.015
+    text = (robots_dir() / "g1.toml").read_text()
+    assert "puppet_clearance_m = 0.015\n" in text
+    assert load_config(_write(tmp_path, "g1", text.replace("puppet_clearance_m = 0.015\n", ""))).puppet_clearance_m == 0.01
+    with pytest.raises(RobotConfigError, match=r"^g1.toml: upper_body.puppet_clearance_m: expected metres in \[0, 0.1\]"):
+        load_config(_write(tmp_path, "g1", text.replace("puppet_clearance_m = 0.015", "puppet_clearance_m = 5")))
+    with pytest.raises(RobotConfigError, match=r"^g1.toml: upper_body.puppet_clearance_m: expected a number"):
+        load_config(_write(tmp_path, "g1", text.replace("puppet_clearance_m = 0.015", 'puppet_clearance_m = "wide"')))

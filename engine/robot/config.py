@@ -148,6 +148,9 @@ class RobotConfig:
     gait_feedback: dict[str, float | tuple[float, float]] = field(default_factory=dict)
     # [control.walking]: overrides of engine.control.walking_parameters.WalkingParameters (checked there).
     walking: dict[str, object] = field(default_factory=dict)
+    # [upper_body] puppet_clearance_m: the gap live puppeteering keeps between the arms' capsules in its targets, so
+    # that the simulated arms, which lag their targets, stay collision-free too (engine/retarget/humanoid_arm).
+    puppet_clearance_m: float = 0.01
 
     @property
     def simulated(self) -> bool:
@@ -304,7 +307,10 @@ def load_config(path: Path) -> RobotConfig:
         raise r.fail("gains", "missing required field (expected a list of {pattern, kp, kd} tables)")
 
     upper = r.get(data, "upper_body", "", dict, {})
-    r.unknown(upper, {"joints"}, "upper_body.")
+    r.unknown(upper, {"joints", "puppet_clearance_m"}, "upper_body.")
+    puppet_clearance_m = r.get(upper, "puppet_clearance_m", "upper_body.", float, 0.01)
+    if not 0.0 <= puppet_clearance_m <= 0.1:
+        raise r.fail("upper_body.puppet_clearance_m", f"expected metres in [0, 0.1], got {puppet_clearance_m!r}")
     upper_joints = tuple(r.get(upper, "joints", "upper_body.", list, []))
     for i, j in enumerate(upper_joints):
         if not isinstance(j, str):
@@ -410,6 +416,7 @@ def load_config(path: Path) -> RobotConfig:
 
     return RobotConfig(
         gait=gait, wbc_gains=wbc_gains, source_package=source_package, gait_feedback=gait_feedback, walking=walking,
+        puppet_clearance_m=puppet_clearance_m,
         name=name, display_name=display_name, kind=kind, path=path, urdf=urdf, srdf=srdf,
         root_link=root_link, up_axis=up_axis, standing_pose=standing_pose,
         standing_srdf_state=standing_state, gains=tuple(gains), upper_body_joints=upper_joints,

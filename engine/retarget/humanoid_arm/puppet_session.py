@@ -26,7 +26,6 @@ from engine.retarget.humanoid_arm.realtime import CallTiming, RealtimeSection
 from engine.safe_io import one_line
 
 RATE_HZ = 60.0
-LIVE_CLEARANCE_M = 0.01  # targets keep 1 cm between capsules: the simulated arm lags its target by a few mm
 MAX_DRAIN = 512  # datagrams read per period at most (a flood is dropped by the kernel beyond the buffer)
 
 
@@ -239,7 +238,7 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
     model = load_robot(robot)
     ctx = StyleContext.for_robot(robot)
     style = load_style(styles_dir(robot) / f"{model.config.default_style}.json", ctx)
-    arms = ArmRetargeter.load(robot, clearance_m=LIVE_CLEARANCE_M)
+    arms = ArmRetargeter.load(robot, clearance_m=model.config.puppet_clearance_m)  # robots/<name>.toml [upper_body]
     walker = puppet_walking_controller(model, style, ctx)
     walker.set_command(np.zeros(3))
     sim = Simulation(model, walker)
@@ -284,7 +283,7 @@ def run_puppet_in_physics(robot: str, source: ClipSource | UdpSource, duration_s
 
 
 __all__ = ["ClipSource", "UdpSource", "PuppetSession", "PuppetStats", "puppet_walking_controller",
-           "run_puppet_in_physics", "RATE_HZ", "LIVE_CLEARANCE_M"]
+           "run_puppet_in_physics", "RATE_HZ"]
 
 
 def open_source(options: dict):
