@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
+# The gap live puppeteering keeps between the arms' capsules unless [upper_body] puppet_clearance_m says otherwise.
+DEFAULT_PUPPET_CLEARANCE_M = 0.01
 
 
 def robots_dir() -> Path:
@@ -150,7 +152,7 @@ class RobotConfig:
     walking: dict[str, object] = field(default_factory=dict)
     # [upper_body] puppet_clearance_m: the gap live puppeteering keeps between the arms' capsules in its targets, so
     # that the simulated arms, which lag their targets, stay collision-free too (engine/retarget/humanoid_arm).
-    puppet_clearance_m: float = 0.01
+    puppet_clearance_m: float = DEFAULT_PUPPET_CLEARANCE_M
 
     @property
     def simulated(self) -> bool:
@@ -308,7 +310,7 @@ def load_config(path: Path) -> RobotConfig:
 
     upper = r.get(data, "upper_body", "", dict, {})
     r.unknown(upper, {"joints", "puppet_clearance_m"}, "upper_body.")
-    puppet_clearance_m = r.get(upper, "puppet_clearance_m", "upper_body.", float, 0.01)
+    puppet_clearance_m = r.get(upper, "puppet_clearance_m", "upper_body.", float, DEFAULT_PUPPET_CLEARANCE_M)
     if not 0.0 <= puppet_clearance_m <= 0.1:
         raise r.fail("upper_body.puppet_clearance_m", f"expected metres in [0, 0.1], got {puppet_clearance_m!r}")
     upper_joints = tuple(r.get(upper, "joints", "upper_body.", list, []))

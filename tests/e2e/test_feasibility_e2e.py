@@ -14,7 +14,6 @@ pytestmark = pytest.mark.e2e
 
 
 def test_an_infeasible_edit_is_flagged_and_undo_clears_it(tmp_path, artifacts):
-
     styles = copy_styles(tmp_path)
     with started_studio("g1", styles) as studio:
         with engine_page(studio, 1000, 720) as page:

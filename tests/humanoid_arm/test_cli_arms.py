@@ -246,5 +246,7 @@ def test_shipped_transition_graph_is_one_component_of_one_period_collision_free_
     rows = np.repeat(np.arange(len(g.nodes)), np.diff(g.indptr))
     assert np.all(np.abs(g.nodes[rows] - g.nodes[g.indices]) <= max_step)
     assert all(arms.capsules.is_free(x) for x in g.bridges)
-    pick = np.random.default_rng(0).choice(len(rows), 100, replace=False)
+    bridge_edges = np.flatnonzero((rows >= g.sampled) | (g.indices >= g.sampled))  # every edge touching a bridge
+    assert (len(bridge_edges) > 0) == (len(g.bridges) > 0)
+    pick = np.concatenate([bridge_edges, np.random.default_rng(0).choice(len(rows), 100, replace=False)])
     assert all(arms.capsules.interpolation_free(g.nodes[rows[e]], g.nodes[g.indices[e]]) for e in pick)

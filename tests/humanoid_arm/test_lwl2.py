@@ -141,6 +141,36 @@ def test_bridges_join_an_isolated_node_one_period_per_edge():
     assert g.component_sizes() == [3, 1] and len(g.bridges) == 0
 
 
+def test_the_path_enters_at_the_nearest_node_the_straight_move_reaches_and_that_reaches_the_goal():
+    """A wall at 0.2: from 0.21 the nearest node (0.2) is behind it, so the path enters at 0.3 (the paper's nearest
+    node would give a first step through the wall); from 0.19 the nearest reachable node (0.1, 0.0) is cut off from
+    the goal 0.5 by the wall, so with ``reachable`` no path starts there, nor from the nodes beyond it."""
+    nodes = np.array([[0.0], [0.1], [0.2], [0.3], [0.4], [0.5]])
+    wall = lambda a, b: not (min(a[0], b[0]) < 0.205 < max(a[0], b[0]))  # noqa: E731 - a wall at 0.205
+    g = TransitionGraph.build(nodes, np.array([0.15]), wall, neighbours=4)
+    assert g.component_sizes() == [3, 3]
+    assert g.entry(np.array([0.21]), wall) == 3 and g.nearest(np.array([0.21])) == 2
+    assert [float(p[0]) for p in g.path(np.array([0.21]), np.array([0.5]), wall)] == pytest.approx([0.3, 0.4, 0.5])
+    assert g.path(np.array([0.19]), np.array([0.5]), wall) is None  # only 0.2, 0.1, 0.0 are reachable from it
+    # a farther reachable candidate in the goal's component is taken when the nearest reachable one is cut off
+    cut = TransitionGraph.build(np.array([[0.0], [0.3], [0.32], [0.5]]), np.array([0.25]),
+                                lambda a, b: not (min(a[0], b[0]) < 0.2 < max(a[0], b[0])) or b[0] == 0.3 or a[0] == 0.3,
+                                neighbours=4)
+    assert [float(p[0]) for p in cut.path(np.array([0.19]), np.array([0.5]), lambda a, b: b[0] in (0.0, 0.3))] \
+        == pytest.approx([0.3, 0.5])  # 0.0, nearer and reachable, is alone (0.3 away: more than one period)
+
+
+def test_a_graph_whose_arrays_disagree_is_refused_and_an_empty_one_finds_nothing():
+    nodes = np.zeros((3, 2))
+    with pytest.raises(ValueError, match="adjacency over 3 nodes"):
+        TransitionGraph(nodes, np.array([0, 1, 2, 3, 4]), np.array([1, 0, 2, 1]))  # indptr of a 4-node graph
+    with pytest.raises(ValueError, match="indices < 3"):
+        TransitionGraph(nodes, np.array([0, 1, 2, 2]), np.array([3, 0]))
+    empty = TransitionGraph(np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64))
+    assert empty.nearest(np.zeros(2)) is None and empty.path(np.zeros(2), np.ones(2)) is None
+    assert empty.entry(np.zeros(2), lambda a, b: True) is None
+
+
 def test_bridges_join_every_component_into_one():
     """Clusters two to three periods apart on a line: each joins the rest (smallest first), no walls."""
     rng = np.random.default_rng(0)

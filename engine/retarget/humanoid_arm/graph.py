@@ -7,10 +7,10 @@ to the nearest node the straight move from it reaches (:meth:`TransitionGraph.en
 can be behind a collision, and the arm then holds its pose until the target moves.
 
 A sampled pose whose every neighbour is more than one period away (or behind a collision) would make its own
-component, and BFS from it finds nothing. :meth:`TransitionGraph.build` therefore joins the components: the
-nearest pair of poses (in travel time) between a component and the rest whose straight interpolation is
-collision-free is linked through poses on that line, spaced at most one period apart (*bridge* nodes, appended
-after the sampled ones) — so every edge still keeps the one-period, collision-free rule.
+component, and BFS from it finds nothing. :meth:`TransitionGraph.build` therefore joins the components, smallest
+first: of the few nearest pairs of poses (in travel time) between a component and the others, the first whose straight
+interpolation is collision-free is linked through poses on that line, spaced at most one period apart (*bridge* nodes,
+appended after the sampled ones) — so every edge still keeps the one-period, collision-free rule.
 """
 
 from __future__ import annotations
@@ -98,6 +98,7 @@ def _join_components(nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_
                 adj[a].add(b)
                 adj[b].add(a)
             labels[labels == c] = labels[j]
+            tried.discard(int(labels[j]))  # the merged component has new members: it may now reach further
             linked = True
             break
         if not linked:
@@ -107,10 +108,18 @@ def _join_components(nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_
 
 class TransitionGraph:
     def __init__(self, nodes: np.ndarray, indptr: np.ndarray, indices: np.ndarray, sampled: int | None = None):
-        """``nodes``: the sampled poses, then the bridge poses (``sampled``: how many are sampled; default all)."""
+        """``nodes``: the sampled poses, then the bridge poses (``sampled``: how many are sampled; default all); the
+        edges as a CSR adjacency over them. ValueError when the adjacency does not fit the nodes (a weights file whose
+        graph arrays disagree: one line at load, not an IndexError while puppeteering)."""
+        n = len(nodes)
+        if len(indptr) != n + 1 or (len(indices) and not 0 <= int(np.min(indices)) <= int(np.max(indices)) < n) \
+                or (n and int(indptr[-1]) != len(indices)):
+            raise ValueError(f"transition graph: expected an adjacency over {n} nodes (indptr of {n + 1}, indices < {n}), "
+                             f"got indptr of {len(indptr)} and indices up to "
+                             f"{int(np.max(indices)) if len(indices) else '-'}")
         self.nodes, self.indptr, self.indices = nodes, indptr, indices
-        self.sampled = len(nodes) if sampled is None else int(sampled)
-        self.tree = cKDTree(nodes)
+        self.sampled = n if sampled is None else int(sampled)
+        self.tree = cKDTree(nodes) if n else None
 
     @classmethod
     def build(cls, nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_free: InterpolationFree,
@@ -146,26 +155,38 @@ class TransitionGraph:
         """The bridge poses (appended after the sampled nodes)."""
         return self.nodes[self.sampled:]
 
-    def nearest(self, x: np.ndarray) -> int:
-        return int(self.tree.query(x)[1])
+    def nearest(self, x: np.ndarray) -> int | None:
+        """The node nearest to ``x`` (None in a graph without nodes)."""
+        return None if self.tree is None else int(self.tree.query(x)[1])
+
+    def entries(self, x: np.ndarray, reachable: InterpolationFree, candidates: int = 8) -> list[int]:
+        """Of the ``candidates`` nodes nearest to ``x``, nearest first, those the straight move from ``x`` reaches
+        (``reachable(x, node)``; a node at ``x`` itself always)."""
+        if self.tree is None or candidates < 1:
+            return []
+        _, near = self.tree.query(x, k=min(candidates, len(self.nodes)))
+        return [int(j) for j in np.atleast_1d(near)
+                if np.max(np.abs(self.nodes[j] - x)) < 1e-9 or reachable(x, self.nodes[j])]
 
     def entry(self, x: np.ndarray, reachable: InterpolationFree, candidates: int = 8) -> int | None:
-        """The nearest of the ``candidates`` nodes nearest to ``x`` that the straight move from ``x`` reaches
-        (``reachable(x, node)``; a node at ``x`` itself always), else None."""
-        _, near = self.tree.query(x, k=min(candidates, len(self.nodes)))
-        for j in np.atleast_1d(near):
-            if np.max(np.abs(self.nodes[j] - x)) < 1e-9 or reachable(x, self.nodes[j]):
-                return int(j)
-        return None
+        """The nearest of :meth:`entries` (None when the straight move reaches none of them)."""
+        found = self.entries(x, reachable, candidates)
+        return found[0] if found else None
 
     def path(self, x_from: np.ndarray, x_to: np.ndarray, reachable: InterpolationFree | None = None,
              candidates: int = 8) -> list[np.ndarray] | None:
         """Node poses from near ``x_from`` to near ``x_to`` (None when not connected). The path starts at the node
-        nearest to ``x_from`` (the paper), or with ``reachable`` at the nearest one the straight move from ``x_from``
-        reaches (:meth:`entry`; None when none of the ``candidates`` nearest is), so its first step is feasible."""
-        start = self.nearest(x_from) if reachable is None else self.entry(x_from, reachable, candidates)
-        ids = None if start is None else bfs_path(self.indptr, self.indices, start, self.nearest(x_to))
-        return None if ids is None else [self.nodes[i] for i in ids]
+        nearest to ``x_from`` (the paper), or with ``reachable`` at the nearest of :meth:`entries` from which BFS
+        reaches the goal (None when none of them does), so its first step is feasible."""
+        goal = self.nearest(x_to)
+        if goal is None:
+            return None
+        starts = [self.nearest(x_from)] if reachable is None else self.entries(x_from, reachable, candidates)
+        for start in starts:
+            ids = None if start is None else bfs_path(self.indptr, self.indices, start, goal)
+            if ids is not None:
+                return [self.nodes[i] for i in ids]
+        return None
 
     def component_sizes(self) -> list[int]:
         """Node count of every connected component, largest first."""

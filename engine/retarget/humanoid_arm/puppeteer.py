@@ -114,10 +114,17 @@ class ArmRetargeter:
         poses = extra["robot_poses"].astype(np.float64)
         graph = None
         if "graph_nodes" in extra:
-            sampled = poses[extra["graph_nodes"].astype(np.int64)]
+            node_ids = extra["graph_nodes"].astype(np.int64)
+            if len(node_ids) and not 0 <= int(node_ids.min()) <= int(node_ids.max()) < len(poses):
+                raise ValueError(f"{path.with_suffix('.safetensors')}: data.graph_nodes: expected indices into the "
+                                 f"{len(poses)} robot poses, got up to {int(node_ids.max())}")
+            sampled = poses[node_ids]
             bridges = extra.get("graph_bridge_poses", np.zeros((0, ub.n))).astype(np.float64).reshape(-1, ub.n)
-            graph = TransitionGraph(np.concatenate([sampled, bridges]), extra["graph_indptr"].astype(np.int64),
-                                    extra["graph_indices"].astype(np.int64), sampled=len(sampled))
+            try:
+                graph = TransitionGraph(np.concatenate([sampled, bridges]), extra["graph_indptr"].astype(np.int64),
+                                        extra["graph_indices"].astype(np.int64), sampled=len(sampled))
+            except ValueError as exc:  # the graph arrays disagree (e.g. bridges counted, their poses missing)
+                raise ValueError(f"{path.with_suffix('.safetensors')}: data.graph_indptr: {exc}") from None
         ff = None
         if meta.get("feed_forward"):
             from engine.retarget.humanoid_arm.feed_forward import load_feed_forward
