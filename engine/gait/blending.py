@@ -31,6 +31,8 @@ from engine.gait.style import (
 )
 
 SWING_PHASES = {"left": (0.0, PHI_LTD), "right": (PHI_RLO, PHI_RTD)}  # (liftoff φ, touchdown φ)
+# A blend member of this weight or less is dropped (the rest renormalised): the blend is then the others alone.
+MIN_MEMBER_WEIGHT = 1e-9
 HEEL, TOE = 4, 5  # indices of heel_pitch / toe_pitch in a swing bank
 ATTRIBUTE_INDEX = {name: i for i, name in enumerate(ATTRIBUTE_NAMES)}
 WAYPOINT_PHASES = np.array(PHASE_WAYPOINTS)  # the phase maps' waypoint phases (bisect in PhaseMap.time_at)
@@ -201,7 +203,7 @@ class BlendedGait:
     """Π of a velocity: samples with convex weights, evaluated in phase space."""
 
     def __init__(self, members: Sequence[tuple[float, SampleBanks]], merged: MergedBank | None = None):
-        members = [(float(w), b) for w, b in members if w > 1e-9]
+        members = [(float(w), b) for w, b in members if w > MIN_MEMBER_WEIGHT]
         raw = [w for w, _ in members]
         total = sum(raw)  # (left to right from 0, as over the members)
         if not members or total <= 0:
@@ -331,5 +333,5 @@ class StyleBanks:
         return merged
 
     def blend(self, members: Sequence[tuple[float, SampleBanks]]) -> BlendedGait:
-        members = [(float(w), b) for w, b in members if w > 1e-9]
+        members = [(float(w), b) for w, b in members if w > MIN_MEMBER_WEIGHT]
         return BlendedGait(members, self.merged_for([b for _, b in members]))

@@ -23,7 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from engine.geometry import quat_from_matrix, smoothstep
-from engine.gait.blending import HEEL, SWING_PHASES, TOE, WAYPOINT_PHASES, BlendedGait, ChannelLayout, StyleBanks
+from engine.gait.blending import (
+    HEEL, MIN_MEMBER_WEIGHT, SWING_PHASES, TOE, WAYPOINT_PHASES, BlendedGait, ChannelLayout, StyleBanks,
+)
 from engine.gait.footsteps import (
     Foothold,
     SafeRegion,
@@ -272,15 +274,15 @@ class GaitPlanner:
     # ------------------------------------------------------------------ helpers
     def _blend(self) -> BlendedGait:
         weights = self._weight_list
-        members = [(w, self.banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
+        members = [(w, self.banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > MIN_MEMBER_WEIGHT]
         if self._fade_from is not None:
             f = smoothstep(self._fade_elapsed_s / STYLE_FADE_S)
-            old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
+            old = [(w * (1 - f), self._fade_from.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > MIN_MEMBER_WEIGHT]
             members = [(w * f, b) for w, b in members] + old
         share = self.recovery_share
         if share > 0.0 and self.recovers_toward_other_gait:  # balance recovery: toward the neutral gait
             assert self.recovery_banks is not None  # (recovers_toward_other_gait says so)
-            neutral = [(w * share, self.recovery_banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > 1e-9]
+            neutral = [(w * share, self.recovery_banks.banks[n]) for w, n in zip(weights, SAMPLE_NAMES) if w > MIN_MEMBER_WEIGHT]
             members = [(w * (1.0 - share), b) for w, b in members] + neutral
         return self.banks.blend(members)
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine.gait.blending import BlendedGait, ChannelLayout, SampleBanks
+from engine.gait.blending import MIN_MEMBER_WEIGHT, BlendedGait, ChannelLayout, SampleBanks
 from engine.gait.phase_map import PHI_LTD, PHI_RLO, PHI_RTD, equivalent_time
 from tests.gait.strategies import g1_context, gait_samples
 
@@ -43,9 +43,9 @@ def test_blend_keeps_event_order_and_minimum_durations(samples, data):
 def test_two_sample_blend_is_the_papers_six_steps(a, b, alpha, phi):
     """value(t) = (1−α) f_A(Ω_A(Ω_AB⁻¹(t))) + α f_B(Ω_B(Ω_AB⁻¹(t))) for every curve channel."""
     lay = layout()
-    # BlendedGait drops members of weight ≤ 1e-9 (and renormalises): such a blend is the other sample alone
+    # BlendedGait drops members of weight ≤ MIN_MEMBER_WEIGHT (and renormalises): such a blend is the other sample alone
     # (hypothesis found α = 1e-9: the blend gave f_A where the formula with α = 1e-9 differs by 1.25e-9)
-    alpha_used = 0.0 if alpha <= 1e-9 else (1.0 if 1.0 - alpha <= 1e-9 else alpha)
+    alpha_used = 0.0 if alpha <= MIN_MEMBER_WEIGHT else (1.0 if 1.0 - alpha <= MIN_MEMBER_WEIGHT else alpha)
     ba, bb = SampleBanks(a, lay), SampleBanks(b, lay)
     blend = BlendedGait([(1 - alpha, ba), (alpha, bb)]) if 0 < alpha < 1 else BlendedGait([(1.0, ba if alpha == 0 else bb)])
     t = blend.time_at(phi)
