@@ -47,6 +47,11 @@ def bfs_path(indptr: np.ndarray, indices: np.ndarray, start: int, goal: int) -> 
     return None
 
 
+def _is_edge(a: np.ndarray, b: np.ndarray, max_step_rad: np.ndarray, interpolation_free: InterpolationFree) -> bool:
+    """The graph's edge rule: within one control period on every joint, and a collision-free straight move."""
+    return bool(np.all(np.abs(b - a) <= max_step_rad)) and interpolation_free(a, b)
+
+
 def _csr(adj: list[set[int]]) -> tuple[np.ndarray, np.ndarray]:
     indptr = np.zeros(len(adj) + 1, dtype=np.int64)
     indptr[1:] = np.cumsum([len(a) for a in adj])
@@ -89,7 +94,7 @@ def _join_components(nodes: np.ndarray, max_step_rad: np.ndarray, interpolation_
             segments = int(np.floor(d)) + 1  # each piece strictly shorter than one period
             line = [nodes[i] + (t / segments) * (nodes[j] - nodes[i]) for t in range(1, segments)]
             chain = [nodes[i], *line, nodes[j]]
-            if not all(np.all(np.abs(b - a) <= max_step_rad) and interpolation_free(a, b) for a, b in zip(chain, chain[1:])):
+            if not all(_is_edge(a, b, max_step_rad, interpolation_free) for a, b in zip(chain, chain[1:])):
                 continue
             ids = [i, *range(len(nodes) + len(bridges), len(nodes) + len(bridges) + len(line)), j]
             bridges.extend(line)
@@ -139,9 +144,9 @@ class TransitionGraph:
                     j = int(j)
                     if not np.isfinite(d) or len(adj[i]) >= neighbours:
                         break
-                    if j == i or j in adj[i] or not np.all(np.abs(nodes[j] - nodes[i]) <= max_step_rad):
+                    if j == i or j in adj[i]:
                         continue
-                    if interpolation_free(nodes[i], nodes[j]):
+                    if _is_edge(nodes[i], nodes[j], max_step_rad, interpolation_free):
                         adj[i].add(j)
                         adj[j].add(i)
             if progress is not None and (i + 1) % 200 == 0:
