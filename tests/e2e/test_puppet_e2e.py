@@ -43,7 +43,8 @@ class EngineTap:
         self.frames: list[tuple[float, int, np.ndarray]] = []  # Edit mode's frames only
         self.events: list[str] = []  # what a failure message should say: falls, clock jumps, mode changes
         self.phases: list[tuple[float, float]] = []
-        # (time, phase, the tracked arm joint's reference, in_place's blend weight)
+        # (time, phase, the tracked arm joint's reference, in_place's share of the blend: its sample weight times
+        # one minus the balance recovery's share of the neutral gait)
         self.tracked: list[tuple[float, float, float, float]] = []
         view_update, on_telemetry = studio.view.update, studio._on_telemetry
 
@@ -69,6 +70,9 @@ class EngineTap:
                     if "arm_joint" in event.signals:
                         weights = event.signals.get("sample_weights")
                         w = float(weights[IN_PLACE]) if weights is not None and len(weights) > IN_PLACE else 1.0
+                        # balance recovery blends that share of the neutral gait into the reference (planner._blend)
+                        share = event.signals.get("recovery_share")
+                        w *= 1.0 - (float(share[0]) if share is not None and len(share) else 0.0)
                         self.tracked.append((float(event.sim_time_s), float(event.signals["phase"][0]),
                                              float(event.signals["arm_joint"][0]), w))
 
@@ -90,7 +94,7 @@ class EngineTap:
 
     def references(self, t0: float, t1: float) -> np.ndarray:
         """(N, 4) time, phase, reference angle of the tracked arm joint (the engine's Plots signal) and
-        in_place's blend weight."""
+        in_place's share of the blend (sample weight × (1 − recovery share))."""
         with self.lock:
             return np.array([r for r in self.tracked if t0 <= r[0] <= t1]).reshape(-1, 4)
 
@@ -153,13 +157,14 @@ def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, j
     gap = np.min([np.abs(refs[:, 2] - _curve_values(follows, [tracked], standing, (at + skew) % cycle_s)[:, 0])
                   for skew in np.linspace(-PHASE_SKEW_S, PHASE_SKEW_S, 9)], axis=0)
     # the velocity feedback adds its adjustment to the command, so the blend may hold a small share of the
-    # neighbouring samples (in_place's weight below 1): the reference then moves off the curve by at most that
-    # share times the samples' difference (< 1 rad on any arm curve)
+    # neighbouring samples (in_place's weight below 1), and balance recovery a share of the neutral gait (a CI run
+    # saw 1.2 mrad with in_place's sample weight 0.999996): the reference then moves off the curve by at most
+    # that share times the gaits' difference (< 1 rad on any arm curve)
     allowed = 1e-3 + (1.0 - refs[:, 3]) * 1.0
-    print(f"reference vs curve: worst {np.max(gap):.2e} rad; in_place's weight {refs[:, 3].min():.4f}–{refs[:, 3].max():.4f}")
+    print(f"reference vs curve: worst {np.max(gap):.2e} rad; in_place's share {refs[:, 3].min():.6f}–{refs[:, 3].max():.6f}")
     worst = int(np.argmax(gap - allowed))
     assert np.all(gap < allowed), (f"{tracked}: the walk's reference is not the sample's curve (off by "
-                                   f"{gap[worst]:.4f} rad with in_place's weight {refs[worst, 3]:.4f})")
+                                   f"{gap[worst]:.4f} rad with in_place's share {refs[worst, 3]:.6f})")
     return (_lagged_rms(q, follows, joints, standing, times, cycle_s),
             _lagged_rms(q, other, joints, standing, times, cycle_s))
 
