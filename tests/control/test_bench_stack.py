@@ -9,10 +9,11 @@ import pytest
 from engine.bench import stack
 
 
-@pytest.mark.slow  # a G1 walk of 1.1 s with its replay: ≈ 10 s with the robot's loading
+@pytest.mark.slow  # G1 walks of 0.3 s and 1.1 s with their replays: ≈ 12 s with the robot's loading
 def test_stack_and_mujoco_alone_replay_the_same_ticks_in_turns(monkeypatch):
-    """1.1 s in chunks of 0.5 s: three turns (the last one short); every tick is replayed once, the
-    ratio is a ratio of two positive totals, and the replay used the commands of its own chunk."""
+    """A warm-up walk of 0.3 s (one short turn, reported apart), then 1.1 s in chunks of 0.5 s: three turns (the
+    last one short); every tick is replayed once, the ratio is a ratio of two positive totals, and the replay used
+    the commands of its own chunk."""
     replayed: list[int] = []
     original = stack._Replay.compute
 
@@ -21,10 +22,13 @@ def test_stack_and_mujoco_alone_replay_the_same_ticks_in_turns(monkeypatch):
         return original(self, state)
 
     monkeypatch.setattr(stack._Replay, "compute", compute)
-    row = stack.run_stack("g1", seconds=1.1)
-    ticks = round(1.1 / 0.002)
+    row = stack.run_stack("g1", seconds=1.1, warm_up_s=0.3)
+    warm, ticks = round(0.3 / 0.002), round(1.1 / 0.002)
     assert row["sim_s"] == 1.1 and not row["fell"]
-    assert len(replayed) == ticks
+    assert len(replayed) == warm + ticks
+    assert replayed[:warm] == list(range(warm)), "the warm-up walk is replayed in its own turn"
+    assert row["warm_up_s"] == 0.3 and row["warm_up_stack_wall_s"] > 0 and row["warm_up_stack_over_mujoco"] > 1.0
+    replayed = replayed[warm:]
     chunk = round(stack.CHUNK_S / 0.002)
     assert replayed[:chunk] == list(range(chunk)) and replayed[chunk:2 * chunk] == list(range(chunk))
     assert replayed[2 * chunk:] == list(range(ticks - 2 * chunk))
