@@ -48,6 +48,9 @@ def add_tmr_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
     """The TMR options (``studio tmr``, ``studio retarget-batch``, ``studio retarget --method stmr``)."""
     p.add_argument("--segments", type=int, default=1, help=prefix + "S, the number of equal time segments (default 1)")
     p.add_argument("--alpha-bound", type=float, default=1.0, help=prefix + "B: log2 α ∈ [−B, B], 0 < B ≤ 2 (default 1)")
+    p.add_argument("--widen-bound", type=float, default=1.6, help=prefix + "when every α within ±B falls, BO goes "
+                   "on over log2 α ∈ [−W, W] (W ≤ 2) for --widen-budget more evaluations (default 1.6; 0: never)")
+    p.add_argument("--widen-budget", type=int, default=2, help=prefix + "evaluations of the widened search (default 2)")
     p.add_argument("--budget", type=int, default=8, help=prefix + "Bayesian-optimisation evaluations at most (default 8)")
     p.add_argument("--parallel", type=int, default=1, help=prefix + "BO evaluations in flight on Ray (default 1: in "
                    "process; more starts a local Ray unless --address)")
@@ -68,6 +71,13 @@ def _settings(args: argparse.Namespace):  # noqa: ANN202
         check_log2_bound(args.alpha_bound)
     except DeformationError as exc:
         raise CliError(f"--alpha-bound: {exc}") from None
+    if args.widen_bound != 0:
+        try:
+            check_log2_bound(args.widen_bound)
+        except DeformationError as exc:
+            raise CliError(f"--widen-bound: {exc} (or 0: never widen)") from None
+    if not 0 <= args.widen_budget <= 1000:
+        raise CliError(f"--widen-budget: expected 0..1000 evaluations, got {args.widen_budget}")
     if args.segments < 1:
         raise CliError(f"--segments: expected S ≥ 1, got {args.segments}")
     if not 1 <= args.budget <= 1000:
@@ -78,7 +88,7 @@ def _settings(args: argparse.Namespace):  # noqa: ANN202
         raise CliError(f"--window: expected 0.02..5 s, got {args.window}")
     return TMRSettings(segments=args.segments, log2_bound=args.alpha_bound, budget=args.budget,
                        init_points=min(3, args.budget), parallel=args.parallel, mode=args.mode, seed=args.seed,
-                       window_s=args.window)
+                       window_s=args.window, widen_log2_bound=args.widen_bound, widen_budget=args.widen_budget)
 
 
 def _executor(address: str | None, parallel: int):  # noqa: ANN202

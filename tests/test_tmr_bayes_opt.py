@@ -76,6 +76,34 @@ def test_progress_reports_count_the_evaluations() -> None:
     assert np.all(np.abs(np.array([p.current_log2_alpha for p in seen])) <= 1.0)
 
 
+def test_a_search_goes_on_from_known_evaluations_over_a_wider_bound() -> None:
+    """What TMR's widened search does: the narrow search's evaluations are known to the GP and kept in the result,
+    the first new point is the given warm start, the budget counts the new evaluations, and the search finds an
+    optimum only the wider bound holds."""
+    ex = LocalExecutor()
+    f = lambda x: float(-np.sum((x + 1.4) ** 2))  # noqa: E731 - the optimum at log2 α = −1.4, outside ±1
+    seen, evaluated = [], []
+
+    def submit(x: np.ndarray):  # noqa: ANN202
+        evaluated.append(x.copy())
+        return ex.submit(lambda y: (f(y), y.copy()), x)
+
+    def collect(handles):  # noqa: ANN001, ANN202
+        return [(h, v[0], v[1]) for h, v in ex.collect(handles)]
+
+    narrow = bayes_optimise(submit, collect, 1, 1.0, BOSettings(budget=3, init_points=3, seed=0))
+    assert abs(narrow.best_log2_alpha[0] + 1.0) < 1e-9, "the narrow search ends on its bound"
+    known = [(x, s, p) for (x, s), p in zip(narrow.history, narrow.payloads)]
+    wide = bayes_optimise(submit, collect, 1, 1.6, BOSettings(budget=4, seed=0), progress=seen.append,
+                          known=known, warm_start=[np.array([-1.6])])
+    assert 3 + 2 <= wide.evaluations <= 3 + 4 and len(evaluated) == wide.evaluations  # (it may converge early)
+    assert [float(x[0]) for x, _ in wide.history[:3]] == [float(x[0]) for x, _ in narrow.history]
+    assert evaluated[3][0] == -1.6, "the widened search starts at its warm start"
+    assert [p.evaluation for p in seen] == list(range(4, wide.evaluations + 1)) and all(p.budget == 7 for p in seen)
+    assert abs(wide.best_log2_alpha[0] + 1.4) < 0.1 and wide.best_score > narrow.best_score
+    assert all(abs(x[0]) <= 1.6 for x in evaluated)
+
+
 def test_warm_start_begins_with_the_identity_and_cancel_stops() -> None:
     calls = []
 

@@ -33,6 +33,8 @@ def clips(tmp_path_factory):  # noqa: ANN201
     # each case is a `studio tmr` process: three in the slow tier (the Ray one starts a Ray client)
     pytest.param(["--alpha-bound", "-1"], "--alpha-bound: expected a log2 α bound in (0, 2], got -1", marks=pytest.mark.slow),
     pytest.param(["--segments", "0"], "--segments: expected S ≥ 1, got 0", marks=pytest.mark.slow),
+    pytest.param(["--widen-bound", "3"], "--widen-bound: expected a log2 α bound in (0, 2], got 3 (or 0: never widen)",
+                 marks=pytest.mark.slow),
     pytest.param(["--address", "127.0.0.1:9"], "--address 127.0.0.1:9: no Ray head answers", marks=pytest.mark.slow),
     (["--robot", "g1"], "--robot: expected a quadruped"),
     (["--robot", "a1"], "stand.npz: robot: expected a motion of a1"),

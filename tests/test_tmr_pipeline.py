@@ -87,3 +87,33 @@ def test_shipped_backflip_turns_once_with_a_ballistic_flight_and_clean_feet() ->
         both = m.contact[1:, leg] & m.contact[:-1, leg]
         slide = np.linalg.norm(np.diff(feet[:, leg], axis=0), axis=1)[both]
         assert slide.max() < 1e-3
+
+
+def test_when_every_alpha_within_the_bound_falls_the_search_widens(go1, monkeypatch) -> None:  # noqa: ANN001
+    """a1's HopTurn falls at every α in [½, 2] and stands at α = 0.33: TMR goes on over the widened bound, from
+    the far end on the side of the fall that got furthest, and reports the bound it searched. Here the replays of
+    a standing clip are made to 'fall' above log2 α = −1.3 (the real evaluation, its verdict overridden)."""
+    import engine.retarget.quadruped.tmr.tmr as tmr
+
+    real = tmr.evaluate_alpha
+    evaluated = []
+
+    def evaluate(robot_name, qpos, contact, fps, log2_alpha, settings, cancel=None):  # noqa: ANN001, ANN202
+        ev = real(robot_name, qpos, contact, fps, log2_alpha, settings, cancel)
+        evaluated.append(float(log2_alpha[0]))
+        if log2_alpha[0] > -1.3:  # a fall: the later in the clip, the closer to the bound (as the fall shaping does)
+            ev.fell = True
+            ev.score = {**ev.score, "score": -2.0 + 0.1 * float(-log2_alpha[0]), "fell_at_s": 0.1}
+        return ev
+
+    monkeypatch.setattr(tmr, "evaluate_alpha", evaluate)
+    motion = kinematic_clips.standing(go1, duration_s=0.2)
+    narrow = temporal_retarget(motion, TMRSettings(budget=3, init_points=3, widen_budget=0))
+    assert narrow.summary["replay_fell"] and narrow.summary["log2_bound_searched"] == 1.0
+    evaluated.clear()
+    res = temporal_retarget(motion, TMRSettings(budget=3, init_points=3, widen_log2_bound=1.6, widen_budget=1))
+    s = res.summary
+    assert evaluated == [0.0, -1.0, 1.0, -1.6], "the widened search starts at the far end of the falls' better side"
+    assert s["log2_bound"] == 1.0 and s["log2_bound_searched"] == 1.6
+    assert not s["replay_fell"] and s["alpha"] == [pytest.approx(2.0 ** -1.6, abs=1e-4)] and s["bo_evaluations"] == 4
+    assert len(res.evaluations) == 4 and [e["replay_fell"] for e in res.evaluations] == [True, True, True, False]

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -122,19 +122,26 @@ def initial_design(dims: int, bound: float, points: int, rng: np.random.Generato
 def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callable[[list[Any]], list[tuple[Any, float, Any]]],
                    dims: int, bound: float, settings: BOSettings | None = None,
                    progress: Callable[[BOProgress], None] | None = None,
-                   cancel: Callable[[], bool] | None = None, abort: Callable[[list[Any]], None] | None = None) -> BOResult:
+                   cancel: Callable[[], bool] | None = None, abort: Callable[[list[Any]], None] | None = None,
+                   known: Sequence[tuple[np.ndarray, float, Any]] = (),
+                   warm_start: Sequence[np.ndarray] | None = None) -> BOResult:
     """Maximise a score of log2 α ∈ [−bound, bound]^dims.
 
     ``evaluate_submit(x)`` starts an evaluation and returns a handle; ``collect(handles)`` blocks until at least one
     is done and returns ``(handle, score, payload)`` for each finished one; ``abort(handles)`` cancels running ones.
+    ``known``: evaluations already made (``(x, score, payload)``, e.g. a search over a narrower bound), which the GP
+    starts from and the result includes; ``settings.budget`` then counts the new evaluations. ``warm_start``: the
+    first points to evaluate instead of :func:`initial_design`'s.
     """
     settings = settings or BOSettings()
     if settings.budget < 1:
         raise ValueError("budget must be ≥ 1")
     rng = np.random.default_rng(settings.seed)
-    warm = initial_design(dims, bound, settings.init_points, rng)
-    observed: list[tuple[np.ndarray, float]] = []
-    payloads: list[Any] = []
+    warm = (list(warm_start) if warm_start is not None
+            else initial_design(dims, bound, settings.init_points, rng))
+    observed: list[tuple[np.ndarray, float]] = [(np.asarray(x, float), float(s)) for x, s, _ in known]
+    payloads: list[Any] = [p for _, _, p in known]
+    total = len(observed) + settings.budget  # what the progress reports count to
     running: dict[Any, np.ndarray] = {}
     submitted = 0
     settled = 0
@@ -178,7 +185,7 @@ def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callab
                 payloads.append(payload)
                 best_i = int(np.argmax([s for _, s in observed]))
                 if progress is not None:
-                    progress(BOProgress(len(observed), settings.budget, observed[best_i][1], observed[best_i][0].copy(), x.copy()))
+                    progress(BOProgress(len(observed), total, observed[best_i][1], observed[best_i][0].copy(), x.copy()))
             if settled >= settings.patience:
                 converged = True
     except BaseException:
