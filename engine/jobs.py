@@ -215,10 +215,13 @@ class JobRunner:
         except DeformationError as exc:
             raise JobError(f"segments: {exc}") from None
 
+        done = [smr_span]
+
         def on_bo(p) -> None:
             alpha = ", ".join(f"{a:.2f}" for a in 2.0 ** np.asarray(p.current_log2_alpha, float).ravel())
-            report(smr_span + (1 - smr_span) * p.evaluation / max(p.budget, 1),
-                   f"TMR: BO evaluation {p.evaluation} of {p.budget} · best score {p.best_score:.4f} · α {alpha}")
+            # (a widened search, when every α within the bound fell, raises the count: the bar never goes back)
+            done[0] = max(done[0], smr_span + (1 - smr_span) * p.evaluation / max(p.budget, 1))
+            report(done[0], f"TMR: BO evaluation {p.evaluation} of {p.budget} · best score {p.best_score:.4f} · α {alpha}")
 
         report(smr_span, f"TMR: BO evaluation 0 of {budget}")
         result = temporal_retarget(kinematic, TMRSettings(segments=segments, budget=budget, init_points=min(3, budget)),

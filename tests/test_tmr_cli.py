@@ -92,7 +92,8 @@ def test_batch_skips_finished_jobs_by_content_hash(clips, tmp_path) -> None:  # 
 
     import argparse
 
-    args = argparse.Namespace(segments=1, alpha_bound=1.0, budget=1, parallel=1, mode="receding", seed=0, window=0.25)
+    args = argparse.Namespace(segments=1, alpha_bound=1.0, budget=1, parallel=1, mode="receding", seed=0, window=0.25,
+                              widen_bound=1.6, widen_budget=2)
     key = job_key(str(clips / "stand.npz"), "go1", _settings(args))
     done = tmp_path / f"stand__go1__{key}.npz"
     done.write_bytes((clips / "stand.npz").read_bytes())
