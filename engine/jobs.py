@@ -37,6 +37,7 @@ from typing import Any, Callable
 import numpy as np
 
 from engine import protocol as msg
+from engine.scheduling import JOB_THREAD_NICENESS, lower_thread_priority
 from engine.retarget.motion import LEGS
 from engine.motion_files import (
     EXPORTS_DIR, SOURCE_DIR, check_name, confined, motions_root, shared_root,
@@ -107,6 +108,7 @@ class JobRunner:
 
     # ------------------------------------------------------------------ worker
     def _run(self, job: str, params: dict, job_id: str, cancel: threading.Event) -> None:
+        lower_thread_priority(JOB_THREAD_NICENESS)  # the simulation thread of this process goes first
         last = [0.0]
 
         def report(fraction: float, message: str = "") -> None:

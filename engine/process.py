@@ -18,6 +18,7 @@ from pathlib import Path
 
 from engine import protocol as msg
 from engine.outbox import Outbox
+from engine.scheduling import prefer_simulation
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PUBLISH_HZ = 60.0
@@ -219,5 +220,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robot", required=True)
     parser.add_argument("--fd", type=int, required=True, help="inherited socket of the studio")
     args = parser.parse_args(argv)
+    prefer_simulation()  # this process leads its own session (EngineProcess.start): the session's CPU share
     engine_main(Connection(args.fd), args.robot)
     return 0

@@ -11,22 +11,11 @@ its niceness.
 
 from __future__ import annotations
 
-import logging
-import os
-import threading
+from engine.scheduling import lower_thread_priority
 
 STREAMING_NICENESS = 5  # added to the studio's own niceness for its streaming threads
-
-log = logging.getLogger(__name__)
 
 
 def yield_to_engine(niceness: int = STREAMING_NICENESS) -> None:
     """Raise the calling thread's niceness by ``niceness`` (a no-op where threads have no niceness of their own)."""
-    if niceness <= 0 or not hasattr(os, "setpriority"):
-        return
-    tid = threading.get_native_id()
-    try:
-        current = os.getpriority(os.PRIO_PROCESS, tid)
-        os.setpriority(os.PRIO_PROCESS, tid, min(current + niceness, 19))
-    except OSError as exc:  # not permitted somewhere: keep the priority
-        log.debug("thread priority unchanged: %s", exc)
+    lower_thread_priority(niceness)
