@@ -37,7 +37,6 @@ from typing import Any, Callable
 import numpy as np
 
 from engine import protocol as msg
-from engine.scheduling import JOB_THREAD_NICENESS, lower_thread_priority
 from engine.retarget.motion import LEGS
 from engine.motion_files import (
     EXPORTS_DIR, SOURCE_DIR, check_name, confined, motions_root, shared_root,
@@ -108,7 +107,6 @@ class JobRunner:
 
     # ------------------------------------------------------------------ worker
     def _run(self, job: str, params: dict, job_id: str, cancel: threading.Event) -> None:
-        lower_thread_priority(JOB_THREAD_NICENESS)  # the simulation thread of this process goes first
         last = [0.0]
 
         def report(fraction: float, message: str = "") -> None:
@@ -223,7 +221,9 @@ class JobRunner:
             alpha = ", ".join(f"{a:.2f}" for a in 2.0 ** np.asarray(p.current_log2_alpha, float).ravel())
             # (a widened search, when every α within the bound fell, raises the count: the bar never goes back)
             done[0] = max(done[0], smr_span + (1 - smr_span) * p.evaluation / max(p.budget, 1))
-            report(done[0], f"TMR: BO evaluation {p.evaluation} of {p.budget} · best score {p.best_score:.4f} · α {alpha}")
+            stage = " (widened search: nothing stood within the bound)" if p.stage == "widened" else ""
+            report(done[0], f"TMR: BO evaluation {p.evaluation} of {p.budget}{stage} · best score {p.best_score:.4f} "
+                            f"· α {alpha}")
 
         report(smr_span, f"TMR: BO evaluation 0 of {budget}")
         result = temporal_retarget(kinematic, TMRSettings(segments=segments, budget=budget, init_points=min(3, budget)),

@@ -8,9 +8,10 @@ niceness ``SESSION_NICENESS`` (a weight about three times a default session's). 
 idle (2026-11-30): at niceness 0, ten runs, 96.3–100 % of the status line's readings ≥ 0.98, the lowest reading of a
 run 0.88–0.99; at −5, six runs, 100 %, every reading 1.00; the tab drew 6.0–6.7 frames per second instead of 6.3–7.1.
 A lower niceness needs CAP_SYS_NICE (root, or the capability); without it the session keeps its niceness and
-nothing else changes. Job threads (retargeting, TMR, libraries) run inside the engine process: they
-take a higher niceness (``JOB_THREAD_NICENESS``, a thread's own, which needs no privilege), so the session's share
-goes to the simulation first.
+nothing else changes. Only a process that leads its own session sets it (a hand-started ``python -m engine`` in a
+terminal leaves the terminal's session alone). The engine's job threads (retarget, import, export, poses) keep the
+session's priority: at a higher niceness of their own, one preempted while holding the GIL would keep the simulation
+thread waiting where autogroups do not apply (a process in a non-root CPU cgroup).
 """
 
 from __future__ import annotations
@@ -18,10 +19,11 @@ from __future__ import annotations
 import logging
 import os
 import threading
+import time
 from pathlib import Path
 
 SESSION_NICENESS = -5  # the engine session's autogroup niceness, where permitted
-JOB_THREAD_NICENESS = 10  # added to a job thread's own niceness
+AUTOGROUP_RETRY_S = 0.11  # without CAP_SYS_ADMIN the kernel takes one autogroup write per 100 ms, system-wide
 
 log = logging.getLogger(__name__)
 
@@ -29,14 +31,24 @@ AUTOGROUP = Path("/proc/self/autogroup")
 
 
 def prefer_simulation(niceness: int = SESSION_NICENESS, autogroup: Path = AUTOGROUP) -> bool:
-    """Set this session's autogroup niceness (call it in the engine process, which leads its own session);
-    True when it was set, False where autogroups are absent or the niceness is not permitted."""
-    try:
-        autogroup.write_text(f"{int(niceness)}\n")
-    except OSError as exc:  # no autogroups (not Linux, or switched off), or no CAP_SYS_NICE for a negative niceness
-        log.debug("engine session priority unchanged: %s", exc)
+    """Set this session's autogroup niceness when this process leads its session (the engine process does);
+    True when it was set, False where it is not the session leader, autogroups are absent or the niceness is not
+    permitted."""
+    if hasattr(os, "getsid") and os.getsid(0) != os.getpid():
+        log.debug("engine session priority unchanged: not the leader of its session")
         return False
-    return True
+    for attempt in range(2):
+        try:
+            autogroup.write_text(f"{int(niceness)}\n")
+            return True
+        except BlockingIOError:  # EAGAIN: another process wrote an autogroup niceness within the last 100 ms
+            if attempt == 0:
+                time.sleep(AUTOGROUP_RETRY_S)
+        except OSError as exc:  # no autogroups (not Linux, or switched off), or no CAP_SYS_NICE for a negative niceness
+            log.debug("engine session priority unchanged: %s", exc)
+            return False
+    log.info("engine session priority unchanged: the kernel refused two autogroup writes 100 ms apart")
+    return False
 
 
 def lower_thread_priority(niceness: int) -> None:

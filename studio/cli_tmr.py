@@ -76,6 +76,9 @@ def _settings(args: argparse.Namespace):  # noqa: ANN202
             check_log2_bound(args.widen_bound)
         except DeformationError as exc:
             raise CliError(f"--widen-bound: {exc} (or 0: never widen)") from None
+        if args.widen_bound <= args.alpha_bound:
+            raise CliError(f"--widen-bound: expected a bound above --alpha-bound {args.alpha_bound:g} (or 0: never "
+                           f"widen), got {args.widen_bound:g}")
     if not 0 <= args.widen_budget <= 1000:
         raise CliError(f"--widen-budget: expected 0..1000 evaluations, got {args.widen_budget}")
     if args.segments < 1:
@@ -88,7 +91,8 @@ def _settings(args: argparse.Namespace):  # noqa: ANN202
         raise CliError(f"--window: expected 0.02..5 s, got {args.window}")
     return TMRSettings(segments=args.segments, log2_bound=args.alpha_bound, budget=args.budget,
                        init_points=min(3, args.budget), parallel=args.parallel, mode=args.mode, seed=args.seed,
-                       window_s=args.window, widen_log2_bound=args.widen_bound, widen_budget=args.widen_budget)
+                       window_s=args.window, widen_log2_bound=args.widen_bound if args.widen_budget > 0 else 0.0,
+                       widen_budget=args.widen_budget if args.widen_bound > 0 else 0)  # (off: one job key)
 
 
 def _executor(address: str | None, parallel: int):  # noqa: ANN202

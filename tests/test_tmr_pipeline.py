@@ -111,9 +111,12 @@ def test_when_every_alpha_within_the_bound_falls_the_search_widens(go1, monkeypa
     narrow = temporal_retarget(motion, TMRSettings(budget=3, init_points=3, widen_budget=0))
     assert narrow.summary["replay_fell"] and narrow.summary["log2_bound_searched"] == 1.0
     evaluated.clear()
-    res = temporal_retarget(motion, TMRSettings(budget=3, init_points=3, widen_log2_bound=1.6, widen_budget=1))
+    seen = []
+    res = temporal_retarget(motion, TMRSettings(budget=3, init_points=3, widen_log2_bound=1.6, widen_budget=1),
+                            progress=seen.append)
     s = res.summary
     assert evaluated == [0.0, -1.0, 1.0, -1.6], "the widened search starts at the far end of the falls' better side"
-    assert s["log2_bound"] == 1.0 and s["log2_bound_searched"] == 1.6
+    assert [(p.evaluation, p.budget, p.stage) for p in seen] == [(1, 3, ""), (2, 3, ""), (3, 3, ""), (4, 4, "widened")]
+    assert s["log2_bound"] == 1.0 and s["log2_bound_searched"] == 1.6 and s["bo_evaluations_widened"] == 1
     assert not s["replay_fell"] and s["alpha"] == [pytest.approx(2.0 ** -1.6, abs=1e-4)] and s["bo_evaluations"] == 4
     assert len(res.evaluations) == 4 and [e["replay_fell"] for e in res.evaluations] == [True, True, True, False]

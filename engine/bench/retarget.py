@@ -216,6 +216,7 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
                     "stmr_fell": s["replay_fell"], "stmr_dtw_pct": stmr_dtw, "stmr_track_mm": s["tracking_error_mm"],
                     "stmr_duration_s": s["duration_s"]["after"],
                     "stmr_alpha": ",".join(f"{a:.3f}" for a in s["alpha"]), "stmr_fell_at_s": s["replay_fell_at_s"],
+                    "stmr_log2_bound_searched": s["log2_bound_searched"],
                     "stmr_dtw_vs_target_pct": s["dtw_vs_target_pct"],
                     "stmr_vs_smr_dtw_pct": (round(100.0 * (stmr_dtw - smr_dtw) / smr_dtw, 1)
                                             if stmr_dtw is not None and smr_dtw else None),
@@ -226,9 +227,11 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
                     "smr_track_cpu_s": round(cpu_inner, 1), "tmr_cpu_s": round(cpu_tmr, 1),
                     "tmr_vs_inner_solve_cpu": round(cpu_tmr / cpu_inner, 2) if cpu_inner > 0 else None,
                     "paper_smr_dtw_pct": paper[1], "paper_stmr_dtw_pct": paper[0],
-                    "bo_trace": " ".join(f"{e['alpha'][0] if len(e['alpha']) == 1 else e['alpha']}"
+                    # (the widened search's evaluations come last: "widened:" before them)
+                    "bo_trace": " ".join(("widened: " if k == s["bo_evaluations"] - s["bo_evaluations_widened"] else "")
+                                         + f"{e['alpha'][0] if len(e['alpha']) == 1 else e['alpha']}"
                                          f"{'↓' + str(e['fell_at_s']) if e['replay_fell'] else '✓'}({e['wall_time_s']:g}s)"
-                                         for e in res.evaluations),
+                                         for k, e in enumerate(res.evaluations)),
                 })
                 print(f"bench retarget: {rows[-1]}", file=sys.stderr, flush=True)
     finally:

@@ -54,6 +54,7 @@ def run_stack(robot_name: str, seconds: float = 20.0, style_name: str = "neutral
     if warm is not None:
         row["warm_up_stack_wall_s"] = warm["stack_wall_s"]
         row["warm_up_stack_over_mujoco"] = warm["stack_over_mujoco"]
+        row["warm_up_fell"] = warm["fell"]
     return row
 
 

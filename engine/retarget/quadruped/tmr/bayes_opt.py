@@ -66,6 +66,7 @@ class BOProgress:
     best_score: float
     best_log2_alpha: np.ndarray
     current_log2_alpha: np.ndarray  # the point just evaluated
+    stage: str = ""  # "widened": TMR's second search over a wider bound (tmr.temporal_retarget)
 
 
 @dataclass
@@ -164,9 +165,9 @@ def bayes_optimise(evaluate_submit: Callable[[np.ndarray], Any], collect: Callab
                 if observed and submitted >= len(warm):
                     best_x = observed[int(np.argmax([s for _, s in observed]))][0]
                     settled = settled + 1 if np.max(np.abs(x - best_x)) < settings.convergence_log2 else 0
-                    known = [y for y in [*(y for y, _ in observed), *running.values()]
-                             if np.max(np.abs(x - y)) < settings.duplicate_log2]
-                    if known:  # already evaluated (or under way): no second solve of the same α
+                    near = [y for y in [*(y for y, _ in observed), *running.values()]
+                            if np.max(np.abs(x - y)) < settings.duplicate_log2]
+                    if near:  # already evaluated (or under way): no second solve of the same α
                         repeats += 1
                         settled = max(settled, repeats)
                         if settled >= settings.patience:

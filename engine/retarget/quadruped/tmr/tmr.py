@@ -12,7 +12,7 @@ durations before and after.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -35,6 +35,10 @@ from engine.retarget.quadruped.tmr.ray_jobs import LocalExecutor
 from engine.retarget.quadruped.tmr.scoring import dtw_keypoint_l1_pct, tmr_score, tracking_error_mm
 
 
+#: A segment whose best (fallen) log2 α lies within this of 0 counts as the identity: the widened search shortens it.
+WIDEN_DEAD_BAND_LOG2 = 0.05
+
+
 @dataclass
 class TMRSettings:
     segments: int = 1  # S (the paper uses 1 for short clips, 3 for long varied ones)
@@ -42,8 +46,9 @@ class TMRSettings:
     budget: int = 8  # BO evaluations at most
     # When every evaluation within ±log2_bound falls, the search goes on over ±widen_log2_bound (≤ 2, the studio's
     # limit) for widen_budget more evaluations, the first at the far end on the side of the fall that got furthest
-    # (shortening when that was the identity): a1's HopTurn falls at every α in [½, 2] BO tried and stands at
-    # α = 0.33 (log2 −1.6; README, issue 10). 0 turns it off; the summary names the bound the result was found in
+    # (shortening when that was within WIDEN_DEAD_BAND_LOG2 of the identity): a1's HopTurn falls at every α in [½, 2]
+    # BO tried and stands at α = 0.33 (log2 −1.6; README, issue 10). A budget of 0 turns it off; the summary names
+    # the bound searched (the best result may still lie within ±log2_bound)
     widen_log2_bound: float = 1.6
     widen_budget: int = 2
     init_points: int = 3  # warm start: the identity, log2 α = −B, +B, −B/2, +B/2 in every segment, then random
@@ -156,6 +161,8 @@ def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: 
 
 def _check(motion, settings: TMRSettings) -> None:  # noqa: ANN001
     check_log2_bound(settings.log2_bound)
+    if settings.widen_budget > 0 and settings.widen_log2_bound > settings.log2_bound:
+        check_log2_bound(settings.widen_log2_bound)  # before the first search, not after it
     check_segments(settings.segments, len(motion.qpos), motion.fps)
 
 
@@ -185,13 +192,14 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
     bo = bayes_optimise(submit, collect, settings.segments, settings.log2_bound,
                         BOSettings(budget=settings.budget, init_points=settings.init_points, parallel=settings.parallel,
                                    seed=settings.seed), progress=progress, cancel=cancel, abort=executor.cancel)
-    searched_bound = settings.log2_bound
+    searched_bound, narrow_evaluations = settings.log2_bound, bo.evaluations
     if bo.best_payload.fell and settings.widen_budget > 0 and settings.widen_log2_bound > settings.log2_bound:
         searched_bound = check_log2_bound(settings.widen_log2_bound)
-        far = np.where(bo.best_log2_alpha > 0.0, searched_bound, -searched_bound)
+        far = np.where(bo.best_log2_alpha > WIDEN_DEAD_BAND_LOG2, searched_bound, -searched_bound)
         bo = bayes_optimise(submit, collect, settings.segments, searched_bound,
                             BOSettings(budget=settings.widen_budget, parallel=settings.parallel, seed=settings.seed),
-                            progress=progress, cancel=cancel, abort=executor.cancel,
+                            progress=None if progress is None else (lambda p: progress(replace(p, stage="widened"))),
+                            cancel=cancel, abort=executor.cancel,
                             known=[(x, sc, ev) for (x, sc), ev in zip(bo.history, bo.payloads)], warm_start=[far])
     best: Evaluation = bo.best_payload
     # DTW keypoint L1 of the replay against the kinematic input at its own frames — measured as track_motion
@@ -203,6 +211,7 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
     summary = {
         "robot": motion.robot, "segments": settings.segments, "alpha": [round(a, 4) for a in alpha],
         "log2_bound": settings.log2_bound, "log2_bound_searched": searched_bound,
+        "bo_evaluations_widened": bo.evaluations - narrow_evaluations,
         "duration_s": {"before": round((len(qpos) - 1) / fps, 4), "after": round(best.duration_s, 4)},
         "bo_evaluations": bo.evaluations, "bo_converged": bo.converged, "score": round(best.score["score"], 5),
         "replay_fell": bool(best.fell), "replay_fell_at_s": best.score["fell_at_s"], "dtw_keypoint_l1_pct": None if not np.isfinite(dtw) else round(dtw, 3),
