@@ -1,4 +1,5 @@
-"""The simulation first: CPU priorities of the engine process's session and of its job threads (Linux).
+"""The simulation first: the engine process's session CPU priority, and a thread's own niceness (Linux; the
+studio's streaming threads raise theirs with :func:`lower_thread_priority`).
 
 The engine runs in its own session (``EngineProcess.start``), hence its own scheduler autogroup: the kernel shares
 the CPU between sessions first, then between the threads of each. On two cores beside a software-WebGL tab the

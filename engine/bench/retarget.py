@@ -204,6 +204,7 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
                 res = temporal_retarget(smr, settings, executor=executor)
                 t_tmr, cpu_tmr = time.perf_counter() - t0, time.process_time() - c0
                 s = res.summary
+                first_widened = s["bo_evaluations"] - s["bo_evaluations_widened"]  # (none when 0 widened)
                 before = s["duration_s"]["before"]
                 paper = PAPER_TABLE_II.get((robot, clip), ("", ""))
                 smr_dtw, stmr_dtw = smr_tracked["dtw_keypoint_l1_pct"], s["dtw_keypoint_l1_pct"]
@@ -228,7 +229,7 @@ def bench_retarget_methods(clips: tuple[str, ...] = CLIPS, robots: tuple[str, ..
                     "tmr_vs_inner_solve_cpu": round(cpu_tmr / cpu_inner, 2) if cpu_inner > 0 else None,
                     "paper_smr_dtw_pct": paper[1], "paper_stmr_dtw_pct": paper[0],
                     # (the widened search's evaluations come last: "widened:" before them)
-                    "bo_trace": " ".join(("widened: " if k == s["bo_evaluations"] - s["bo_evaluations_widened"] else "")
+                    "bo_trace": " ".join(("widened: " if k == first_widened else "")
                                          + f"{e['alpha'][0] if len(e['alpha']) == 1 else e['alpha']}"
                                          f"{'↓' + str(e['fell_at_s']) if e['replay_fell'] else '✓'}({e['wall_time_s']:g}s)"
                                          for k, e in enumerate(res.evaluations)),

@@ -89,6 +89,11 @@ class TMRSettings:
     polish_iterations: int = 5
     seed: int = 0
 
+    @property
+    def widens(self) -> bool:
+        """Whether a search in which every evaluation fell goes on over the wider ``widen_log2_bound``."""
+        return self.widen_budget > 0 and self.widen_log2_bound > self.log2_bound
+
 
 @dataclass
 class Evaluation:
@@ -161,7 +166,7 @@ def evaluate_alpha(robot_name: str, qpos: np.ndarray, contact: np.ndarray, fps: 
 
 def _check(motion, settings: TMRSettings) -> None:  # noqa: ANN001
     check_log2_bound(settings.log2_bound)
-    if settings.widen_budget > 0 and settings.widen_log2_bound > settings.log2_bound:
+    if settings.widens:
         check_log2_bound(settings.widen_log2_bound)  # before the first search, not after it
     check_segments(settings.segments, len(motion.qpos), motion.fps)
 
@@ -193,7 +198,7 @@ def temporal_retarget(motion, settings: TMRSettings | None = None, executor: Any
                         BOSettings(budget=settings.budget, init_points=settings.init_points, parallel=settings.parallel,
                                    seed=settings.seed), progress=progress, cancel=cancel, abort=executor.cancel)
     searched_bound, narrow_evaluations = settings.log2_bound, bo.evaluations
-    if bo.best_payload.fell and settings.widen_budget > 0 and settings.widen_log2_bound > settings.log2_bound:
+    if bo.best_payload.fell and settings.widens:
         searched_bound = check_log2_bound(settings.widen_log2_bound)
         far = np.where(bo.best_log2_alpha > WIDEN_DEAD_BAND_LOG2, searched_bound, -searched_bound)
         bo = bayes_optimise(submit, collect, settings.segments, searched_bound,
