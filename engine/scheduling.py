@@ -31,6 +31,20 @@ log = logging.getLogger(__name__)
 AUTOGROUP = Path("/proc/self/autogroup")
 
 
+def autogroup_niceness(autogroup: Path = AUTOGROUP) -> int | None:
+    """This session's autogroup niceness; None where there is none to read: no autogroups, or a process left in the
+    kernel's default group (the file then reads empty, as in some containers whose processes never started a
+    session of their own)."""
+    try:
+        fields = autogroup.read_text().split()
+    except OSError:
+        return None
+    try:
+        return int(fields[-1]) if len(fields) >= 3 and fields[-2] == "nice" else None
+    except ValueError:
+        return None
+
+
 def prefer_simulation(niceness: int = SESSION_NICENESS, autogroup: Path = AUTOGROUP) -> bool:
     """Set this session's autogroup niceness when this process leads its session (the engine process does);
     True when it was set, False where it is not the session leader, autogroups are absent or the niceness is not
