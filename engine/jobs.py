@@ -216,18 +216,20 @@ class JobRunner:
             raise JobError(f"segments: {exc}") from None
 
         done = [smr_span]
+        settings = TMRSettings(segments=segments, budget=budget, init_points=min(3, budget))
+        # The bar spans every evaluation TMR may run: the budget, and the widened search's when every α within the
+        # bound falls (a search that needs no widening ends the bar early rather than pinning it at the end)
+        most = budget + (settings.widen_budget if settings.widens else 0)
 
         def on_bo(p) -> None:
             alpha = ", ".join(f"{a:.2f}" for a in 2.0 ** np.asarray(p.current_log2_alpha, float).ravel())
-            # (a widened search, when every α within the bound fell, raises the count: the bar never goes back)
-            done[0] = max(done[0], smr_span + (1 - smr_span) * p.evaluation / max(p.budget, 1))
+            done[0] = max(done[0], smr_span + (1 - smr_span) * min(p.evaluation / max(most, 1), 1.0))
             stage = " (widened search: nothing stood within the bound)" if p.stage == "widened" else ""
             report(done[0], f"TMR: BO evaluation {p.evaluation} of {p.budget}{stage} · best score {p.best_score:.4f} "
                             f"· α {alpha}")
 
         report(smr_span, f"TMR: BO evaluation 0 of {budget}")
-        result = temporal_retarget(kinematic, TMRSettings(segments=segments, budget=budget, init_points=min(3, budget)),
-                                   progress=on_bo, cancel=cancel.is_set)
+        result = temporal_retarget(kinematic, settings, progress=on_bo, cancel=cancel.is_set)
         if cancel.is_set():
             raise JobCancelled
         motion = result.motion

@@ -60,7 +60,8 @@ def test_bench_rejects_unknown_section():
     assert out.returncode == 2 and "unknown bench section 'nosuch'" in out.stderr
 
 
-@pytest.mark.parametrize("option", [("--n", "-3"), ("--extent", "7"), ("--duration", "nan"), ("--phases", "0")])
+@pytest.mark.parametrize("option", [("--n", "-3"), ("--extent", "7"), ("--duration", "nan"), ("--phases", "0"),
+                                    ("--space", "bogus")])
 def test_bench_rejects_out_of_range_style_options(option):
     out = run_studio("bench", "styles", *option)
     assert out.returncode == 2 and option[0] in out.stderr and "Traceback" not in out.stderr, out.stderr

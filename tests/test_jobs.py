@@ -147,6 +147,10 @@ def test_stmr_job_reports_bo_progress_and_writes_the_dynamic_motion(tmp_path):
     result = events[-1].result
     assert result["ok"], result
     assert any("BO evaluation" in e.message for e in events[:-1])
+    # The bar spans the budget and the widened search's evaluations: it never goes back, and no BO evaluation
+    # pins it at the end before the result is written
+    fractions = [e.fraction for e in events]
+    assert fractions == sorted(fractions) and all(f < 1.0 for f in fractions[:-1])
     assert (tmp_path / "go1" / "d.npz").is_file() and (tmp_path / "go1" / "d.smr.npz").is_file()
     assert result["metrics"]["bo_evaluations"] >= 1 and "alpha" in result["metrics"]
     pb = result["playback"]

@@ -56,6 +56,7 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=8)
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--extent", type=float, default=0.15)
+    ap.add_argument("--space", choices=("validated", "reachable"), default="validated")
     ap.add_argument("--shipped", action="store_true")
     ap.add_argument("--only", default="", help="comma-separated style names to run (default all)")
     ap.add_argument("--out-dir", default="")
@@ -74,7 +75,7 @@ def main() -> None:
         ctx = StyleContext.for_robot(args.robot)
         styles += [load_style(p, ctx) for p in sorted(styles_dir(args.robot).glob("*.json"))]
     for seed in (int(s) for s in args.seeds.split(",") if s):
-        styles += [s for s, _ in style_jobs(args.robot, args.n, seed, args.duration, args.extent)]
+        styles += [s for s, _ in style_jobs(args.robot, args.n, seed, args.duration, args.extent, args.space)]
     if args.only:
         keep = set(args.only.split(","))
         styles = [s for s in styles if s.name in keep]

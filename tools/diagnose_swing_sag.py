@@ -67,7 +67,7 @@ def main() -> None:
     if args.shipped:
         style = load_style(styles_dir(args.robot) / f"{args.shipped}.json", StyleContext.for_robot(args.robot))
     else:
-        style = style_jobs(args.robot, args.n, args.seed, args.duration, args.extent)[args.index][0]
+        style = style_jobs(args.robot, args.n, args.seed, args.duration, args.extent, args.space)[args.index][0]
     if args.walking:
         changes = _overrides(args.walking)
         base_w = WalkingParameters.for_robot

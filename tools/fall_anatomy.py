@@ -243,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
                   file=sys.stderr)
             return 2
     robot = load_robot(a.robot)
-    pairs = style_jobs(a.robot, a.n, a.seed, a.duration, a.extent)
+    pairs = style_jobs(a.robot, a.n, a.seed, a.duration, a.extent, a.space)
     rows = []
     for i in a.indices:
         if not 0 <= i < len(pairs):

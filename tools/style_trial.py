@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     jobs: list[tuple[str, dict]] = []
     if a.indices:
-        pairs = style_jobs(a.robot, a.n, a.seed, a.duration, a.extent)
+        pairs = style_jobs(a.robot, a.n, a.seed, a.duration, a.extent, a.space)
         for i in a.indices:
             if not 0 <= i < len(pairs):
                 print(f"index {i}: expected 0..{len(pairs) - 1}", file=sys.stderr)

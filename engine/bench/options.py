@@ -17,6 +17,7 @@ def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed:
     parser.add_argument("--n", type=int, default=n, help="as the bench's --n")
     parser.add_argument("--seed", type=int, default=seed, help="as the bench's --seed")
     parser.add_argument("--extent", type=float, default=extent, help="as the bench's --extent")
+    parser.add_argument("--space", choices=("validated", "reachable"), default="validated", help="as the bench's --space")
     parser.add_argument("--duration", type=float, default=duration_s, help="seconds of the sweep")
 
 
@@ -44,6 +45,9 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=60.0, help="styles: seconds of the sweep per style")
     parser.add_argument("--extent", type=float, default=1.0,
                         help="styles: share of each validated range drawn around neutral (1: the whole range)")
+    parser.add_argument("--space", choices=("validated", "reachable"), default="validated",
+                        help="styles: draw over the validated space, or over its part the legs reach (each sample "
+                             "drawn again while the feasibility check finds a foot out of reach or in the floor)")
     parser.add_argument("--phases", type=int, default=16, help="push: gait phases per direction")
     parser.add_argument("--n-per-kg", type=float, default=1.5, help="push: force per kg of robot mass")
     parser.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray)")
@@ -74,6 +78,7 @@ def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) ->
     mapping = {"minutes": args.minutes, "clients": args.clients, "tabs": getattr(args, "tabs", 2), "tab_nice": getattr(args, "tab_nice", 0),
                "robot": args.robot,
                "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
+               "space": getattr(args, "space", "validated"),
                "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir,
                "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None),
                "robot_names": getattr(args, "robots", None), "weights_dir": getattr(args, "weights_dir", None),

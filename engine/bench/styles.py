@@ -16,6 +16,7 @@ Results are keyed by the style's hash in the output folder: a second call resume
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,29 +25,57 @@ import numpy as np
 from engine.walk_batch import job_key, print_progress, run_batch
 
 
-def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float = 1.0) -> list[tuple[Any, dict[str, Any]]]:
-    """[(style, job)] for ``n`` random styles of ``robot`` drawn with ``seed``."""
-    from engine.gait.style import StyleContext, load_style, style_to_json_dict, styles_dir
-    from engine.gait.style_space import random_style
+SPACES = ("validated", "reachable")
+KINEMATIC_KINDS = frozenset({"reach", "clearance"})  # the check's findings no leg posture can follow
 
+
+def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float = 1.0,
+               space: str = "validated", progress: Callable[[str], None] | None = None) -> list[tuple[Any, dict[str, Any]]]:
+    """[(style, job)] for ``n`` random styles of ``robot`` drawn with ``seed``: over the validated space, or
+    (``space="reachable"``) over its part the legs reach (each sample drawn again while the feasibility check
+    finds its feet out of every leg posture's reach, or in the floor)."""
+    from engine.gait.style import StyleContext, load_style, style_to_json_dict, styles_dir
+    from engine.gait.style_space import random_reachable_style, random_style
+
+    if space not in SPACES:
+        raise ValueError(f"space: expected one of {', '.join(SPACES)}, got {space!r}")
     ctx = StyleContext.for_robot(robot)
     neutral = load_style(styles_dir(robot) / "neutral.json", ctx)
     rng = np.random.default_rng(seed)
+    unreachable = None
+    if space == "reachable":
+        from engine.gait.feasibility import FeasibilityChecker
+        from engine.robot.model import load_robot
+
+        checker = FeasibilityChecker(load_robot(robot), ctx)
+
+        def unreachable(style: Any, sample: str) -> bool:
+            return any(f.kind in KINEMATIC_KINDS for f in checker.check_sample(style, sample))
+
     out = []
     for i in range(n):
-        style = random_style(rng, ctx, neutral, extent, name=f"random-{seed}-{i}")
+        name = f"random-{seed}-{i}" if space == "validated" else f"reachable-{seed}-{i}"
+        if unreachable is None:
+            style = random_style(rng, ctx, neutral, extent, name=name)
+        else:
+            style, draws = random_reachable_style(rng, ctx, neutral, unreachable, extent, name=name)
+            if progress is not None:
+                progress(f"  drew {name}: {draws} samples checked for {len(style.samples)} reachable")
         job = {"robot": robot, "style": style_to_json_dict(style), "command": "sweep", "duration_s": float(duration_s)}
         out.append((style, job))
     return out
 
 
 def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: float = 60.0,
-                 out_dir: str | None = None, address: str | None = None, extent: float = 1.0) -> list[dict]:
+                 out_dir: str | None = None, address: str | None = None, extent: float = 1.0,
+                 space: str = "validated") -> list[dict]:
     from engine.gait.feasibility import check_style
     from engine.robot.model import load_robot
 
     model = load_robot(robot)
-    pairs = style_jobs(robot, n, seed, duration_s, extent)
+    if space == "reachable":
+        print(f"drawing {n} reachable styles (the feasibility check on every draw) ...", flush=True)
+    pairs = style_jobs(robot, n, seed, duration_s, extent, space, progress=lambda line: print(line, flush=True))
     out = Path(out_dir) if out_dir else Path.home() / ".cache" / "motion-studio" / "bench-styles" / robot
     results = run_batch([j for _, j in pairs], out, address=address, progress=print_progress)
     rows: list[dict] = []

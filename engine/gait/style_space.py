@@ -18,11 +18,18 @@ random curves of zero amplitude). What is drawn, per sample (each of the nine in
   bound, engine/gait/leg_reach.py: there the range is drawn below that speed) and the blend gain η.
 
 Drawn with a numpy Generator: the same seed gives the same styles.
+
+:func:`random_reachable_style` draws from the part of that space the legs can reach: a sample whose
+reference no leg posture follows (a caller's predicate, the feasibility check's reach and clearance
+findings in ``studio bench styles --space reachable``) is drawn again, with the same rules, until one
+is reachable. Over the whole validated range of G1 (``extent = 1``) about one sample in seven passes:
+the ranges are per field, and their combinations mostly ask for feet out of reach (README, issue 13).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -36,12 +43,14 @@ from engine.gait.style import (
     MAX_PELVIS_Z_OFFSET_M,
     SIDES,
     Attributes,
+    StyleError,
     GaitSample,
     Intervals,
     VELOCITY_FIELD,
     Style,
     StyleContext,
     channel_value_range,
+    validate_style,
 )
 from engine.gait.leg_reach import max_reachable_speed
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
@@ -224,18 +233,63 @@ def random_velocities(rng: np.random.Generator, neutral: SampleVelocities, exten
     return SampleVelocities(x_max, x_slow, draw("y_max_mps", neutral.y_max_mps), draw("yaw_max_radps", neutral.yaw_max_radps))
 
 
+def random_sample(rng: np.random.Generator, ctx: StyleContext, base: GaitSample, extent: float) -> GaitSample:
+    """One sample's timings, attributes and curves around ``base`` (the neutral style's sample)."""
+    intervals = random_intervals(rng, ctx, base.intervals, extent)
+    attributes = random_attributes(rng, ctx, base.attributes, extent)
+    curves = random_curves(rng, ctx, intervals, attributes, extent, base)
+    return GaitSample(intervals, attributes, curves)
+
+
 def random_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, extent: float = 1.0,
                  name: str = "random") -> Style:
     """A random style that passes validation (see the module docstring for what is drawn)."""
     extent = float(min(max(extent, 0.0), 1.0))
-    samples = {}
-    for sample_name in SAMPLE_NAMES:
-        base = neutral.samples[sample_name]
-        intervals = random_intervals(rng, ctx, base.intervals, extent)
-        attributes = random_attributes(rng, ctx, base.attributes, extent)
-        curves = random_curves(rng, ctx, intervals, attributes, extent, base)
-        samples[sample_name] = GaitSample(intervals, attributes, curves)
+    samples = {sample_name: random_sample(rng, ctx, neutral.samples[sample_name], extent) for sample_name in SAMPLE_NAMES}
     eta = _around(rng, neutral.blend_eta, 0.0, 1.0, extent)
     velocities = random_velocities(rng, neutral.velocities, extent, reachable_velocities(ctx, samples))
     return replace(neutral, name=name, description=f"random style (extent {extent:g})",
                    velocities=velocities, samples=samples, blend_eta=eta)
+
+
+Unreachable = Callable[[Style, str], bool]  # (style, sample name) -> no leg posture follows that sample's reference
+
+
+MAX_PASSES = 4  # passes over the samples until none is drawn again
+
+
+class NoReachableStyle(RuntimeError):
+    """No reachable draw within the budget (a space the legs almost never reach)."""
+
+
+def random_reachable_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, unreachable: Unreachable,
+                           extent: float = 1.0, name: str = "random", max_draws_per_sample: int = 400) -> tuple[Style, int]:
+    """A random style that passes validation and whose every sample the legs reach (``unreachable`` false for
+    each), and how many samples were drawn for it. The style's velocities are drawn once (with the first draw of
+    its samples); a sample drawn again must keep them within the validator's step bound. Each sample is then
+    drawn from the validated space conditioned on being reachable at those velocities."""
+    extent = float(min(max(extent, 0.0), 1.0))
+    style = random_style(rng, ctx, neutral, extent, name)
+    draws = len(SAMPLE_NAMES)
+    tries = dict.fromkeys(SAMPLE_NAMES, 0)
+    for _ in range(MAX_PASSES):
+        # A sample is checked within its style (the planner blends its neighbours in at its own velocity): one drawn
+        # again can make another fail, so the samples are passed over until all of them pass.
+        redrawn = False
+        for sample_name in SAMPLE_NAMES:
+            while unreachable(style, sample_name):
+                if tries[sample_name] == max_draws_per_sample:
+                    raise NoReachableStyle(f"{name}: no reachable {sample_name} in {max_draws_per_sample} draws "
+                                           f"at extent {extent:g}")
+                tries[sample_name] += 1
+                draws += 1
+                candidate = replace(style, samples={**style.samples,
+                                                    sample_name: random_sample(rng, ctx, neutral.samples[sample_name], extent)})
+                try:
+                    validate_style(candidate, ctx)
+                except StyleError:  # this draw's steps are past the legs' reach at the style's velocity
+                    continue
+                style, redrawn = candidate, True
+        if not redrawn:
+            return style, draws
+    raise NoReachableStyle(f"{name}: its samples kept failing one another in {MAX_PASSES} passes at extent {extent:g}")

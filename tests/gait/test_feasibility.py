@@ -118,3 +118,32 @@ def test_random_styles_near_neutral_that_walk_are_not_flagged():
     rng = np.random.default_rng(1)
     style = random_style(rng, ctx, neutral, 0.0)
     assert check_style(load_robot("g1"), style) == []
+
+
+@pytest.mark.parametrize("robot_name", ["g1", "talos"])
+def test_the_torque_estimate_balances_the_body_on_its_stance_sole(robot_name):
+    """The weight's line of action in the torque check: through the CoM, clamped to the sole. On a sole large
+    enough to hold it under the CoM, the floating base's six generalized forces vanish for any posture (a
+    static equilibrium: force and moment), whichever foot stands; on the real sole they do where the CoM is
+    above it, and the leg joints' shares stay finite."""
+    import numpy as np
+    import pinocchio as pin
+
+    from engine.gait.feasibility import FeasibilityChecker
+
+    robot = load_robot(robot_name)
+    checker = FeasibilityChecker(robot)
+    model = checker.model
+    real_sole = checker.sole_half
+    for _ in range(5):
+        q = pin.randomConfiguration(model)
+        q[:3] = [0.1, -0.2, 0.8]
+        q = 0.5 * (q + robot.q_standing)  # (halfway to standing: finite limits, a normalised quaternion below)
+        q[3:7] /= np.linalg.norm(q[3:7])
+        for stance in (0, 1):
+            checker.sole_half = (50.0, 50.0)
+            tau = checker.static_torques(stance, q)
+            assert np.abs(tau[:6]).max() < 1e-6 * robot.mass_kg * 9.81, tau[:6]
+            checker.sole_half = real_sole
+            share = np.abs(checker.static_torques(stance, q)[checker.leg_v]) / checker.torque_limit
+            assert np.all(np.isfinite(share))

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from engine.gait.style import StyleContext, load_style, styles_dir, validate_style
 from engine.gait.curve_rates import over_bound, rate_bound
-from engine.gait.style_space import MIN_KNOT_PHASE, random_style
+from engine.gait.style_space import MIN_KNOT_PHASE, NoReachableStyle, random_reachable_style, random_style
 
 
 @lru_cache(maxsize=None)
@@ -72,3 +72,46 @@ def test_swings_pulled_within_g1s_rate_bounds_still_lift_the_foot():
                 for side in ("left", "right"):
                     apex = sample.curves[f"{side}_foot.z"].value_range()[1]
                     assert apex >= MIN_SWING_APEX_M, (extent, name, side, apex)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(robot=st.sampled_from(["g1", "talos"]), seed=st.integers(0, 2**32 - 1), extent=st.floats(0.2, 1.0))
+def test_the_reachable_generator_draws_valid_styles_the_predicate_accepts(robot, seed, extent):
+    """A stand-in predicate (the bench's is the feasibility check's reach): every sample's pelvis in the upper
+    half of the validated heights. Each sample of the drawn style passes it, and the style passes validation."""
+    ctx, neutral = robot_context(robot)
+    lo, hi = ctx.pelvis_height_range_m
+    calls: list[str] = []
+
+    def unreachable(style, sample):
+        calls.append(sample)
+        return style.samples[sample].attributes.pelvis_height_m < 0.5 * (lo + hi)
+
+    style, draws = random_reachable_style(np.random.default_rng(seed), ctx, neutral, unreachable, extent)
+    validate_style(style, ctx)
+    assert all(s.attributes.pelvis_height_m >= 0.5 * (lo + hi) for s in style.samples.values())
+    assert draws >= len(style.samples) and set(calls) == set(style.samples)
+    again, _ = random_reachable_style(np.random.default_rng(seed), ctx, neutral, unreachable, extent)
+    assert again.to_dict() == style.to_dict()  # the same seed, the same style
+
+
+def test_the_reachable_generator_gives_up_on_a_space_it_never_reaches():
+    ctx, neutral = robot_context("g1")
+    try:
+        random_reachable_style(np.random.default_rng(0), ctx, neutral, lambda style, sample: True, 1.0,
+                               name="never", max_draws_per_sample=5)
+    except NoReachableStyle as exc:
+        assert "never" in str(exc) and "5 draws" in str(exc)
+    else:
+        raise AssertionError("expected NoReachableStyle")
+
+
+def test_reachable_styles_pass_the_feasibility_checks_reach():
+    """The bench's --space reachable: the drawn G1 style's every sample has no reach or clearance finding."""
+    from engine.bench.styles import KINEMATIC_KINDS, style_jobs
+    from engine.gait.feasibility import check_style
+    from engine.robot.model import load_robot
+
+    (style, job), = style_jobs("g1", 1, 3, 10.0, 1.0, "reachable")
+    assert style.name == "reachable-3-0" and job["style"]["name"] == "reachable-3-0"
+    assert not [f for f in check_style(load_robot("g1"), style) if f.kind in KINEMATIC_KINDS]
