@@ -13,8 +13,9 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
 * joint speed — finite differences of that IK against the model's velocity limits (severity
   "rating": the simulation models no velocity limit and walks such styles; a real motor may not
   keep up);
-* torque — in single support, the links' gravity plus the robot's weight carried through the
-  stance sole's middle, against the torque limit the controller uses (90 % of the effort);
+* torque — in single support, the links' gravity plus the robot's weight carried by the stance
+  sole along the CoM's vertical (clamped to the sole less the CoP margin: a static equilibrium),
+  against the torque limit the controller uses (90 % of the effort);
 * swing clearance — a swing foot's sole corners below the floor, or an apex below
   ``MIN_CLEARANCE_M``;
 * curve rates — each curve of the sample against the rate and acceleration its channel can
@@ -72,7 +73,7 @@ COM_WEIGHT = 0.3
 LIMIT_MARGIN_RAD = 0.01
 VELOCITY_SHARE = 1.0  # joint speed beyond this share of the velocity limit is flagged
 TORQUE_SHARE = 0.9  # the controller's torque limit (share of the URDF effort)
-TORQUE_TOLERANCE = 1.25  # the estimate is rough (weight through the sole's middle): flag beyond this × the limit
+TORQUE_TOLERANCE = 1.25  # the estimate is static (no accelerations): flag beyond this × the limit
 MIN_CLEARANCE_M = 0.01
 FLOOR_TOLERANCE_M = 0.005
 
@@ -356,9 +357,9 @@ class FeasibilityChecker:
         """|leg torque| ÷ the controller's torque limit per leg joint in single support (None in a double
         support or a flight). The weight's line of action: the CoM's projection onto the stance sole, clamped
         to the sole less the CoP margin. (Through the sole's middle, as before 2026-11-30, the estimate left
-        the moment of a CoM off that middle on the stance leg: random reachable styles were flagged at
-        1.3–1.9× and walked the 60 s sweep, G1 5 of 5, TALOS 25 of 29 — README, *The reachable part of the
-        style space*.)"""
+        the moment of a CoM off that middle on the stance leg: random reachable styles flagged at 1.26–1.9×
+        walked the 60 s sweep, G1 five of six, TALOS 25 of 28 — README, *The reachable part of the style
+        space*.)"""
         down = [i for i in range(2) if ref.contact[i]]
         if len(down) != 1:
             return None
