@@ -352,7 +352,6 @@ class FeasibilityChecker:
                                         f"{side + ' ' if side else ''}{words} needs {leg[j]:.1f}× the "
                                         "torque it has to carry the robot: " + _hint("torque", words)))
 
-
     def stance_torque_share(self, ref, q: np.ndarray) -> np.ndarray | None:
         """|leg torque| ÷ the controller's torque limit per leg joint in single support (None in a double
         support or a flight). The weight's line of action: the CoM's projection onto the stance sole, clamped

@@ -22,7 +22,8 @@ Drawn with a numpy Generator: the same seed gives the same styles.
 :func:`random_reachable_style` draws from the part of that space the legs can reach: a sample whose
 reference no leg posture follows (a caller's predicate, the feasibility check's reach and clearance
 findings in ``studio bench styles --space reachable``) is drawn again, with the same rules, until one
-is reachable. Over the whole validated range of G1 (``extent = 1``) about one sample in seven passes:
+is reachable. Over the whole validated range (``extent = 1``) about one G1 sample in eight passes (one
+TALOS sample in twenty):
 the ranges are per field, and their combinations mostly ask for feet out of reach (README, issue 13).
 """
 
@@ -253,8 +254,6 @@ def random_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, ex
 
 
 Unreachable = Callable[[Style, str], bool]  # (style, sample name) -> no leg posture follows that sample's reference
-
-
 MAX_PASSES = 4  # passes over the samples until none is drawn again
 
 
