@@ -255,6 +255,7 @@ def random_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, ex
 
 Unreachable = Callable[[Style, str], bool]  # (style, sample name) -> no leg posture follows that sample's reference
 MAX_PASSES = 4  # passes over the samples until none is drawn again
+MAX_RESTARTS = 5  # styles started over (new velocities) before giving up
 
 
 class NoReachableStyle(RuntimeError):
@@ -262,33 +263,42 @@ class NoReachableStyle(RuntimeError):
 
 
 def random_reachable_style(rng: np.random.Generator, ctx: StyleContext, neutral: Style, unreachable: Unreachable,
-                           extent: float = 1.0, name: str = "random", max_draws_per_sample: int = 400) -> tuple[Style, int]:
+                           extent: float = 1.0, name: str = "random", max_draws_per_sample: int = 400,
+                           restarts: int = MAX_RESTARTS) -> tuple[Style, int]:
     """A random style that passes validation and whose every sample the legs reach (``unreachable`` false for
     each), and how many samples were drawn for it. The style's velocities are drawn once (with the first draw of
     its samples); a sample drawn again must keep them within the validator's step bound. Each sample is then
-    drawn from the validated space conditioned on being reachable at those velocities."""
+    drawn from the validated space conditioned on being reachable at those velocities; a sample that finds no
+    such draw in ``max_draws_per_sample`` starts the style over (new velocities), up to ``restarts`` times."""
     extent = float(min(max(extent, 0.0), 1.0))
-    style = random_style(rng, ctx, neutral, extent, name)
-    draws = len(SAMPLE_NAMES)
-    tries = dict.fromkeys(SAMPLE_NAMES, 0)
-    for _ in range(MAX_PASSES):
-        # A sample is checked within its style (the planner blends its neighbours in at its own velocity): one drawn
-        # again can make another fail, so the samples are passed over until all of them pass.
-        redrawn = False
-        for sample_name in SAMPLE_NAMES:
-            while unreachable(style, sample_name):
-                if tries[sample_name] == max_draws_per_sample:
-                    raise NoReachableStyle(f"{name}: no reachable {sample_name} in {max_draws_per_sample} draws "
-                                           f"at extent {extent:g}")
-                tries[sample_name] += 1
-                draws += 1
-                candidate = replace(style, samples={**style.samples,
-                                                    sample_name: random_sample(rng, ctx, neutral.samples[sample_name], extent)})
-                try:
-                    validate_style(candidate, ctx)
-                except StyleError:  # this draw's steps are past the legs' reach at the style's velocity
-                    continue
-                style, redrawn = candidate, True
-        if not redrawn:
-            return style, draws
-    raise NoReachableStyle(f"{name}: its samples kept failing one another in {MAX_PASSES} passes at extent {extent:g}")
+    draws = 0
+    for _ in range(restarts):
+        style = random_style(rng, ctx, neutral, extent, name)
+        draws += len(SAMPLE_NAMES)
+        tries = dict.fromkeys(SAMPLE_NAMES, 0)
+        for _ in range(MAX_PASSES):
+            # A sample is checked within its style (the planner blends its neighbours in at its own velocity): one
+            # drawn again can make another fail, so the samples are passed over until all of them pass.
+            redrawn = exhausted = False
+            for sample_name in SAMPLE_NAMES:
+                while unreachable(style, sample_name):
+                    if tries[sample_name] == max_draws_per_sample:
+                        exhausted = True
+                        break
+                    tries[sample_name] += 1
+                    draws += 1
+                    candidate = replace(style, samples={**style.samples,
+                                                        sample_name: random_sample(rng, ctx, neutral.samples[sample_name], extent)})
+                    try:
+                        validate_style(candidate, ctx)
+                    except StyleError:  # this draw's steps are past the legs' reach at the style's velocity
+                        continue
+                    style, redrawn = candidate, True
+                if exhausted:
+                    break
+            if exhausted:
+                break  # start over, with new velocities
+            if not redrawn:
+                return style, draws
+    raise NoReachableStyle(f"{name}: no reachable style in {restarts} starts of up to {max_draws_per_sample} draws "
+                           f"per sample at extent {extent:g}")
