@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import engine.walk_runner as walk_runner
+from engine.bench.options import STYLE_SPACES
 from engine.stance_slip import StanceSlipMeter
 
 CLEAN_SLIP_MM, CLEAN_COP = 2.0, 0.995
@@ -56,7 +57,7 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=8)
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--extent", type=float, default=0.15)
-    ap.add_argument("--space", choices=("validated", "reachable"), default="validated")
+    ap.add_argument("--space", choices=STYLE_SPACES, default=STYLE_SPACES[0])
     ap.add_argument("--shipped", action="store_true")
     ap.add_argument("--only", default="", help="comma-separated style names to run (default all)")
     ap.add_argument("--out-dir", default="")

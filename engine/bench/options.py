@@ -9,6 +9,9 @@ import math
 from collections.abc import Callable
 
 
+STYLE_SPACES = ("validated", "reachable")  # what the styles section draws from (engine/bench/styles.py style_jobs)
+
+
 def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed: int = 0, extent: float = 0.3,
                              duration_s: float = 60.0) -> None:
     """Which of ``studio bench styles``' random styles a tool walks again: the bench's robot, ``--n``, ``--seed``,
@@ -17,7 +20,7 @@ def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed:
     parser.add_argument("--n", type=int, default=n, help="as the bench's --n")
     parser.add_argument("--seed", type=int, default=seed, help="as the bench's --seed")
     parser.add_argument("--extent", type=float, default=extent, help="as the bench's --extent")
-    parser.add_argument("--space", choices=("validated", "reachable"), default="validated", help="as the bench's --space")
+    parser.add_argument("--space", choices=STYLE_SPACES, default=STYLE_SPACES[0], help="as the bench's --space")
     parser.add_argument("--duration", type=float, default=duration_s, help="seconds of the sweep")
 
 
@@ -45,7 +48,7 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=60.0, help="styles: seconds of the sweep per style")
     parser.add_argument("--extent", type=float, default=1.0,
                         help="styles: share of each validated range drawn around neutral (1: the whole range)")
-    parser.add_argument("--space", choices=("validated", "reachable"), default="validated",
+    parser.add_argument("--space", choices=STYLE_SPACES, default=STYLE_SPACES[0],
                         help="styles: draw over the validated space, or over its part the legs reach (each sample "
                              "drawn again while the feasibility check finds a foot out of reach or in the floor)")
     parser.add_argument("--phases", type=int, default=16, help="push: gait phases per direction")

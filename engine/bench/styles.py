@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
+from engine.bench.options import STYLE_SPACES
 from engine.walk_batch import job_key, print_progress, run_batch
 
 
-SPACES = ("validated", "reachable")
 KINEMATIC_KINDS = frozenset({"reach", "clearance"})  # the check's findings no leg posture can follow
 
 
@@ -37,8 +37,8 @@ def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float =
     from engine.gait.style import StyleContext, load_style, style_to_json_dict, styles_dir
     from engine.gait.style_space import random_reachable_style, random_style
 
-    if space not in SPACES:
-        raise ValueError(f"space: expected one of {', '.join(SPACES)}, got {space!r}")
+    if space not in STYLE_SPACES:
+        raise ValueError(f"space: expected one of {', '.join(STYLE_SPACES)}, got {space!r}")
     ctx = StyleContext.for_robot(robot)
     neutral = load_style(styles_dir(robot) / "neutral.json", ctx)
     rng = np.random.default_rng(seed)

@@ -274,31 +274,35 @@ def random_reachable_style(rng: np.random.Generator, ctx: StyleContext, neutral:
     draws = 0
     for _ in range(restarts):
         style = random_style(rng, ctx, neutral, extent, name)
-        draws += len(SAMPLE_NAMES)
-        tries = dict.fromkeys(SAMPLE_NAMES, 0)
-        for _ in range(MAX_PASSES):
-            # A sample is checked within its style (the planner blends its neighbours in at its own velocity): one
-            # drawn again can make another fail, so the samples are passed over until all of them pass.
-            redrawn = exhausted = False
-            for sample_name in SAMPLE_NAMES:
-                while unreachable(style, sample_name):
-                    if tries[sample_name] == max_draws_per_sample:
-                        exhausted = True
-                        break
-                    tries[sample_name] += 1
-                    draws += 1
-                    candidate = replace(style, samples={**style.samples,
-                                                        sample_name: random_sample(rng, ctx, neutral.samples[sample_name], extent)})
-                    try:
-                        validate_style(candidate, ctx)
-                    except StyleError:  # this draw's steps are past the legs' reach at the style's velocity
-                        continue
-                    style, redrawn = candidate, True
-                if exhausted:
-                    break
-            if exhausted:
-                break  # start over, with new velocities
-            if not redrawn:
-                return style, draws
+        reached, redraws = _redraw_unreachable(rng, ctx, neutral, style, unreachable, extent, max_draws_per_sample)
+        draws += len(SAMPLE_NAMES) + redraws
+        if reached is not None:
+            return reached, draws
     raise NoReachableStyle(f"{name}: no reachable style in {restarts} starts of up to {max_draws_per_sample} draws "
                            f"per sample at extent {extent:g}")
+
+
+def _redraw_unreachable(rng: np.random.Generator, ctx: StyleContext, neutral: Style, style: Style,
+                        unreachable: Unreachable, extent: float, max_draws_per_sample: int) -> tuple[Style | None, int]:
+    """``style`` with each unreachable sample drawn again until every sample passes, and how many samples were
+    drawn; None when a sample finds no reachable draw in ``max_draws_per_sample`` or the passes run out."""
+    tries = dict.fromkeys(SAMPLE_NAMES, 0)
+    for _ in range(MAX_PASSES):
+        # A sample is checked within its style (the planner blends its neighbours in at its own velocity): one drawn
+        # again can make another fail, so the samples are passed over until all of them pass.
+        redrawn = False
+        for sample_name in SAMPLE_NAMES:
+            while unreachable(style, sample_name):
+                if tries[sample_name] == max_draws_per_sample:
+                    return None, sum(tries.values())
+                tries[sample_name] += 1
+                candidate = replace(style, samples={**style.samples,
+                                                    sample_name: random_sample(rng, ctx, neutral.samples[sample_name], extent)})
+                try:
+                    validate_style(candidate, ctx)
+                except StyleError:  # this draw's steps are past the legs' reach at the style's velocity
+                    continue
+                style, redrawn = candidate, True
+        if not redrawn:
+            return style, sum(tries.values())
+    return None, sum(tries.values())
