@@ -382,6 +382,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if weights_dir is not None and (not weights_dir.strip() or not Path(weights_dir).is_dir()):
         raise CliError(f"--weights-dir: expected the folder train-arms --out DIR/<robot>_lwl2 wrote into, "
                        f"got {weights_dir!r} (no such folder)")
+    from engine.robot.config import RobotConfigError, load_robot_config
+
+    try:  # (--robot: the robot of the styles, push and puppet sections)
+        robot_kind = load_robot_config(args.robot).kind
+    except RobotConfigError as exc:
+        raise CliError(f"--robot: {exc}") from None
+    bipeds_only = sorted({"styles", "push"} & set(sections))
+    if bipeds_only and robot_kind != "biped":
+        raise CliError(f"--robot: expected a biped for {' and '.join(bipeds_only)}, {args.robot} is a {robot_kind}")
     from engine.bench.options import check_style_options
     from engine.bench.retarget import check_clip_options
 

@@ -68,6 +68,13 @@ def test_bench_rejects_out_of_range_style_options(option):
     assert len(out.stderr.strip().splitlines()) == 1, out.stderr
 
 
+@pytest.mark.parametrize("robot, words", [("nosuch", "unknown robot 'nosuch'"), ("go1", "expected a biped for styles")])
+def test_bench_rejects_a_robot_it_cannot_walk(robot, words):
+    out = run_studio("bench", "styles", "--robot", robot, "--n", "1")
+    assert out.returncode == 2 and "--robot" in out.stderr and words in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1 and "Traceback" not in out.stderr, out.stderr
+
+
 def test_serve_on_a_busy_port_fails_naming_the_port():
     import socket
 
