@@ -451,8 +451,9 @@ class EngineCore:
                 fb = tel.feedback
                 signals["feedback"] = np.array([fb.velocity_adjust_mps[0], fb.velocity_adjust_mps[1],
                                                 fb.step_adjust_m[0], fb.step_adjust_m[1], fb.kappa])
-            # balance recovery: the neutral gait's share in the blend (0: the style as authored)
-            signals["recovery_share"] = np.array([tel.recovery_share])
+            # balance recovery: the neutral gait's share in the blend (0: the style as authored), and 1 while that
+            # share is the walk's start from neutral (engine/control/recovery_blend.py) rather than a recovery
+            signals["recovery_share"] = np.array([tel.recovery_share, 1.0 if tel.recovery_starting else 0.0])
             if len(ref.upper_q) and self.ctx is not None:
                 j = self.ctx.upper_joints.index(_tracked_arm_joint(self.ctx.upper_joints))
                 idx = self.robot.joint_names.index(self.ctx.upper_joints[j])

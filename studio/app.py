@@ -531,6 +531,8 @@ def recovery_text(signals: dict) -> str:
     share = signals.get("recovery_share")
     if share is None or len(share) == 0 or not float(share[0]) > 0.0:
         return ""
+    if len(share) > 1 and float(share[1]) > 0.0:  # the walk's start: neutral first, then the style eases in
+        return f" · starting from the neutral gait: walking {100 * float(share[0]):.0f} % neutral"
     return f" · balance recovery: walking {100 * float(share[0]):.0f} % neutral"
 
 

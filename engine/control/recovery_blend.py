@@ -16,6 +16,10 @@ recovery blend included, and in double support the capture-point feedback alone 
 nominal footholds move toward neutral's and the signal shrinks; a style the robot cannot follow then comes back,
 drifts off again and recovers again (episodes of a few seconds; ``studio bench styles`` measures the mean share).
 
+A walk starts fully neutral where the robot sets ``recovery_start_neutral_s``: the share is 1 from ``reset`` and
+the target must stay below it for that long plus ``recovery_hold_s`` before it decays, so the first steps from
+standing are the neutral gait's and the style eases in over ``recovery_decay_s``.
+
 The share follows a rising target at once (at most 1 per ``recovery_rise_s``), and a falling one only after the
 target has stayed below the share for ``recovery_hold_s``, then at 1 per ``recovery_decay_s``. The share the planner
 blends is quantised to ``recovery_share_step``: each new value re-blends the gait (a new
@@ -38,18 +42,28 @@ class RecoveryBlend:
         self.enabled = math.isfinite(params.recovery_xi_error_m) or math.isfinite(params.recovery_step_adjust_m)
         self.share = 0.0  # continuous
         self.blend_share = 0.0  # quantised: what the planner blends
+        # The walk's start, not a recovery: from ``reset`` until the share first reaches 0, or until the ξ error or the
+        # step adjustment asks for all of it (then it is a recovery). Recovery time and share do not count it.
+        self.starting = False
         self._calm_s = math.inf  # time since the target last reached the share
         self.time_in_recovery_s = 0.0
         self.share_time_s = 0.0  # ∫ blend_share dt (the walk's mean share = this ÷ its duration)
 
     def reset(self) -> None:
+        """A new walk from standing: fully neutral for ``recovery_start_neutral_s`` (where set), else the style."""
         self.idle()
         self.time_in_recovery_s = self.share_time_s = 0.0
+        start_s = self.params.recovery_start_neutral_s
+        if self.enabled and start_s > 0.0:
+            self.share = self.blend_share = 1.0
+            self._calm_s = -start_s  # the hold counts from here: start_s + recovery_hold_s before the decay
+            self.starting = True
 
     def idle(self) -> None:
         """No recovery blend this tick (the robot walks its neutral style itself): the share rests at 0."""
         self.share = self.blend_share = 0.0
         self._calm_s = math.inf
+        self.starting = False
 
     def target(self, xi_error_m: float, step_adjust_m: float = 0.0) -> float:
         """The neutral share the ξ error and the step adjustment's size ask for (the larger)."""
@@ -65,6 +79,7 @@ class RecoveryBlend:
         p = self.params
         target = self.target(xi_error_m, step_adjust_m)
         if target >= self.share:
+            self.starting = False  # the error asks for the whole share: a recovery from here
             self._calm_s = 0.0
             self.share = min(target, self.share + dt_s / max(p.recovery_rise_s, 1e-6))
         else:
@@ -73,7 +88,9 @@ class RecoveryBlend:
                 self.share = max(target, self.share - dt_s / max(p.recovery_decay_s, 1e-6))
         step = p.recovery_share_step
         self.blend_share = min(max(round(self.share / step) * step, 0.0), 1.0) if step > 0.0 else self.share
-        if self.blend_share > 0.0:
+        if self.blend_share <= 0.0:
+            self.starting = False
+        elif not self.starting:
             self.time_in_recovery_s += dt_s
             self.share_time_s += self.blend_share * dt_s
         return self.blend_share

@@ -263,7 +263,8 @@ class WalkingController:
         if self.plan is not None:
             fb = self.step_adjustment.reachable_steps(fb, self.params, self.plan, (ref_pos, ref_vel, com, com_vel),
                                                       self._com_z, self._mpc_shift, self.observer.force_n)
-        recovery_share = 0.0
+        # (Before the first plan: the share reset left, so a walk that starts neutral plans neutral from its first tick.)
+        recovery_share = self.recovery.blend_share if self.recovery.enabled and planner.recovers_toward_other_gait else 0.0
         if self.recovery.enabled and self.plan is not None:
             if planner.recovers_toward_other_gait:
                 ax, ay = fb.step_adjust_m.tolist()  # how far the swing feet land from the style's footholds
@@ -456,6 +457,7 @@ class WalkingController:
             update_telemetry(self._telemetry, self.ref, self.plan, self._last_com, self._last_fb, self._mpc_shift,
                              self.planner.command_clamped, self.wbc.diagnostics, self.observer.force_n)
             self._telemetry.recovery_share = self.planner.recovery_share
+            self._telemetry.recovery_starting = self.recovery.starting
             self._telemetry_stale = False
         return self._telemetry
 

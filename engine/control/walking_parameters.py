@@ -117,6 +117,11 @@ class WalkingParameters:
     recovery_hold_s: float = 0.5
     recovery_decay_s: float = 1.5
     recovery_share_step: float = 0.05
+    # Walking starts in the neutral gait (share 1 from reset), held this long before the ordinary hold and decay
+    # hand over to the style (0: the style from the first step). The robot finds its feet in the gait its
+    # controller is tuned on, then eases into the style: the first forward steps of a style whose posture is far
+    # from standing (the robot's standing pose) otherwise lag the CoM plan and walk backward (issue 13, stop 36).
+    recovery_start_neutral_s: float = 0.0
 
     @classmethod
     def for_robot(cls, name: str) -> WalkingParameters:

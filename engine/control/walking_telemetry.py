@@ -34,6 +34,7 @@ class WalkingTelemetry:
     wbc_status: str = ""
     external_force_n: np.ndarray = field(default_factory=lambda: np.zeros(2))  # observed horizontal push
     recovery_share: float = 0.0  # the neutral gait's share in the blend while balance recovers (0: the style)
+    recovery_starting: bool = False  # that share is the walk's start from neutral, not a recovery
 
 
 def update_telemetry(tel: WalkingTelemetry, ref: GaitReference, plan: ComMpcSolution | None, com: np.ndarray,

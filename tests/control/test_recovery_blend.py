@@ -46,6 +46,49 @@ def test_rises_within_the_rise_time_holds_then_decays():
     assert blend.time_in_recovery_s > ON.recovery_hold_s
 
 
+def test_a_walk_starts_neutral_then_eases_into_the_style_and_that_is_not_a_recovery():
+    """``recovery_start_neutral_s``: fully neutral from reset for that long plus the hold, then the decay hands over
+    to the style; the start counts neither as recovery time nor share, and is flagged as the start."""
+    params = dataclasses.replace(ON, recovery_start_neutral_s=1.5)
+    blend = RecoveryBlend(params)
+    blend.reset()
+    assert blend.blend_share == 1.0 and blend.starting
+    held = [blend.update(0.0, DT) for _ in range(int((1.5 + ON.recovery_hold_s) / DT) - 1)]
+    assert all(s == 1.0 for s in held) and blend.starting
+    decay = [blend.update(0.0, DT) for _ in range(int((ON.recovery_decay_s + 0.2) / DT))]
+    assert all(b <= a for a, b in zip(decay, decay[1:])) and decay[-1] == 0.0
+    first_zero = DT * (decay.index(0.0) + 1)
+    assert ON.recovery_decay_s * 0.9 <= first_zero <= ON.recovery_decay_s + 2 * DT
+    assert not blend.starting
+    assert blend.time_in_recovery_s == 0.0 and blend.share_time_s == 0.0  # the start is not a recovery
+    # after the start, a recovery counts as before
+    while blend.update(0.2, DT) < 1.0:
+        pass
+    assert blend.time_in_recovery_s > 0.0 and not blend.starting
+
+
+def test_an_error_that_asks_for_the_whole_share_during_the_start_makes_it_a_recovery():
+    blend = RecoveryBlend(dataclasses.replace(ON, recovery_start_neutral_s=1.5))
+    blend.reset()
+    for _ in range(10):
+        blend.update(0.0, DT)
+    assert blend.starting and blend.time_in_recovery_s == 0.0
+    blend.update(0.2, DT)  # ξ far off the plan: the share is now a recovery's
+    assert not blend.starting and blend.time_in_recovery_s == DT
+    blend.reset()  # a new walk starts neutral again
+    assert blend.starting and blend.blend_share == 1.0 and blend.time_in_recovery_s == 0.0
+
+
+def test_without_a_start_time_a_walk_starts_with_the_style():
+    blend = RecoveryBlend(ON)
+    blend.reset()
+    assert blend.blend_share == 0.0 and not blend.starting
+    assert blend.update(0.0, DT) == 0.0
+    off = RecoveryBlend(dataclasses.replace(WalkingParameters(), recovery_start_neutral_s=1.5))  # recovery off
+    off.reset()
+    assert off.blend_share == 0.0 and not off.starting
+
+
 def test_target_is_proportional_between_the_two_errors():
     blend = RecoveryBlend(ON)
     assert blend.target(0.03) == 0.0 and blend.target(0.08) == 1.0
@@ -170,3 +213,41 @@ def test_a_push_sends_a_styled_walk_toward_neutral_and_the_neutral_walk_reports_
     assert not styled["fell"] and not plain["fell"]
     assert styled["recovery_time_s"] > 0.3 and 0.0 < styled["recovery_mean_share"] <= 1.0
     assert plain["recovery_time_s"] == 0.0 and plain["recovery_mean_share"] == 0.0
+
+
+def test_talos_starts_a_styled_walk_in_its_neutral_gait_and_hands_over_to_the_style():
+    """Closed loop (TALOS sets recovery_start_neutral_s in robots/talos.toml, G1 does not): the planner blends all
+    neutral from the first tick, the telemetry marks it as the start, and the style is fully in after
+    start + hold + decay (3.5 s); G1's controller starts with the style."""
+    from engine.control.walking_controller import WalkingController
+    from engine.sim import Simulation
+
+    robot = load_robot("talos")
+    ctx = StyleContext.for_robot("talos")
+    neutral = load_style(styles_dir("talos") / "neutral.json", ctx)
+    style = random_style(np.random.default_rng(3), ctx, neutral, 0.2, name="random-test")
+    params = WalkingParameters.for_robot("talos")
+    assert params.recovery_start_neutral_s > 0.0 and WalkingParameters.for_robot("g1").recovery_start_neutral_s == 0.0
+    controller = WalkingController(robot, style)
+    sim = Simulation(robot, controller)
+    sim.reset()
+    dt = float(robot.mj_model.opt.timestep)
+    seen: list[tuple[float, float, bool]] = []
+    end_s = params.recovery_start_neutral_s + params.recovery_hold_s + params.recovery_decay_s + 0.5
+    for k in range(int(end_s / dt)):
+        controller.set_command(np.zeros(3))
+        sim.step()
+        if k % 25 == 0:
+            tel = controller.telemetry
+            seen.append((k * dt, tel.recovery_share, tel.recovery_starting))
+    assert not sim.fallen
+    early = [s for t, s, _ in seen if t < params.recovery_start_neutral_s]
+    assert early and all(s == 1.0 for s in early) and all(flag for t, _, flag in seen if t < params.recovery_start_neutral_s)
+    assert seen[-1][1] == 0.0 and not seen[-1][2]  # the style as authored, and not "starting" any more
+    assert controller.recovery.time_in_recovery_s == 0.0  # standing in place: no recovery, the start not counted
+    g1 = WalkingController(load_robot("g1"), random_style(np.random.default_rng(3), StyleContext.for_robot("g1"),
+                                                          load_style(styles_dir("g1") / "neutral.json"), 0.2))
+    g1_sim = Simulation(g1.robot, g1)
+    g1_sim.reset()
+    g1_sim.step()
+    assert g1.planner.recovery_share == 0.0 and not g1.recovery.starting

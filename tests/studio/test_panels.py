@@ -359,3 +359,9 @@ def test_status_line_names_a_balance_recovery():
     assert recovery_text({}) == "" and recovery_text({"recovery_share": np.zeros(1, dtype=np.float32)}) == ""
     assert recovery_text({"recovery_share": np.array([0.35], dtype=np.float32)}) == \
         " · balance recovery: walking 35 % neutral"
+    assert recovery_text({"recovery_share": np.array([0.35, 0.0], dtype=np.float32)}) == \
+        " · balance recovery: walking 35 % neutral"
+    # the walk's start from the neutral gait (engine/control/recovery_blend.py) is not called a recovery
+    assert recovery_text({"recovery_share": np.array([1.0, 1.0], dtype=np.float32)}) == \
+        " · starting from the neutral gait: walking 100 % neutral"
+    assert recovery_text({"recovery_share": np.array([0.0, 1.0], dtype=np.float32)}) == ""
