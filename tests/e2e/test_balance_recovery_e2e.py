@@ -47,3 +47,30 @@ def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path,
             page.wait_for_function("() => !document.body.innerText.includes('balance recovery')",
                                    timeout=int(1000 * stall_s(300)))
             assert "fallen" not in studio.robot_panel.status.content
+
+
+def test_talos_starts_a_style_from_its_neutral_gait_and_the_status_line_says_so(tmp_path, artifacts):
+    """TALOS (robots/talos.toml recovery_start_neutral_s): pressing Test with a style of the animator's own, the robot
+    takes its first steps in its neutral gait — the status line says "starting from the neutral gait", not "balance
+    recovery" — and the note goes once the style is fully in."""
+    from engine.gait.style import StyleContext, load_style, save_style
+    from engine.gait.style_space import random_style
+
+    styles = copy_styles(tmp_path, "talos")
+    ctx = StyleContext.for_robot("talos")
+    neutral = load_style(styles / "talos" / "neutral.json", ctx)
+    save_style(styles / "talos" / "lilt.json", random_style(np.random.default_rng(3), ctx, neutral, 0.2, name="lilt"))
+    with started_studio("talos", styles) as studio:
+        with engine_page(studio, 1000, 700) as page:
+            page.get_by_role("tab", name="Style").click(force=True)
+            studio.style_browser.dropdown.value = "lilt"
+            page.get_by_role("button", name="Open").click()
+            wait_until(lambda: studio.session.style.name == "lilt", 60, "the style to open")
+            page.get_by_role("tab", name="Robot").click(force=True)
+            page.get_by_role("button", name="Test").click()
+            wait_for_text(page, "starting from the neutral gait", timeout_ms=int(1000 * stall_s(120)))
+            page.screenshot(path=str(artifacts / "studio_talos_starting_from_neutral.png"))
+            assert "balance recovery" not in page.inner_text("body")
+            page.wait_for_function("() => !document.body.innerText.includes('starting from the neutral gait')",
+                                   timeout=int(1000 * stall_s(300)))
+            assert "fallen" not in studio.robot_panel.status.content
