@@ -11,24 +11,34 @@ from tests.e2e.browser import copy_styles, engine_page, stall_s, started_studio,
 pytestmark = pytest.mark.e2e
 
 
-def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path, artifacts):
+def styles_with_a_random_one(tmp_path, robot: str, name: str, extent: float):
+    """A copy of ``robot``'s shipped styles plus ``name``: a valid random style an animator could have made."""
     from engine.gait.style import StyleContext, load_style, save_style
     from engine.gait.style_space import random_style
 
-    styles = copy_styles(tmp_path)
-    ctx = StyleContext.for_robot("g1")
-    neutral = load_style(styles / "g1" / "neutral.json", ctx)
-    # a valid style an animator could have made (the one tests/control/test_recovery_blend.py pushes in closed loop)
-    save_style(styles / "g1" / "wobbly.json", random_style(np.random.default_rng(3), ctx, neutral, 0.3, name="wobbly"))
+    styles = copy_styles(tmp_path, robot)
+    ctx = StyleContext.for_robot(robot)
+    neutral = load_style(styles / robot / "neutral.json", ctx)
+    save_style(styles / robot / f"{name}.json", random_style(np.random.default_rng(3), ctx, neutral, extent, name=name))
+    return styles
+
+
+def open_style_and_test(page, studio, name: str) -> None:
+    """Style tab → open ``name`` → Robot tab → Test, as the animator clicks it."""
+    page.get_by_role("tab", name="Style").click(force=True)
+    studio.style_browser.dropdown.value = name
+    page.get_by_role("button", name="Open").click()
+    wait_until(lambda: studio.session.style.name == name, 60, "the style to open")
+    page.get_by_role("tab", name="Robot").click(force=True)
+    page.get_by_role("button", name="Test").click()
+
+
+def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path, artifacts):
+    # (the style tests/control/test_recovery_blend.py pushes in closed loop)
+    styles = styles_with_a_random_one(tmp_path, "g1", "wobbly", 0.3)
     with started_studio("g1", styles) as studio:
         with engine_page(studio, 1000, 700) as page:
-            page.get_by_role("tab", name="Style").click(force=True)
-            browser = studio.style_browser
-            browser.dropdown.value = "wobbly"
-            page.get_by_role("button", name="Open").click()
-            wait_until(lambda: studio.session.style.name == "wobbly", 60, "the style to open")
-            page.get_by_role("tab", name="Robot").click(force=True)
-            page.get_by_role("button", name="Test").click()
+            open_style_and_test(page, studio, "wobbly")
             wait_for_text(page, "test mode", timeout_ms=60_000)
             start = studio.last_telemetry.sim_time_s if studio.last_telemetry else 0.0
             wait_until(lambda: studio.last_telemetry is not None and studio.last_telemetry.sim_time_s > start + 1.5,
@@ -53,21 +63,10 @@ def test_talos_starts_a_style_from_its_neutral_gait_and_the_status_line_says_so(
     """TALOS (robots/talos.toml recovery_start_neutral_s): pressing Test with a style of the animator's own, the robot
     takes its first steps in its neutral gait — the status line says "starting from the neutral gait", not "balance
     recovery" — and the note goes once the style is fully in."""
-    from engine.gait.style import StyleContext, load_style, save_style
-    from engine.gait.style_space import random_style
-
-    styles = copy_styles(tmp_path, "talos")
-    ctx = StyleContext.for_robot("talos")
-    neutral = load_style(styles / "talos" / "neutral.json", ctx)
-    save_style(styles / "talos" / "lilt.json", random_style(np.random.default_rng(3), ctx, neutral, 0.2, name="lilt"))
+    styles = styles_with_a_random_one(tmp_path, "talos", "lilt", 0.2)
     with started_studio("talos", styles) as studio:
         with engine_page(studio, 1000, 700) as page:
-            page.get_by_role("tab", name="Style").click(force=True)
-            studio.style_browser.dropdown.value = "lilt"
-            page.get_by_role("button", name="Open").click()
-            wait_until(lambda: studio.session.style.name == "lilt", 60, "the style to open")
-            page.get_by_role("tab", name="Robot").click(force=True)
-            page.get_by_role("button", name="Test").click()
+            open_style_and_test(page, studio, "lilt")
             wait_for_text(page, "starting from the neutral gait", timeout_ms=int(1000 * stall_s(120)))
             page.screenshot(path=str(artifacts / "studio_talos_starting_from_neutral.png"))
             assert "balance recovery" not in page.inner_text("body")
