@@ -50,7 +50,7 @@ def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float =
         checker = FeasibilityChecker(load_robot(robot), ctx)
 
         def unreachable(style: Any, sample: str) -> bool:
-            return any(f.kind in KINEMATIC_KINDS for f in checker.check_sample(style, sample))
+            return any(f.kind in KINEMATIC_KINDS for f in checker.check_sample(style, sample, balance=False))
 
     out = []
     for i in range(n):

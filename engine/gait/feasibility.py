@@ -18,6 +18,11 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
   against the torque limit the controller uses (90 % of the effort);
 * swing clearance — a swing foot's sole corners below the floor, or an apex below
   ``MIN_CLEARANCE_M``;
+* balance — the CoM MPC (the controller's, solved every tick along the same open-loop walk from
+  standing, each solve continuing the last plan) plans the CoM on a pendulum of constant height; the
+  pelvis height curve moves the CoM up and down, and the CoP that the plan's horizontal acceleration
+  then needs (engine/gait/zmp_feasibility.py: ``p = c − z c̈ / (g + z̈)``) is flagged beyond the soles
+  (``BALANCE_TOLERANCE_M``) or where the feet carry less than ``MIN_LOAD_SHARE`` of the weight;
 * curve rates — each curve of the sample against the rate and acceleration its channel can
   follow (engine/gait/curve_rates.py: a joint's velocity limit, and the robot's
   ``[gait.curve_rates]`` bounds — by default twice the shipped styles' peaks, G1 about once):
@@ -26,10 +31,10 @@ cycles settle, and over the next cycle, ``TICKS_PER_CYCLE`` times:
 
 Each finding names the sample, the phase (% of its cycle, from left liftoff) and what to do in
 an animator's words; findings are deduplicated per (sample, kind, joint or side): the first
-phase where a problem shows. Cost: ~0.1 s of CPU per sample. What it does not check (the
-recorded falls of ``studio bench styles`` show what is missed): the CoM dynamics (CoP/ZMP of
-the MPC's plan, an MPC-in-the-loop check diverged open loop without the controller's
-re-anchoring) and friction.
+phase where a problem shows. Cost: ~0.3 s of CPU per sample (half of it the balance part). What it
+does not check (the recorded falls of ``studio bench styles`` show what is missed): the closed loop
+(the robot leaving the plan, the feedback's step adjustments), the limbs' angular momentum and
+friction.
 
 What the check cannot predict from the reference (measured 2026-11-29 on the 32 random styles of
 ``studio bench styles --robot g1 --n 8 --seed S --duration 20 --extent 0.15``, S = 2…5: 13 falls,
@@ -59,6 +64,7 @@ from engine.constants import GRAVITY_MPS2
 from engine.gait.curve_rates import curve_peaks, rate_bound
 from engine.gait.style import SIDES, Style, StyleContext, channel_side
 from engine.gait.velocity_sampler import SAMPLE_NAMES
+from engine.gait.zmp_feasibility import MIN_LOAD_SHARE, cop_demands, support_at
 from engine.robot.model import RobotModel
 
 TICKS_PER_CYCLE = 24
@@ -75,6 +81,8 @@ VELOCITY_SHARE = 1.0  # joint speed beyond this share of the velocity limit is f
 TORQUE_SHARE = 0.9  # the controller's torque limit (share of the URDF effort)
 TORQUE_TOLERANCE = 1.25  # the estimate is static (no accelerations): flag beyond this × the limit
 MIN_CLEARANCE_M = 0.01
+# The CoP the MPC's plan needs (engine/gait/zmp_feasibility.py) beyond a sole's edge by more than this: flagged
+BALANCE_TOLERANCE_M = 0.0
 FLOOR_TOLERANCE_M = 0.005
 
 JOINT_WORDS = {"hip_pitch": "hip", "hip_roll": "hip (sideways)", "hip_yaw": "hip (twist)", "knee": "knee",
@@ -161,9 +169,12 @@ class FeasibilityChecker:
             out.extend(self.check_sample(style, name))
         return out
 
-    def check_sample(self, style: Style, name: str) -> list[Finding]:
+    def check_sample(self, style: Style, name: str, balance: bool = True) -> list[Finding]:
+        """Findings for sample ``name``; ``balance=False`` leaves out the CoP the MPC's plan needs (the costliest
+        part: an MPC solve per tick; the reachable style space's predicate reads only the kinematic findings)."""
         from engine.gait.kinematic_preview import SupportCenterComPlan
         from engine.gait.offline_plan import planner_for
+        from engine.gait.zmp_feasibility import PlanFollower
 
         robot = self.robot
         planner = planner_for(robot, style, self.ctx)
@@ -189,15 +200,29 @@ class FeasibilityChecker:
         apex = {s: 0.0 for s in SIDES}
         swung = {s: False for s in SIDES}
         commanded = np.zeros(3)
+        follower = PlanFollower(self.walking.mpc_preview_s) if balance else None
+        heights: list[float] = []  # the CoM heights of the last cycle: their mean is the plan's pendulum height
+        walked: dict[str, list] = {k: [] for k in ("t", "z", "lip", "com", "cop", "support", "pct", "contact")}
         for k in range(n_total):
             commanded = commanded + np.clip(command - commanded, -limits * dt, limits * dt)
             ref = planner.step(dt, commanded, with_preview=False)
             com = com_plan.step(dt, ref)
+            if follower is not None:
+                heights = (heights + [ref.pelvis_z + self.com_offset_m])[-TICKS_PER_CYCLE:]
+                supports = planner.preview()
+                lip = float(np.mean(heights))
+                plan_com, plan_cop, _ = follower.step(float(ref.t_s), supports, lip, ref.foot_pos[:, :2].mean(axis=0))
+                if k >= n_settle:
+                    for key, value in (("t", float(ref.t_s)), ("z", heights[-1]), ("lip", lip), ("com", plan_com),
+                                       ("cop", plan_cop), ("support", support_at(supports, float(ref.t_s))),
+                                       ("contact", ref.contact.copy())):
+                        walked[key].append(value)
             if k < n_settle:
                 continue
             blend = planner.blend
             assert blend is not None  # the planner blends on its first step
             pct = 100.0 * (blend.time_at(ref.phase) % cycle) / cycle
+            walked["pct"].append(pct)
             if q_prev is None:  # start the IK at the pelvis's pose on the path
                 yaw = float(ref.path_pose[2])
                 q[0:3] = [ref.path_pose[0], ref.path_pose[1], ref.pelvis_z]
@@ -233,6 +258,8 @@ class FeasibilityChecker:
                         self._add(findings, Finding(name, pct, "clearance", side,
                                                     f"the {side} foot digs {1000 * -low:.0f} mm into the floor during its swing: "
                                                     "raise its swing height or reduce its heel/toe pitch"))
+        if follower is not None:
+            self._balance(findings, name, walked)
         for side in SIDES:
             if swung[side] and apex[side] < MIN_CLEARANCE_M:
                 self._add(findings, Finding(name, 50.0, "clearance", side,
@@ -261,6 +288,29 @@ class FeasibilityChecker:
             pct = 100.0 * ((start + t) % cycle) / cycle
             self._add(findings, Finding(name, pct, "curve_rate", channel,
                                         f"the {channel} curve {what}: move its knots further apart or make the change smaller"))
+
+    def _balance(self, findings: dict, name: str, walked: dict[str, list]) -> None:
+        """The CoP the MPC's plan needs once the pelvis height curve moves the CoM up and down
+        (engine/gait/zmp_feasibility.py): beyond a sole's edge, or with the feet nearly unloaded."""
+        demands = cop_demands(np.array(walked["t"]), np.array(walked["z"]), np.array(walked["com"]), np.array(walked["cop"]),
+                              walked["support"], np.array(walked["lip"]), self.margin_m)
+        if not demands or any(d.plan_diverged for d in demands):  # (the open-loop plan fell behind: no verdict)
+            return
+        j = int(np.argmin([d.load_share for d in demands]))
+        if demands[j].load_share < MIN_LOAD_SHARE:  # (the CoP is meaningless there: the feet barely push)
+            self._add(findings, Finding(name, walked["pct"][j], "balance", None,
+                                        f"the pelvis drops almost as fast as falling (the feet carry "
+                                        f"{100 * max(demands[j].load_share, 0.0):.0f} % of the weight): soften the pelvis height curve"))
+            return
+        i = int(np.argmax([d.outside_m for d in demands]))
+        worst = demands[i]
+        if worst.outside_m > BALANCE_TOLERANCE_M:
+            contact = walked["contact"][i]
+            where = f"the {SIDES[int(np.argmax(contact))]} sole's edge" if contact.sum() == 1 else "the feet"
+            self._add(findings, Finding(name, walked["pct"][i], "balance", None,
+                                        f"the body's up-and-down motion needs the centre of pressure "
+                                        f"{1000 * worst.outside_m:.0f} mm beyond {where} to keep balance: "
+                                        "soften the pelvis height curve or lengthen the cycle"))
 
     @staticmethod
     def _add(findings: dict, finding: Finding) -> None:

@@ -147,3 +147,24 @@ def test_the_torque_estimate_balances_the_body_on_its_stance_sole(robot_name):
             checker.sole_half = real_sole
             share = np.abs(checker.static_torques(stance, q)[checker.leg_v]) / checker.torque_limit
             assert np.all(np.isfinite(share))
+
+
+def test_a_pelvis_bouncing_faster_than_balance_allows_is_flagged():
+    """The check's CoP/ZMP part (engine/gait/zmp_feasibility.py): a pelvis height curve bobbing ±2 cm twice a cycle
+    (valid; the shipped casual style bobs ±8 mm and passes) makes the CoP the MPC's plan needs leave the stance
+    sole; the finding names the sample, the phase and the curve to soften."""
+    from engine.gait.curves import HermiteCurve, Knot
+
+    ctx, neutral = _neutral()
+
+    def bouncing(s):
+        cycle = s.intervals.cycle_s
+        knots = [Knot(cycle * (i + 0.5) / 8, 0.02 * (0.0, 1.0, 0.0, -1.0)[i % 4]) for i in range(8)]
+        return dataclasses.replace(s, curves={**s.curves, "pelvis.z": HermiteCurve(knots, cycle, periodic=True)})
+
+    style = _every_sample(neutral, bouncing)
+    validate_style(style, ctx)
+    findings = [f for f in check_style(load_robot("g1"), style, samples=("in_place",)) if f.kind == "balance"]
+    assert findings, "the check passed a pelvis bounce that needs the CoP beyond the sole"
+    assert findings[0].sample == "in_place" and 0.0 <= findings[0].phase_pct <= 100.0
+    assert "beyond the" in findings[0].message and "soften the pelvis height curve" in findings[0].message
