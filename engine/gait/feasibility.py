@@ -81,8 +81,11 @@ VELOCITY_SHARE = 1.0  # joint speed beyond this share of the velocity limit is f
 TORQUE_SHARE = 0.9  # the controller's torque limit (share of the URDF effort)
 TORQUE_TOLERANCE = 1.25  # the estimate is static (no accelerations): flag beyond this × the limit
 MIN_CLEARANCE_M = 0.01
-# The CoP the MPC's plan needs (engine/gait/zmp_feasibility.py) beyond a sole's edge by more than this: flagged
-BALANCE_TOLERANCE_M = 0.0
+# The CoP the MPC's plan needs (engine/gait/zmp_feasibility.py) beyond a sole's edge by more than this: flagged.
+# The point-mass estimate leaves out what the closed loop also uses (the limbs' angular momentum, the feedback):
+# random reachable styles that walk the 60 s sweep need up to 8 mm (G1) and 17 mm (TALOS) beyond a sole by it
+# (README, stop 37), so the flag starts at 2 cm.
+BALANCE_TOLERANCE_M = 0.02
 FLOOR_TOLERANCE_M = 0.005
 
 JOINT_WORDS = {"hip_pitch": "hip", "hip_roll": "hip (sideways)", "hip_yaw": "hip (twist)", "knee": "knee",

@@ -56,7 +56,7 @@ def _undo_until_the_warning_goes(page, warning: str) -> None:
 
 def test_a_pelvis_bob_the_balance_plan_cannot_follow_is_flagged_and_softening_it_clears_it(tmp_path, artifacts):
     """The check's balance part (engine/gait/zmp_feasibility.py) in the browser: an animator's style whose pelvis
-    bobs ±2 cm twice a cycle. The Sample tab says the CoP would have to leave a sole (sample, phase, what to do);
+    bobs ±3 cm twice a cycle. The Sample tab says the CoP would have to leave a sole (sample, phase, what to do);
     typing smaller values for the curve's four bumps clears it."""
     import dataclasses
 
@@ -73,7 +73,7 @@ def test_a_pelvis_bob_the_balance_plan_cannot_follow_is_flagged_and_softening_it
         knots = [Knot(cycle * (i + 0.5) / 8, amplitude_m * (0.0, 1.0, 0.0, -1.0)[i % 4]) for i in range(8)]
         return dataclasses.replace(s, curves={**s.curves, "pelvis.z": HermiteCurve(knots, cycle, periodic=True)})
 
-    bouncy = dataclasses.replace(neutral, name="bouncy", samples={k: bobbing(v, 0.02) for k, v in neutral.samples.items()})
+    bouncy = dataclasses.replace(neutral, name="bouncy", samples={k: bobbing(v, 0.03) for k, v in neutral.samples.items()})
     save_style(styles / "g1" / "bouncy.json", bouncy)
     with started_studio("g1", styles) as studio:
         with engine_page(studio, 1000, 720) as page:
@@ -91,7 +91,7 @@ def test_a_pelvis_bob_the_balance_plan_cannot_follow_is_flagged_and_softening_it
             assert curves is not None
             curves.set_sample("in_place")
             curves.set_active_channel("pelvis.z")
-            for i in (1, 3, 5, 7):  # the bumps: ±2 cm → ±2 mm
+            for i in (1, 3, 5, 7):  # the bumps: ±3 cm → ±2 mm
                 curves.select([KnotRef("pelvis.z", i)])
                 assert curves.set_knot_values(value=0.002 * (1.0 if i % 4 == 1 else -1.0)).ok
             wait_for_text(page, "nothing in the way of walking it", timeout_ms=120_000)
