@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.constants import GRAVITY_MPS2
-from engine.control.mpc import ComMpc, SupportPhase
+from engine.control.mpc import ComMpc, ComMpcSolution, SupportPhase
 from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
 
 FloatArray = NDArray[np.float64]
@@ -76,7 +76,7 @@ class PlanFollower:
 
     def __post_init__(self) -> None:
         self.mpc = ComMpc(preview_s=self.preview_s)
-        self.plan = None
+        self.plan: ComMpcSolution | None = None
 
     def step(self, t_s: float, supports: Sequence[SupportPhase], lip_height_m: float,
              standing_com_xy_m: FloatArray) -> tuple[FloatArray, FloatArray, bool]:
