@@ -55,6 +55,7 @@ forward; the "runaway" of README *Why the seed-2 styles fall*).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -204,14 +205,14 @@ class FeasibilityChecker:
         swung = {s: False for s in SIDES}
         commanded = np.zeros(3)
         follower = PlanFollower(self.walking.mpc_preview_s) if balance else None
-        heights: list[float] = []  # the CoM heights of the last cycle: their mean is the plan's pendulum height
+        heights: deque[float] = deque(maxlen=TICKS_PER_CYCLE)  # the last cycle's CoM heights: their mean is the pendulum's
         walked: dict[str, list] = {k: [] for k in ("t", "z", "lip", "com", "cop", "support", "pct", "contact")}
         for k in range(n_total):
             commanded = commanded + np.clip(command - commanded, -limits * dt, limits * dt)
             ref = planner.step(dt, commanded, with_preview=False)
             com = com_plan.step(dt, ref)
             if follower is not None:
-                heights = (heights + [ref.pelvis_z + self.com_offset_m])[-TICKS_PER_CYCLE:]
+                heights.append(ref.pelvis_z + self.com_offset_m)
                 supports = planner.preview()
                 lip = float(np.mean(heights))
                 plan_com, plan_cop, _ = follower.step(float(ref.t_s), supports, lip, ref.foot_pos[:, :2].mean(axis=0))

@@ -143,3 +143,11 @@ def canvas_pixels(page) -> np.ndarray:
 def robot_pixel_count(rgb: np.ndarray) -> int:
     """Pixels dark enough to be robot (G1/TALOS dark parts), not the light grid or background."""
     return int(np.sum(rgb.max(axis=2) < 90))
+
+
+def open_style(page, studio, name: str) -> None:
+    """Style tab → pick ``name`` → Open, as the animator clicks it; returns once the session has it."""
+    page.get_by_role("tab", name="Style").click(force=True)
+    studio.style_browser.dropdown.value = name
+    page.get_by_role("button", name="Open").click()
+    wait_until(lambda: studio.session.style.name == name, 60, "the style to open")

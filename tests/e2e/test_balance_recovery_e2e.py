@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.e2e.browser import copy_styles, engine_page, stall_s, started_studio, wait_for_text, wait_until
+from tests.e2e.browser import copy_styles, engine_page, open_style, stall_s, started_studio, wait_for_text, wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -25,10 +25,7 @@ def styles_with_a_random_one(tmp_path, robot: str, name: str, extent: float):
 
 def open_style_and_test(page, studio, name: str) -> None:
     """Style tab → open ``name`` → Robot tab → Test, as the animator clicks it."""
-    page.get_by_role("tab", name="Style").click(force=True)
-    studio.style_browser.dropdown.value = name
-    page.get_by_role("button", name="Open").click()
-    wait_until(lambda: studio.session.style.name == name, 60, "the style to open")
+    open_style(page, studio, name)
     page.get_by_role("tab", name="Robot").click(force=True)
     page.get_by_role("button", name="Test").click()
 

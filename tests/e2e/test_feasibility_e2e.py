@@ -60,27 +60,17 @@ def test_a_pelvis_bob_the_balance_plan_cannot_follow_is_flagged_and_softening_it
     typing smaller values for the curve's four bumps clears it."""
     import dataclasses
 
-    from engine.gait.curves import HermiteCurve, Knot
     from engine.gait.style import StyleContext, load_style, save_style
-    from tests.e2e.browser import wait_until
+    from tests.e2e.browser import open_style
+    from tests.gait.test_feasibility import pelvis_bob
 
     styles = copy_styles(tmp_path)
-    ctx = StyleContext.for_robot("g1")
-    neutral = load_style(styles / "g1" / "neutral.json", ctx)
-
-    def bobbing(s, amplitude_m):
-        cycle = s.intervals.cycle_s
-        knots = [Knot(cycle * (i + 0.5) / 8, amplitude_m * (0.0, 1.0, 0.0, -1.0)[i % 4]) for i in range(8)]
-        return dataclasses.replace(s, curves={**s.curves, "pelvis.z": HermiteCurve(knots, cycle, periodic=True)})
-
-    bouncy = dataclasses.replace(neutral, name="bouncy", samples={k: bobbing(v, 0.03) for k, v in neutral.samples.items()})
+    neutral = load_style(styles / "g1" / "neutral.json", StyleContext.for_robot("g1"))
+    bouncy = dataclasses.replace(neutral, name="bouncy", samples={k: pelvis_bob(v, 0.03) for k, v in neutral.samples.items()})
     save_style(styles / "g1" / "bouncy.json", bouncy)
     with started_studio("g1", styles) as studio:
         with engine_page(studio, 1000, 720) as page:
-            page.get_by_role("tab", name="Style").click(force=True)
-            studio.style_browser.dropdown.value = "bouncy"
-            page.get_by_role("button", name="Open").click()
-            wait_until(lambda: studio.session.style.name == "bouncy", 60, "the style to open")
+            open_style(page, studio, "bouncy")
             page.get_by_role("tab", name="Sample").click(force=True)
             studio.sample_editor.select("in_place")
             wait_for_text(page, "soften the pelvis height curve", timeout_ms=120_000)

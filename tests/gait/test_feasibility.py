@@ -149,20 +149,21 @@ def test_the_torque_estimate_balances_the_body_on_its_stance_sole(robot_name):
             assert np.all(np.isfinite(share))
 
 
+def pelvis_bob(sample, amplitude_m: float):
+    """``sample`` with its pelvis height curve bobbing ±``amplitude_m`` twice a cycle (knots 1, 3, 5, 7 the bumps)."""
+    from engine.gait.curves import HermiteCurve, Knot
+
+    cycle = sample.intervals.cycle_s
+    knots = [Knot(cycle * (i + 0.5) / 8, amplitude_m * (0.0, 1.0, 0.0, -1.0)[i % 4]) for i in range(8)]
+    return dataclasses.replace(sample, curves={**sample.curves, "pelvis.z": HermiteCurve(knots, cycle, periodic=True)})
+
+
 def test_a_pelvis_bouncing_faster_than_balance_allows_is_flagged():
     """The check's CoP/ZMP part (engine/gait/zmp_feasibility.py): a pelvis height curve bobbing ±3 cm twice a cycle
     (valid; the shipped casual style bobs ±8 mm and passes) makes the CoP the MPC's plan needs leave the stance
     sole by more than the 2 cm tolerance; the finding names the sample, the phase and the curve to soften."""
-    from engine.gait.curves import HermiteCurve, Knot
-
     ctx, neutral = _neutral()
-
-    def bouncing(s):
-        cycle = s.intervals.cycle_s
-        knots = [Knot(cycle * (i + 0.5) / 8, 0.03 * (0.0, 1.0, 0.0, -1.0)[i % 4]) for i in range(8)]
-        return dataclasses.replace(s, curves={**s.curves, "pelvis.z": HermiteCurve(knots, cycle, periodic=True)})
-
-    style = _every_sample(neutral, bouncing)
+    style = _every_sample(neutral, lambda s: pelvis_bob(s, 0.03))
     validate_style(style, ctx)
     findings = [f for f in check_style(load_robot("g1"), style, samples=("in_place",)) if f.kind == "balance"]
     assert findings, "the check passed a pelvis bounce that needs the CoP beyond the sole"
