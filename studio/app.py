@@ -32,6 +32,7 @@ from studio.thread_priority import yield_to_engine
 if TYPE_CHECKING:
     from studio.panels.curve_editor import CurveEditor
     from studio.panels.rehearsal_panel import RehearsalPanel
+    from studio.panels.style_speeds import StyleSpeeds
     from studio.panels.sample_editor import SampleEditor
     from studio.panels.style_browser import StyleBrowser
 
@@ -45,10 +46,15 @@ NOTICE_COLORS: dict[str, Literal["red", "yellow", "blue"]] = {"error": "red", "w
 
 class Studio:
     def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None,
-                 token: str | None = None, shadows: bool = False):
+                 token: str | None = None, shadows: bool = False, rehearse_after_edits: bool = False,
+                 rehearsal_duration_s: float | None = None):
         load_robot_config(robot)  # fail fast, before any server or process starts
         self.robot_name = robot
         self.styles_folder = styles_folder
+        # The Rehearsal panel walks the style by itself after each edit (`studio serve` turns it on; tests and
+        # benchmarks that build a Studio leave it off unless they test it), through a sweep this long.
+        self.rehearse_after_edits = rehearse_after_edits
+        self.rehearsal_duration_s = rehearsal_duration_s
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
         allow_pushes_from_threads(self.server)  # frames, telemetry, joystick and callbacks push from threads
         self.token = token
@@ -129,6 +135,7 @@ class Studio:
         self.sample_editor: SampleEditor | None = None
         self.curve_editor: CurveEditor | None = None
         self.rehearsal: RehearsalPanel | None = None
+        self.speeds: StyleSpeeds | None = None
 
         self.link = EngineLink(robot, self._on_event, self._on_status, on_lost=self._on_engine_lost)
         self.server.on_client_connect(self._on_client)
@@ -167,6 +174,7 @@ class Studio:
         self._style_folders.clear()
         self.session = None
         self.style_browser = self.sample_editor = self.curve_editor = None
+        self.speeds = None
         cfg = load_robot_config(robot)
         if cfg.kind != "biped" or not cfg.default_style:
             for tab in (self.tab_style, self.tab_sample, self.tab_curves):
@@ -182,9 +190,11 @@ class Studio:
         opened = session.open(cfg.default_style)
         if not opened.ok:
             self._notify("error", opened.message)
+        from engine.gait.rehearsal import SWEEP_DURATION_S
         from studio.panels.rehearsal_panel import RehearsalPanel
         from studio.panels.sample_editor import SampleEditor
         from studio.panels.style_browser import StyleBrowser
+        from studio.panels.style_speeds import StyleSpeeds
 
         with self.tab_style:
             folder = self.server.gui.add_folder("Style")
@@ -195,6 +205,10 @@ class Studio:
                 undo.on_click(lambda _: self._report(session.undo()))
                 redo.on_click(lambda _: self._report(session.redo()))
             self._style_folders.append(folder)
+            folder = self.server.gui.add_folder("Speeds")
+            with folder:
+                self.speeds = StyleSpeeds(self.server, session, self._notify)
+            self._style_folders.append(folder)
         with self.tab_sample:
             folder = self.server.gui.add_folder("Sample")
             with folder:
@@ -202,7 +216,8 @@ class Studio:
             self._style_folders.append(folder)
             folder = self.server.gui.add_folder("Rehearsal")
             with folder:
-                self.rehearsal = RehearsalPanel(self.server, session)
+                self.rehearsal = RehearsalPanel(self.server, session, self.rehearsal_duration_s or SWEEP_DURATION_S,
+                                                auto=self.rehearse_after_edits)
             self._style_folders.append(folder)
         with self.tab_curves:
             folder = self.server.gui.add_folder("Function curves")
@@ -536,10 +551,11 @@ def recovery_text(signals: dict) -> str:
     return f" · balance recovery: walking {100 * float(share[0]):.0f} % neutral"
 
 
-def serve(robot: str, host: str, port: int, token: str | None = None, shadows: bool = False) -> None:
+def serve(robot: str, host: str, port: int, token: str | None = None, shadows: bool = False,
+          rehearse_after_edits: bool = True) -> None:
     from studio.access import browser_url
 
-    studio = Studio(robot, host, port, token=token, shadows=shadows).start()
+    studio = Studio(robot, host, port, token=token, shadows=shadows, rehearse_after_edits=rehearse_after_edits).start()
     url = browser_url(host, studio.server.get_port(), token) if token or host != "127.0.0.1" else studio.url
     print(f"Motion Studio: {url}  (robot {robot}; Ctrl+C to stop)", flush=True)
 

@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--shadows", action="store_true",
                        help="draw shadows (needs a GPU: with software WebGL the page draws 1.7-5x fewer frames: studio bench render)")
     serve.add_argument("--token", default=None, help="require this access token from browsers (env MOTION_STUDIO_TOKEN)")
+    serve.add_argument("--no-rehearse-after-edits", dest="rehearse_after_edits", action="store_false",
+                       help="do not walk the style through the sweep off screen after each edit (the Rehearsal "
+                            "panel's checkbox; on by default: it uses a second CPU core at low priority)")
 
     sub.add_parser("robots", help="list the robot library")
 
@@ -183,7 +186,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if not is_loopback(args.host) and not token:
         print(f"studio: warning: --host {args.host}: anyone on the network can read and write styles and motions; "
               "pass --token TOKEN (or set MOTION_STUDIO_TOKEN) to require an access token", file=sys.stderr)
-    serve(robot, args.host, args.port, token=token, shadows=args.shadows)
+    serve(robot, args.host, args.port, token=token, shadows=args.shadows, rehearse_after_edits=args.rehearse_after_edits)
     return 0
 
 

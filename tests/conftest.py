@@ -75,7 +75,8 @@ def run_studio(*args: str, timeout: float = 600, env: dict | None = None) -> sub
 class ServedStudio:
     def __init__(self, robot: str = "g1"):
         self.port = free_port()
-        self.proc = subprocess.Popen([sys.executable, "-m", "studio", "serve", "--robot", robot, "--port", str(self.port)],
+        self.proc = subprocess.Popen([sys.executable, "-m", "studio", "serve", "--robot", robot, "--port", str(self.port),
+                                      "--no-rehearse-after-edits"],
                                      cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         wait_for_port(self.port)
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 import copy
 import difflib
 import functools
+import hashlib
 import json
 import math
 import os
@@ -623,6 +624,15 @@ def validate_style(style: Style, ctx: StyleContext | None) -> None:
 
 def style_to_json_dict(style: Style) -> dict[str, Any]:
     return style.to_dict()
+
+
+def style_digest(style: Style) -> str:
+    """A fingerprint of what the robot walks: the style's content without its name and description (two styles
+    with the same digest walk the same; a verdict about one holds for the other)."""
+    content = style.to_dict()
+    content.pop("name", None)
+    content.pop("description", None)
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def dumps_style(style: Style | dict[str, Any]) -> str:

@@ -1,10 +1,16 @@
-"""The Sample tab's *Rehearse the sweep* button: walk the open style through the sweep in physics, off screen.
+"""The Sample tab's *Rehearsal*: walk the open style through the sweep in physics, off screen.
 
 The edit-time check above it reads the reference; a rehearsal (engine/gait/rehearsal.py) simulates the walk the
 way ``studio bench styles`` does and says whether, when and where it falls. It runs in its own process at low
 priority (``nice`` 10, so the live simulation keeps its CPU), reports its progress here, can be cancelled, and
 marks its verdict stale once the style is edited after it started. The panel computes nothing: it writes the
 style to a temporary file, starts the process and shows the lines it prints.
+
+*Rehearse after each edit* (on in ``studio serve``): once the style has rested :data:`AUTO_DELAY_S` after an
+edit, an undo or an open, the panel rehearses it by itself, so a style that falls says so before Test is pressed
+(issue 13: the reference check cannot see falls that begin in the closed loop). A newer edit cancels a rehearsal
+of an older version. Verdicts are kept per style content (:func:`engine.gait.style.style_digest`): undoing back to a
+version already rehearsed shows its verdict at once, without walking it again.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from typing import TYPE_CHECKING
 import viser
 
 from engine.gait.rehearsal import SWEEP_DURATION_S
-from engine.gait.style import style_to_json_dict
+from engine.gait.style import Style, style_digest, style_to_json_dict
 from engine.process import REPO_ROOT
 
 if TYPE_CHECKING:
@@ -30,23 +36,32 @@ if TYPE_CHECKING:
 
 REHEARSAL_NICE = 10
 START_LABEL, CANCEL_LABEL = "Rehearse the sweep", "Cancel rehearsal"
+AUTO_DELAY_S = 2.0  # the style rests this long after an edit before it is rehearsed by itself
+CACHE_SIZE = 64  # verdicts kept (per style content)
 
 
-def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None) -> str:
+def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None, remembered: bool = False) -> str:
     """The rehearsal's verdict as the panel shows it."""
     mark = "✓" if result.get("clean") else ("⚠️" if not result.get("fell") else "✗")
     text = f"{mark} Rehearsal: {result.get('message', '')}"
     if wall_s is not None:
         text += f" <small>({wall_s:.0f} s to rehearse)</small>"
+    if remembered:
+        text += " <small>(this version was rehearsed before)</small>"
     if stale:
         text += "\n\n<small>(rehearsed before your last edit: rehearse again to check it)</small>"
     return text
 
 
 class RehearsalPanel:
-    def __init__(self, server: viser.ViserServer, session: "StyleSession", duration_s: float = SWEEP_DURATION_S):
+    def __init__(self, server: viser.ViserServer, session: "StyleSession", duration_s: float = SWEEP_DURATION_S,
+                 auto: bool = False):
         self.session = session
         self.duration_s = duration_s
+        self.auto = server.gui.add_checkbox(
+            "Rehearse after each edit", initial_value=auto,
+            hint=f"rehearse the style by itself {AUTO_DELAY_S:.0f} s after each edit, undo or open (a newer edit "
+                 "cancels it); undoing to a version rehearsed before shows its verdict at once")
         self.button = server.gui.add_button(
             START_LABEL, icon=viser.Icon.PLAYER_PLAY,
             hint=f"walk this style through the {duration_s:.0f} s sweep (stand, forward, back, sideways, turns) in "
@@ -54,8 +69,16 @@ class RehearsalPanel:
         self.status = server.gui.add_markdown("")
         self._lock = threading.Lock()
         self._process: subprocess.Popen | None = None
-        self._cancelled = False
+        self._running_digest: str | None = None  # the content being rehearsed
+        self._cancelled: tuple[bool, bool] = (False, False)  # (cancelled, by the animator)
+        self.verdicts: dict[str, dict] = {}  # style digest → the rehearsal's result (insertion order: oldest first)
+        self._due: tuple[float, Style] | None = None  # (monotonic time, style) of the next rehearsal by itself
+        self._wake = threading.Condition()
+        self._stopped = False
         self.button.on_click(lambda _: self.toggle())
+        self.auto.on_update(lambda _: self._on_auto())
+        session.subscribe(self._on_style_change)
+        threading.Thread(target=self._auto_loop, name="rehearsal-auto", daemon=True).start()
 
     @property
     def running(self) -> bool:
@@ -68,11 +91,12 @@ class RehearsalPanel:
         else:
             self.start()
 
-    def start(self) -> None:
-        style = self.session.style
+    def start(self, style: Style | None = None) -> None:
+        style = style if style is not None else self.session.style
         if style is None:
             self.status.content = "<small>no style open</small>"
             return
+        self.cancel(manual=False)  # (one rehearsal at a time)
         folder = Path(tempfile.mkdtemp(prefix="motion-studio-rehearsal-"))
         path = folder / "style.json"
         path.write_text(json.dumps(style_to_json_dict(style)))
@@ -81,23 +105,68 @@ class RehearsalPanel:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                    cwd=str(REPO_ROOT))
         with self._lock:
-            self._process, self._cancelled = process, False
+            self._process, self._cancelled, self._running_digest = process, (False, False), style_digest(style)
         self.button.label, self.button.icon = CANCEL_LABEL, viser.Icon.PLAYER_STOP
         self.status.content = "<small>rehearsing the sweep in physics…</small>"
         threading.Thread(target=self._follow, args=(process, style, folder, time.monotonic()), name="rehearsal",
                          daemon=True).start()
 
-    def cancel(self) -> None:
+    def cancel(self, manual: bool = True) -> None:
+        """Kill the running rehearsal; ``manual``: the animator asked (the panel says so), otherwise a newer
+        edit superseded it."""
         with self._lock:
-            process, self._cancelled = self._process, True
+            process, self._cancelled = self._process, (True, manual)
         if process is not None and process.poll() is None:
             process.kill()
 
     def stop(self) -> None:
         """End a running rehearsal (the studio stops or the robot changes)."""
+        self.session.unsubscribe(self._on_style_change)
+        with self._wake:
+            self._stopped, self._due = True, None
+            self._wake.notify_all()
         self.cancel()
 
-    def _follow(self, process: subprocess.Popen, style: object, folder: Path, started_s: float) -> None:
+    # ------------------------------------------------------------------ by itself, after each edit
+    def _on_style_change(self, style: Style, reason: str) -> None:
+        if not self.auto.value:
+            return
+        digest = style_digest(style)
+        with self._lock:
+            superseded = self._process is not None and self._running_digest != digest
+        if superseded:
+            self.cancel(manual=False)  # an older version's walk: its verdict would be stale when it ends
+        known = self.verdicts.get(digest)
+        with self._wake:
+            self._due = None if known is not None else (time.monotonic() + AUTO_DELAY_S, style)
+            self._wake.notify_all()
+        if known is not None:
+            self.status.content = rehearsal_markdown(known, stale=False, remembered=True)
+        else:
+            self.status.content = (f"<small>changed: rehearsing the sweep by itself once the style rests "
+                                   f"{AUTO_DELAY_S:.0f} s…</small>")
+
+    def _on_auto(self) -> None:
+        if self.auto.value and self.session.style is not None:
+            self._on_style_change(self.session.style, "rehearse after each edit")
+        elif not self.auto.value:
+            with self._wake:
+                self._due = None
+
+    def _auto_loop(self) -> None:
+        while True:
+            with self._wake:
+                while not self._stopped and (self._due is None or self._due[0] > time.monotonic()):
+                    self._wake.wait(None if self._due is None else max(self._due[0] - time.monotonic(), 0.0))
+                due = self._due
+                if self._stopped or due is None:
+                    return
+                style = due[1]
+                self._due = None
+            if self.auto.value and self.session.style is style:  # (a newer edit reschedules)
+                self.start(style)
+
+    def _follow(self, process: subprocess.Popen, style: Style, folder: Path, started_s: float) -> None:
         result = None
         assert process.stdout is not None and process.stderr is not None
         try:
@@ -116,15 +185,29 @@ class RehearsalPanel:
         finally:
             shutil.rmtree(folder, ignore_errors=True)
         with self._lock:
-            cancelled = self._cancelled
-            if self._process is process:
-                self._process = None
-        self.button.label, self.button.icon = START_LABEL, viser.Icon.PLAYER_PLAY
+            mine = self._process is process
+            cancelled, by_animator = self._cancelled if mine else (True, False)  # (not mine: a newer one took over)
+            if mine:
+                self._process, self._running_digest = None, None
+        if mine:
+            self.button.label, self.button.icon = START_LABEL, viser.Icon.PLAYER_PLAY
+        if result is not None and process.returncode == 0:
+            self._remember(style, result)
+        if not mine:
+            return
         if cancelled:
-            self.status.content = "<small>rehearsal cancelled</small>"
+            if by_animator:
+                self.status.content = "<small>rehearsal cancelled</small>"
         elif result is not None:
             self.status.content = rehearsal_markdown(result, stale=self.session.style is not style,
                                                      wall_s=time.monotonic() - started_s)
         else:
             reason = error[-1] if error else f"exit status {process.returncode}"
             self.status.content = f"<small>the rehearsal failed: {reason}</small>"
+
+    def _remember(self, style: Style, result: dict) -> None:
+        digest = style_digest(style)
+        self.verdicts.pop(digest, None)
+        self.verdicts[digest] = result
+        while len(self.verdicts) > CACHE_SIZE:
+            self.verdicts.pop(next(iter(self.verdicts)))

@@ -64,14 +64,15 @@ def open_page(url: str, width: int = 900, height: int = 640):
 
 
 @contextlib.contextmanager
-def started_studio(robot: str = "g1", styles_folder: Path | None = None):
+def started_studio(robot: str = "g1", styles_folder: Path | None = None, **options):
     """A :class:`studio.app.Studio` of ``robot`` started on a free local port (``styles_folder``: a copy made by
-    :func:`copy_styles`, or None for the retarget-only robots), stopped however the test ends."""
+    :func:`copy_styles`, or None for the retarget-only robots; ``options``: the Studio's keyword options), stopped
+    however the test ends."""
     from studio.app import Studio
     from tests.conftest import free_port
 
     kwargs = {} if styles_folder is None else {"styles_folder": styles_folder}
-    studio = Studio(robot, port=free_port(), **kwargs).start()
+    studio = Studio(robot, port=free_port(), **kwargs, **options).start()
     try:
         yield studio
     finally:

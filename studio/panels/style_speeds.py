@@ -1,0 +1,98 @@
+"""The Style tab's *Speeds*: how fast the style walks at its key velocities (the four fields of the style's
+``velocities``: paper §6.1's sample velocities).
+
+Each sample walks at one of them (forward_fast and reverse_fast at the fast speed, forward_slow and reverse_slow at
+the slow one, the strafes sideways, the turns turning); the joystick's full deflection is the fast speed. An edit
+goes through the style session like any other (validated: slow below fast, and each sample's step — its velocity ×
+its timings — within the legs' reach; undoable; autosaved). A refused value snaps back and the message says why.
+The panel computes nothing.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from dataclasses import replace
+from typing import TYPE_CHECKING, Callable
+
+import viser
+
+from studio.style_session import EditResult
+
+if TYPE_CHECKING:
+    from studio.style_session import StyleSession
+
+TYPING_PAUSE_S = 0.4  # a typed speed applies once the keys pause this long (typing "0.35" passes through "0")
+#: (field of SampleVelocities, label, the samples walking at it, step)
+SPEED_FIELDS = (
+    ("x_max_mps", "Fast (m/s)", "forward_fast and reverse_fast, and the joystick's full forward", 0.01),
+    ("x_slow_mps", "Slow (m/s)", "forward_slow and reverse_slow", 0.01),
+    ("y_max_mps", "Sideways (m/s)", "left_strafe and right_strafe", 0.01),
+    ("yaw_max_radps", "Turning (rad/s)", "left_turn and right_turn", 0.05),
+)
+
+
+class StyleSpeeds:
+    def __init__(self, server: viser.ViserServer, session: "StyleSession", notify: Callable[[str, str], None]):
+        self.session = session
+        self.notify = notify
+        self._syncing = False
+        self.inputs: dict[str, viser.GuiNumberHandle] = {}
+        self._timers: dict[str, threading.Timer] = {}
+        style = session.style
+        for field, label, samples, step in SPEED_FIELDS:
+            value = float(getattr(style.velocities, field)) if style is not None else 0.0
+            handle = server.gui.add_number(label, initial_value=round(value, 3), min=0.0, step=step,
+                                           hint=f"the speed of {samples}")
+            handle.on_update(functools.partial(self._on_event, field))
+            self.inputs[field] = handle
+        self.message = server.gui.add_markdown("")
+        session.subscribe(lambda style, reason: self.refresh())
+
+    def _on_event(self, field: str, _event: object) -> None:
+        self._on_input(field)
+
+    def _on_input(self, field: str) -> None:
+        if self._syncing:
+            return
+        pending = self._timers.pop(field, None)
+        if pending is not None:
+            pending.cancel()
+        timer = threading.Timer(TYPING_PAUSE_S, lambda: self.set_speed(field, float(self.inputs[field].value)))
+        timer.daemon = True
+        self._timers[field] = timer
+        timer.start()
+
+    def set_speed(self, field: str, value: float) -> bool:
+        """Set one of the style's speeds (an edit of the session: validated, undoable)."""
+        style = self.session.style
+        if style is None:
+            return False
+        if abs(float(getattr(style.velocities, field)) - value) < 1e-9:
+            return True
+        try:
+            velocities = replace(style.velocities, **{field: value})
+        except ValueError as exc:  # (the velocities' own invariants: positive, finite, slow below fast)
+            result = EditResult(False, f"velocities.{field}: {exc}")
+        else:
+            result = self.session.apply(replace(style, velocities=velocities), f"speed {field}")
+        if result.ok:
+            self.message.content = ""
+        else:
+            self.message.content = f"⚠️ {result.message}"
+            self.notify("warning", result.message)
+            self.refresh()  # the refused value snaps back
+        return result.ok
+
+    def refresh(self) -> None:
+        style = self.session.style
+        if style is None:
+            return
+        self._syncing = True
+        try:
+            for field, handle in self.inputs.items():
+                value = round(float(getattr(style.velocities, field)), 3)
+                if abs(float(handle.value) - value) > 1e-9:
+                    handle.value = value  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
+        finally:
+            self._syncing = False

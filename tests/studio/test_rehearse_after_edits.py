@@ -1,0 +1,154 @@
+"""The Style tab's speeds and the Rehearsal panel's *Rehearse after each edit* (issue 13: a style that falls says so
+before Test is pressed). Real rehearsal processes over a short sweep; a viser server without an engine."""
+
+from __future__ import annotations
+
+import shutil
+import time
+
+import pytest
+import viser
+
+from engine.gait.style import style_digest
+from studio.panels import rehearsal_panel
+from studio.panels.rehearsal_panel import RehearsalPanel
+from studio.panels.style_speeds import StyleSpeeds
+from studio.style_session import StyleSession
+from tests.conftest import REPO, free_port
+
+STUMBLY = REPO / "tests" / "data" / "stumbly_g1.json"
+SHORT_SWEEP_S = 3.0  # stand 1 s and the start of the forward leg: enough to walk, quick to rehearse
+
+
+@pytest.fixture(scope="module")
+def server():
+    srv = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    yield srv
+    srv.stop()
+
+
+@pytest.fixture
+def session(tmp_path):
+    folder = tmp_path / "g1"
+    folder.mkdir()
+    for p in (REPO / "styles" / "g1").glob("*.json"):
+        shutil.copy(p, folder / p.name)
+    s = StyleSession("g1", folder=folder)
+    assert s.open("neutral").ok
+    return s
+
+
+class Notices(list):
+    def __call__(self, level, text):
+        self.append((level, text))
+
+
+def wait_until(predicate, timeout_s: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    raise AssertionError("timed out")
+
+
+def test_a_speed_edit_is_an_undoable_validated_edit_of_the_style(server, session):
+    notices = Notices()
+    speeds = StyleSpeeds(server, session, notices)
+    assert speeds.inputs["x_max_mps"].value == pytest.approx(session.style.velocities.x_max_mps)
+    assert speeds.set_speed("x_max_mps", 0.42)
+    assert session.style.velocities.x_max_mps == pytest.approx(0.42) and session.dirty
+    # Slow must stay below fast: refused, the style and the field keep 0.42's neighbour values.
+    slow = session.style.velocities.x_slow_mps
+    assert not speeds.set_speed("x_slow_mps", 0.6)
+    assert session.style.velocities.x_slow_mps == pytest.approx(slow)
+    assert speeds.inputs["x_slow_mps"].value == pytest.approx(slow)
+    assert "x_slow_mps" in speeds.message.content and notices and notices[-1][0] == "warning"
+    # A step beyond the legs' reach (the validator couples each sample's step to its velocity): refused too.
+    assert not speeds.set_speed("x_max_mps", 5.0)
+    assert session.style.velocities.x_max_mps == pytest.approx(0.42)
+    assert session.undo().ok
+    assert speeds.inputs["x_max_mps"].value == pytest.approx(0.5)  # the field follows undo
+
+
+def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_the_verdict(server, session, monkeypatch):
+    monkeypatch.setattr(rehearsal_panel, "AUTO_DELAY_S", 0.5)
+    started: list[str] = []
+    original_start = RehearsalPanel.start
+
+    def counting_start(self, style=None):
+        started.append(style_digest(style if style is not None else self.session.style))
+        original_start(self, style)
+
+    monkeypatch.setattr(RehearsalPanel, "start", counting_start)
+    panel = RehearsalPanel(server, session, SHORT_SWEEP_S, auto=True)
+    speeds = StyleSpeeds(server, session, Notices())
+    try:
+        neutral = style_digest(session.style)
+        assert not started  # opening the studio does not rehearse: only a change does
+        # A burst of edits (a knot dragged, a sample's slider) is rehearsed once, at its last value.
+        for value in (0.45, 0.44, 0.43):
+            assert speeds.set_speed("x_max_mps", value)
+            assert session.undo().ok and session.redo().ok
+        assert "once the style rests" in panel.status.content
+        edited = style_digest(session.style)
+        wait_until(lambda: edited in panel.verdicts)
+        assert started == [edited]
+        result = panel.verdicts[edited]
+        assert result["fell"] is False and result["duration_s"] == pytest.approx(SHORT_SWEEP_S)
+        assert "Rehearsal:" in panel.status.content and "walks" in panel.status.content
+        # Undo to neutral: a version never rehearsed, so it walks; redo: the verdict is remembered, no walk.
+        for _ in range(3):
+            assert session.undo().ok
+        assert style_digest(session.style) == neutral
+        wait_until(lambda: neutral in panel.verdicts)
+        assert started == [edited, neutral]
+        for _ in range(3):
+            assert session.redo().ok
+        assert style_digest(session.style) == edited and "rehearsed before" in panel.status.content
+        time.sleep(1.0)
+        assert started == [edited, neutral] and not panel.running
+        # A new edit while a rehearsal runs cancels it (its verdict would describe an older version).
+        assert speeds.set_speed("x_max_mps", 0.47)
+        wait_until(lambda: panel.running)
+        running = style_digest(session.style)
+        assert speeds.set_speed("x_max_mps", 0.48)
+        wait_until(lambda: not panel.running or panel._running_digest != running, 30)
+        latest = style_digest(session.style)
+        wait_until(lambda: latest in panel.verdicts)
+        assert running not in panel.verdicts
+        assert "cancelled" not in panel.status.content
+        # Off: edits are not rehearsed.
+        panel.auto.value = False
+        assert speeds.set_speed("x_max_mps", 0.49)
+        time.sleep(1.5)
+        assert not panel.running and style_digest(session.style) not in panel.verdicts
+    finally:
+        panel.stop()
+
+
+def test_a_style_that_falls_says_where_before_test_is_pressed(server, tmp_path, monkeypatch):
+    """A random reachable G1 style that falls 2 s into the sweep (tests/data/stumbly_g1.json: reachable-0-17 of
+    `studio bench styles --robot g1 --seed 0 --space reachable`, saved by the studio's writer): opened, the panel
+    rehearses it by itself and names the sample and the phase; at a lower fast speed it walks."""
+    monkeypatch.setattr(rehearsal_panel, "AUTO_DELAY_S", 0.2)
+    folder = tmp_path / "g1"
+    folder.mkdir()
+    shutil.copy(REPO / "styles" / "g1" / "neutral.json", folder / "neutral.json")
+    shutil.copy(STUMBLY, folder / "stumbly.json")
+    session = StyleSession("g1", folder=folder)
+    assert session.open("neutral").ok
+    panel = RehearsalPanel(server, session, 4.0, auto=True)
+    speeds = StyleSpeeds(server, session, Notices())
+    try:
+        assert session.open("stumbly").ok
+        wait_until(lambda: style_digest(session.style) in panel.verdicts)
+        fell = panel.verdicts[style_digest(session.style)]
+        assert fell["fell"] and fell["sample"] and fell["phase_pct"] is not None
+        assert "falls at" in panel.status.content and "% of its cycle" in panel.status.content
+        assert speeds.set_speed("x_max_mps", 0.30)
+        wait_until(lambda: style_digest(session.style) in panel.verdicts)
+        assert not panel.verdicts[style_digest(session.style)]["fell"]
+        assert "walks the 4 s sweep" in panel.status.content
+    finally:
+        panel.stop()
