@@ -397,7 +397,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from engine.bench.options import check_style_options
     from engine.bench.retarget import check_clip_options
 
-    problem = (check_style_options(args.n, args.extent, args.duration, args.phases, args.n_per_kg)
+    problem = (check_style_options(args.n, args.extent, args.duration, args.phases, args.n_per_kg,
+                                   getattr(args, "repeat", 1))
                or check_clip_options(args.clips, args.budget, args.robots))
     if problem:
         raise CliError(problem)

@@ -24,9 +24,12 @@ def add_random_style_options(parser: argparse.ArgumentParser, n: int = 40, seed:
     parser.add_argument("--duration", type=float, default=duration_s, help="seconds of the sweep")
 
 
-def check_style_options(n: int, extent: float, duration_s: float, phases: int, n_per_kg: float) -> str | None:
+def check_style_options(n: int, extent: float, duration_s: float, phases: int, n_per_kg: float,
+                        repeat: int = 1) -> str | None:
     """The one-line complaint about the styles / push sections' ``--n``, ``--extent``, ``--duration`` (puppet's too),
-    ``--phases`` or ``--n-per-kg``, or None."""
+    ``--phases``, ``--n-per-kg`` or ``--repeat``, or None."""
+    if not 1 <= repeat <= 20:
+        return f"--repeat: expected 1 ≤ walks per style ≤ 20, got {repeat}"
     if not 1 <= n <= 10_000:
         return f"--n: expected 1 ≤ styles ≤ 10000, got {n}"
     if not (math.isfinite(extent) and 0.0 < extent <= 1.0):
@@ -51,6 +54,9 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--space", choices=STYLE_SPACES, default=STYLE_SPACES[0],
                         help="styles: draw over the validated space, or over its part the legs reach (each sample "
                              "drawn again while the feasibility check finds a foot out of reach or in the floor)")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="styles: walk each style this many times, the k-th after a nudge of 0.01 N·s while it "
+                             "stands (1 N for 10 ms at 0.5 s, a direction per k): how many of a style's walks fall")
     parser.add_argument("--phases", type=int, default=16, help="push: gait phases per direction")
     parser.add_argument("--n-per-kg", type=float, default=1.5, help="push: force per kg of robot mass")
     parser.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray)")
@@ -81,7 +87,7 @@ def run_section(section: Callable[..., list[dict]], args: argparse.Namespace) ->
     mapping = {"minutes": args.minutes, "clients": args.clients, "tabs": getattr(args, "tabs", 2), "tab_nice": getattr(args, "tab_nice", 0),
                "robot": args.robot,
                "style": args.style, "n": args.n, "seed": args.seed, "duration_s": args.duration, "phases": args.phases, "extent": args.extent,
-               "space": getattr(args, "space", "validated"),
+               "space": getattr(args, "space", "validated"), "repeat": getattr(args, "repeat", 1),
                "n_per_kg": args.n_per_kg, "address": args.address, "out_dir": args.out_dir,
                "clip_names": getattr(args, "clips", None), "bo_budget": getattr(args, "budget", None),
                "robot_names": getattr(args, "robots", None), "weights_dir": getattr(args, "weights_dir", None),

@@ -12,6 +12,12 @@ the walk never blended in). Findings of severity
 "rating" (a joint faster than its rated speed: the simulation has no velocity limit and walks them)
 are counted apart (``over_rating``), not as flags.
 Results are keyed by the style's hash in the output folder: a second call resumes.
+
+``--repeat K`` walks each style K times: the first walk as above, the k-th after a nudge while the robot stands
+(:func:`nudge_push`: 1 N for 10 ms at 0.5 s, 0.01 N·s, a direction per k; the robot's velocity changes by
+0.3 mm/s). Physically nothing, it is enough to send the closed loop down another path: at the margin where these
+styles sit, a fall and a walk are that close (README "Falls at a margin"). Per style the column ``falls`` says how
+many of its walks fell; the totals how many styles walked every time, never, or sometimes.
 """
 
 from __future__ import annotations
@@ -27,6 +33,21 @@ from engine.walk_batch import job_key, print_progress, run_batch
 
 
 KINEMATIC_KINDS = frozenset({"reach", "clearance"})  # the check's findings no leg posture can follow
+NUDGE_AT_S = 0.5  # while the sweep stands (it starts moving at 1 s)
+NUDGE_FORCE_N = 1.0  # far below the push observer's deadband (0.25 N/kg)
+NUDGE_DURATION_S = 0.01
+
+
+def nudge_push(k: int, repeat: int) -> list[float]:
+    """The ``pushes`` entry [t, fx, fy, fz, duration] of the k-th walk (k ≥ 1) of ``repeat``: a direction per k."""
+    angle = 2.0 * np.pi * (k - 1) / max(repeat - 1, 1)
+    return [NUDGE_AT_S, round(NUDGE_FORCE_N * float(np.cos(angle)), 6), round(NUDGE_FORCE_N * float(np.sin(angle)), 6),
+            0.0, NUDGE_DURATION_S]
+
+
+def repeated_jobs(job: dict[str, Any], repeat: int) -> list[dict[str, Any]]:
+    """``job`` itself, then ``repeat`` − 1 copies each nudged once while standing."""
+    return [job] + [{**job, "pushes": [*job.get("pushes", []), nudge_push(k, repeat)]} for k in range(1, repeat)]
 
 
 def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float = 1.0,
@@ -68,7 +89,7 @@ def style_jobs(robot: str, n: int, seed: int, duration_s: float, extent: float =
 
 def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: float = 60.0,
                  out_dir: str | None = None, address: str | None = None, extent: float = 1.0,
-                 space: str = "validated") -> list[dict]:
+                 space: str = "validated", repeat: int = 1) -> list[dict]:
     from engine.gait.feasibility import check_style
     from engine.robot.model import load_robot
 
@@ -77,11 +98,13 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
         print(f"drawing {n} reachable styles (the feasibility check on every draw) ...", flush=True)
     pairs = style_jobs(robot, n, seed, duration_s, extent, space, progress=lambda line: print(line, flush=True))
     out = Path(out_dir) if out_dir else Path.home() / ".cache" / "motion-studio" / "bench-styles" / robot
-    results = run_batch([j for _, j in pairs], out, address=address, progress=print_progress)
+    runs = {job_key(job): repeated_jobs(job, repeat) for _, job in pairs}
+    results = run_batch([j for jobs in runs.values() for j in jobs], out, address=address, progress=print_progress)
     rows: list[dict] = []
     for i, (style, job) in enumerate(pairs):
         key = job_key(job)
         r = results.get(key, {"error": "missing"})
+        repeats = [results.get(job_key(j), {"error": "missing"}) for j in runs[key]]
         reached = reached_samples(style, job["command"], duration_s)
         everything = check_style(model, style)
         findings = [f for f in everything if f.severity == "fall" and f.sample in reached]
@@ -104,6 +127,10 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
             "unreached": ",".join(sorted({f.sample for f in unreached})),
             "finding": f"{first.sample} {first.phase_pct:.0f}%: {first.message}"[:90] if first else "",
         })
+        if repeat > 1:
+            done = [x for x in repeats if "error" not in x]
+            row["falls"] = f"{sum(bool(x['fell']) for x in done)}/{len(done)}"
+            row["fall_s_runs"] = ",".join("-" if not x["fell"] else f"{x['fall_time_s']:.1f}" for x in done)
         rows.append(row)
     rows.append(totals(rows, robot, seed))
     return rows
@@ -131,6 +158,7 @@ def totals(rows: list[dict], robot: str, seed: int) -> dict:
     silent = [r for r in fell if not r["flagged"]]
     alarms = [r for r in walked if r["flagged"]]
     rated = [r for r in walked if r.get("over_rating")]
+    repeats = [tuple(int(x) for x in r["falls"].split("/")) for r in done if "falls" in r]
     recovered = [r for r in walked if (r.get("recovery_share") or 0.0) > 0.0]
     mean_share = float(np.mean([r.get("recovery_share") or 0.0 for r in walked])) if walked else 0.0
     return {"section": "styles", "robot": robot, "seed": seed, "i": "total", "key": f"{len(done)} run",
@@ -138,7 +166,10 @@ def totals(rows: list[dict], robot: str, seed: int) -> dict:
             "slip_mm": f"<2mm&CoP≥99.5%: {len(good)}/{len(walked)}", "cop_in": "",
             "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}",
             "over_rating": f"walked above a rated joint speed {len(rated)}/{len(walked)}",
-            "recovery_share": f"recovered toward neutral {len(recovered)}/{len(walked)}, mean share {mean_share:.3f}"}
+            "recovery_share": f"recovered toward neutral {len(recovered)}/{len(walked)}, mean share {mean_share:.3f}",
+            **({"falls": f"walks: {sum(k - f for f, k in repeats)}/{sum(k for _, k in repeats)}; styles that walk every "
+                         f"time {sum(f == 0 for f, _ in repeats)}, never {sum(f == k for f, k in repeats)}, sometimes "
+                         f"{sum(0 < f < k for f, k in repeats)}"} if repeats else {})}
 
 
 def _mm(x: float | None) -> float | None:

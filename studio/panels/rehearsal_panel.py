@@ -133,10 +133,12 @@ class RehearsalPanel:
             return
         digest = style_digest(style)
         with self._lock:
-            superseded = self._process is not None and self._running_digest != digest
-        if superseded:
+            running = self._process is not None and self._process.poll() is None
+            if running and self._running_digest == digest:
+                return  # (this very version is being rehearsed: an edit that changed nothing the robot walks)
+            known = self.verdicts.get(digest)
+        if running:
             self.cancel(manual=False)  # an older version's walk: its verdict would be stale when it ends
-        known = self.verdicts.get(digest)
         with self._wake:
             self._due = None if known is not None else (time.monotonic() + AUTO_DELAY_S, style)
             self._wake.notify_all()
@@ -175,7 +177,7 @@ class RehearsalPanel:
                     event = json.loads(line)
                 except json.JSONDecodeError:
                     continue
-                if "progress_s" in event:
+                if "progress_s" in event and self._process is process:
                     self.status.content = (f"<small>rehearsing the sweep in physics: {event['progress_s']:.0f} of "
                                            f"{self.duration_s:.0f} s simulated</small>")
                 elif "result" in event:
@@ -207,7 +209,8 @@ class RehearsalPanel:
 
     def _remember(self, style: Style, result: dict) -> None:
         digest = style_digest(style)
-        self.verdicts.pop(digest, None)
-        self.verdicts[digest] = result
-        while len(self.verdicts) > CACHE_SIZE:
-            self.verdicts.pop(next(iter(self.verdicts)))
+        with self._lock:
+            self.verdicts.pop(digest, None)
+            self.verdicts[digest] = result
+            while len(self.verdicts) > CACHE_SIZE:
+                self.verdicts.pop(next(iter(self.verdicts)))

@@ -112,6 +112,10 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
         assert speeds.set_speed("x_max_mps", 0.47)
         wait_until(lambda: panel.running)
         running = style_digest(session.style)
+        process = panel._process
+        assert session.apply(session.style, "an edit that changes nothing").ok
+        time.sleep(0.8)
+        assert panel._process is process and panel.running  # the same version: its walk goes on
         assert speeds.set_speed("x_max_mps", 0.48)
         wait_until(lambda: not panel.running or panel._running_digest != running, 30)
         latest = style_digest(session.style)

@@ -1,0 +1,50 @@
+"""`studio bench styles --repeat K`: each style walked K times, the k-th after a nudge while standing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.bench.styles import NUDGE_AT_S, nudge_push, repeated_jobs, totals
+from engine.walk_batch import job_key
+
+
+def test_the_first_walk_is_the_bench_walk_and_each_other_one_is_nudged_once_differently():
+    job = {"robot": "g1", "style": {"name": "x"}, "command": "sweep", "duration_s": 60.0}
+    jobs = repeated_jobs(job, 5)
+    assert jobs[0] is job and "pushes" not in jobs[0]  # the same key: results of a run without --repeat are reused
+    keys = {job_key(j) for j in jobs}
+    assert len(keys) == 5
+    for k, j in enumerate(jobs[1:], start=1):
+        (t, fx, fy, fz, duration), = j["pushes"]
+        assert [t, fx, fy, fz, duration] == nudge_push(k, 5)
+        assert t == NUDGE_AT_S < 1.0  # the sweep stands still until 1 s
+        assert np.hypot(fx, fy) == pytest.approx(1.0, abs=1e-5) and fz == 0.0 and duration == 0.01
+    assert repeated_jobs(job, 1) == [job]
+
+
+def test_a_nudge_is_physically_nothing_but_the_walk_takes_another_path():
+    from engine.gait.command_schedule import parse_command
+    from engine.gait.style import StyleContext, load_style, styles_dir
+    from engine.robot.model import load_robot
+    from engine.walk_runner import PushSpec, run_walk
+
+    robot = load_robot("g1")
+    style = load_style(styles_dir("g1") / "neutral.json", StyleContext.for_robot("g1"))
+    schedule = parse_command("sweep", style.velocities)
+    t, fx, fy, fz, duration = nudge_push(1, 3)
+    walks = [run_walk(robot, style, schedule, 2.5, pushes, record=True)[1]
+             for pushes in ((), (PushSpec(t, (fx, fy, fz), duration),))]
+    com = [w["com"][-1] for w in walks]
+    gap = float(np.linalg.norm(np.asarray(com[0]) - np.asarray(com[1])))
+    assert 0.0 < gap < 0.005  # not the same walk, but within millimetres of it
+
+
+def test_the_totals_count_the_styles_that_walk_every_time_never_and_sometimes():
+    rows = [{"fell": False, "slip_mm": 3.0, "cop_in": 1.0, "flagged": False, "falls": "0/3"},
+            {"fell": True, "slip_mm": 3.0, "cop_in": 1.0, "flagged": False, "falls": "3/3"},
+            {"fell": False, "slip_mm": 1.0, "cop_in": 1.0, "flagged": False, "falls": "1/3"}]
+    row = totals(rows, "g1", 0)
+    assert row["fell"] == "walked 2/3"
+    assert row["falls"] == "walks: 5/9; styles that walk every time 1, never 1, sometimes 1"
+    assert "falls" not in totals([{k: v for k, v in r.items() if k != "falls"} for r in rows], "g1", 0)
