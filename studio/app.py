@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from studio.panels.style_browser import StyleBrowser
 
 STATUS_PERIOD_S = 0.25
+SERVE_REHEARSAL_WALKS = 3  # `studio serve`: a rehearsal walks the sweep three times (README "Falls at a margin")
 PLOT_EVERY_TICKS = 2  # plots redraw at 2 Hz: each redraw costs the browser's main thread (typing, 3D)
 GRAPH_OFFSET = (-2.4, 0.6, 0.15)  # the curve graph stands well left of the robot: nothing occludes it
 LIMIT_RED = np.array([230, 40, 40])
@@ -47,7 +48,7 @@ NOTICE_COLORS: dict[str, Literal["red", "yellow", "blue"]] = {"error": "red", "w
 class Studio:
     def __init__(self, robot: str, host: str = "127.0.0.1", port: int = 8080, styles_folder=None,
                  token: str | None = None, shadows: bool = False, rehearse_after_edits: bool = False,
-                 rehearsal_duration_s: float | None = None):
+                 rehearsal_duration_s: float | None = None, rehearsal_walks: int = 1):
         load_robot_config(robot)  # fail fast, before any server or process starts
         self.robot_name = robot
         self.styles_folder = styles_folder
@@ -55,6 +56,7 @@ class Studio:
         # benchmarks that build a Studio leave it off unless they test it), through a sweep this long.
         self.rehearse_after_edits = rehearse_after_edits
         self.rehearsal_duration_s = rehearsal_duration_s
+        self.rehearsal_walks = rehearsal_walks  # the Rehearsal panel's *Walks* at first (3 in `studio serve`)
         self.server = viser.ViserServer(host=host, port=port, label="Motion Studio", verbose=False)
         allow_pushes_from_threads(self.server)  # frames, telemetry, joystick and callbacks push from threads
         self.token = token
@@ -217,7 +219,7 @@ class Studio:
             folder = self.server.gui.add_folder("Rehearsal")
             with folder:
                 self.rehearsal = RehearsalPanel(self.server, session, self.rehearsal_duration_s or SWEEP_DURATION_S,
-                                                auto=self.rehearse_after_edits)
+                                                auto=self.rehearse_after_edits, walks=self.rehearsal_walks)
             self._style_folders.append(folder)
         with self.tab_curves:
             folder = self.server.gui.add_folder("Function curves")
@@ -555,7 +557,8 @@ def serve(robot: str, host: str, port: int, token: str | None = None, shadows: b
           rehearse_after_edits: bool = True) -> None:
     from studio.access import browser_url
 
-    studio = Studio(robot, host, port, token=token, shadows=shadows, rehearse_after_edits=rehearse_after_edits).start()
+    studio = Studio(robot, host, port, token=token, shadows=shadows, rehearse_after_edits=rehearse_after_edits,
+                    rehearsal_walks=SERVE_REHEARSAL_WALKS).start()
     url = browser_url(host, studio.server.get_port(), token) if token or host != "127.0.0.1" else studio.url
     print(f"Motion Studio: {url}  (robot {robot}; Ctrl+C to stop)", flush=True)
 

@@ -14,8 +14,8 @@ are counted apart (``over_rating``), not as flags.
 Results are keyed by the style's hash in the output folder: a second call resumes.
 
 ``--repeat K`` walks each style K times: the first walk as above, the k-th after a nudge while the robot stands
-(:func:`nudge_push`: 1 N for 10 ms at 0.5 s, 0.01 N·s, a direction per k; the robot's velocity changes by
-0.3 mm/s). Physically nothing, it is enough to send the closed loop down another path: at the margin where these
+(:func:`nudge_push`, ``PushSpec.nudge``: 1 N for 10 ms at 0.5 s, 0.01 N·s, a direction per k; the robot's velocity
+changes by 0.3 mm/s). Physically nothing, it is enough to send the closed loop down another path: at the margin where these
 styles sit, a fall and a walk are that close (README "Falls at a margin"). Per style the column ``falls`` says how
 many of its walks fell; the totals how many styles walked every time, never, or sometimes.
 """
@@ -33,16 +33,15 @@ from engine.walk_batch import job_key, print_progress, run_batch
 
 
 KINEMATIC_KINDS = frozenset({"reach", "clearance"})  # the check's findings no leg posture can follow
-NUDGE_AT_S = 0.5  # while the sweep stands (it starts moving at 1 s)
-NUDGE_FORCE_N = 1.0  # far below the push observer's deadband (0.25 N/kg)
-NUDGE_DURATION_S = 0.01
 
 
 def nudge_push(k: int, repeat: int) -> list[float]:
-    """The ``pushes`` entry [t, fx, fy, fz, duration] of the k-th walk (k ≥ 1) of ``repeat``: a direction per k."""
-    angle = 2.0 * np.pi * (k - 1) / max(repeat - 1, 1)
-    return [NUDGE_AT_S, round(NUDGE_FORCE_N * float(np.cos(angle)), 6), round(NUDGE_FORCE_N * float(np.sin(angle)), 6),
-            0.0, NUDGE_DURATION_S]
+    """The ``pushes`` entry [t, fx, fy, fz, duration] of the k-th walk (k ≥ 1) of ``repeat`` (engine/walk_runner.py
+    ``PushSpec.nudge``)."""
+    from engine.walk_runner import PushSpec
+
+    p = PushSpec.nudge(k, repeat)
+    return [p.t_s, *p.force_n, p.duration_s]
 
 
 def repeated_jobs(job: dict[str, Any], repeat: int) -> list[dict[str, Any]]:

@@ -9,8 +9,12 @@ style to a temporary file, starts the process and shows the lines it prints.
 *Rehearse after each edit* (on in ``studio serve``): once the style has rested :data:`AUTO_DELAY_S` after an
 edit, an undo or an open, the panel rehearses it by itself, so a style that falls says so before Test is pressed
 (issue 13: the reference check cannot see falls that begin in the closed loop). A newer edit cancels a rehearsal
-of an older version. Verdicts are kept per style content (:func:`engine.gait.style.style_digest`): undoing back to a
-version already rehearsed shows its verdict at once, without walking it again.
+of an older version. Verdicts are kept per style content (:func:`engine.gait.style.style_digest`) and number of
+walks: undoing back to a version already rehearsed shows its verdict at once, without walking it again.
+
+*Walks* (1, 3 or 5; 3 in ``studio serve``): the first walk is the benchmark's, each other one is nudged once while
+the robot stands (physically nothing). Many styles sit where that turns a fall into a walk or back, so the verdict
+says in how many walks the style fell; it is shown after the first walk and refined as the others end.
 """
 
 from __future__ import annotations
@@ -37,13 +41,17 @@ if TYPE_CHECKING:
 REHEARSAL_NICE = 10
 START_LABEL, CANCEL_LABEL = "Rehearse the sweep", "Cancel rehearsal"
 AUTO_DELAY_S = 2.0  # the style rests this long after an edit before it is rehearsed by itself
-CACHE_SIZE = 64  # verdicts kept (per style content)
+CACHE_SIZE = 64  # verdicts kept (per style content and number of walks)
+WALK_CHOICES = ("1", "3", "5")
 
 
-def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None, remembered: bool = False) -> str:
-    """The rehearsal's verdict as the panel shows it."""
+def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None, remembered: bool = False,
+                       walking: str = "") -> str:
+    """The rehearsal's verdict as the panel shows it (``walking``: what is still under way)."""
     mark = "✓" if result.get("clean") else ("⚠️" if not result.get("fell") else "✗")
     text = f"{mark} Rehearsal: {result.get('message', '')}"
+    if walking:
+        text += f" <small>({walking})</small>"
     if wall_s is not None:
         text += f" <small>({wall_s:.0f} s to rehearse)</small>"
     if remembered:
@@ -55,13 +63,17 @@ def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None, r
 
 class RehearsalPanel:
     def __init__(self, server: viser.ViserServer, session: "StyleSession", duration_s: float = SWEEP_DURATION_S,
-                 auto: bool = False):
+                 auto: bool = False, walks: int = 1):
         self.session = session
         self.duration_s = duration_s
         self.auto = server.gui.add_checkbox(
             "Rehearse after each edit", initial_value=auto,
             hint=f"rehearse the style by itself {AUTO_DELAY_S:.0f} s after each edit, undo or open (a newer edit "
                  "cancels it); undoing to a version rehearsed before shows its verdict at once")
+        self.walks = server.gui.add_dropdown(
+            "Walks", options=WALK_CHOICES, initial_value=str(walks) if str(walks) in WALK_CHOICES else "1",
+            hint="walks per rehearsal: the first is the benchmark's, each other one nudged once while standing "
+                 "(physically nothing); a style at the margin falls in some of them")
         self.button = server.gui.add_button(
             START_LABEL, icon=viser.Icon.PLAYER_PLAY,
             hint=f"walk this style through the {duration_s:.0f} s sweep (stand, forward, back, sideways, turns) in "
@@ -77,6 +89,7 @@ class RehearsalPanel:
         self._stopped = False
         self.button.on_click(lambda _: self.toggle())
         self.auto.on_update(lambda _: self._on_auto())
+        self.walks.on_update(lambda _: self._on_auto())
         session.subscribe(self._on_style_change)
         threading.Thread(target=self._auto_loop, name="rehearsal-auto", daemon=True).start()
 
@@ -97,19 +110,33 @@ class RehearsalPanel:
             self.status.content = "<small>no style open</small>"
             return
         self.cancel(manual=False)  # (one rehearsal at a time)
+        walks = self.walk_count
         folder = Path(tempfile.mkdtemp(prefix="motion-studio-rehearsal-"))
         path = folder / "style.json"
         path.write_text(json.dumps(style_to_json_dict(style)))
         command = [sys.executable, "-m", "engine.gait.rehearsal", "--robot", self.session.robot, "--style", str(path),
-                   "--duration", str(self.duration_s), "--nice", str(REHEARSAL_NICE)]
+                   "--duration", str(self.duration_s), "--walks", str(walks), "--nice", str(REHEARSAL_NICE)]
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                    cwd=str(REPO_ROOT))
         with self._lock:
-            self._process, self._cancelled, self._running_digest = process, (False, False), style_digest(style)
+            self._process, self._cancelled, self._running_digest = process, (False, False), self._key(style, walks)
         self.button.label, self.button.icon = CANCEL_LABEL, viser.Icon.PLAYER_STOP
         self.status.content = "<small>rehearsing the sweep in physics…</small>"
-        threading.Thread(target=self._follow, args=(process, style, folder, time.monotonic()), name="rehearsal",
-                         daemon=True).start()
+        threading.Thread(target=self._follow, args=(process, style, walks, folder, time.monotonic()),
+                         name="rehearsal", daemon=True).start()
+
+    @property
+    def walk_count(self) -> int:
+        return int(self.walks.value)
+
+    @staticmethod
+    def _key(style: Style, walks: int) -> str:
+        return f"{style_digest(style)}×{walks}"
+
+    def verdict(self, style: Style, walks: int | None = None) -> dict | None:
+        """The kept verdict of ``style`` rehearsed with ``walks`` walks (the panel's choice by default), or None."""
+        with self._lock:
+            return self.verdicts.get(self._key(style, walks if walks is not None else self.walk_count))
 
     def cancel(self, manual: bool = True) -> None:
         """Kill the running rehearsal; ``manual``: the animator asked (the panel says so), otherwise a newer
@@ -131,7 +158,7 @@ class RehearsalPanel:
     def _on_style_change(self, style: Style, reason: str) -> None:
         if not self.auto.value:
             return
-        digest = style_digest(style)
+        digest = self._key(style, self.walk_count)
         with self._lock:
             running = self._process is not None and self._process.poll() is None
             if running and self._running_digest == digest:
@@ -168,8 +195,10 @@ class RehearsalPanel:
             if self.auto.value and self.session.style is style:  # (a newer edit reschedules)
                 self.start(style)
 
-    def _follow(self, process: subprocess.Popen, style: Style, folder: Path, started_s: float) -> None:
+    def _follow(self, process: subprocess.Popen, style: Style, walks: int, folder: Path, started_s: float) -> None:
         result = None
+        so_far: dict | None = None  # the verdict after the walks done so far
+        total_s = walks * self.duration_s
         assert process.stdout is not None and process.stderr is not None
         try:
             for line in process.stdout:
@@ -177,9 +206,20 @@ class RehearsalPanel:
                     event = json.loads(line)
                 except json.JSONDecodeError:
                     continue
-                if "progress_s" in event and self._process is process:
-                    self.status.content = (f"<small>rehearsing the sweep in physics: {event['progress_s']:.0f} of "
-                                           f"{self.duration_s:.0f} s simulated</small>")
+                if self._process is not process:
+                    continue  # (superseded: what it prints is no longer news)
+                if "progress_s" in event and "walk" not in event:
+                    if so_far is None:
+                        self.status.content = (f"<small>rehearsing the sweep in physics: {event['progress_s']:.0f} of "
+                                               f"{total_s:.0f} s simulated</small>")
+                    else:
+                        self.status.content = rehearsal_markdown(
+                            so_far, stale=False, walking=f"walk {int(event['progress_s'] // self.duration_s) + 1} of "
+                                                         f"{walks} under way")
+                elif "walk" in event:
+                    so_far = event["walk"]
+                    self.status.content = rehearsal_markdown(so_far, stale=False,
+                                                             walking=f"{so_far.get('walks', 1)} of {walks} walks so far")
                 elif "result" in event:
                     result = event["result"]
             error = process.stderr.read().strip().splitlines()
@@ -194,7 +234,7 @@ class RehearsalPanel:
         if mine:
             self.button.label, self.button.icon = START_LABEL, viser.Icon.PLAYER_PLAY
         if result is not None and process.returncode == 0:
-            self._remember(style, result)
+            self._remember(style, walks, result)
         if not mine:
             return
         if cancelled:
@@ -207,8 +247,8 @@ class RehearsalPanel:
             reason = error[-1] if error else f"exit status {process.returncode}"
             self.status.content = f"<small>the rehearsal failed: {reason}</small>"
 
-    def _remember(self, style: Style, result: dict) -> None:
-        digest = style_digest(style)
+    def _remember(self, style: Style, walks: int, result: dict) -> None:
+        digest = self._key(style, walks)
         with self._lock:
             self.verdicts.pop(digest, None)
             self.verdicts[digest] = result

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.bench.styles import NUDGE_AT_S, nudge_push, repeated_jobs, totals
+from engine.bench.styles import nudge_push, repeated_jobs, totals
 from engine.walk_batch import job_key
+from engine.walk_runner import NUDGE_AT_S
 
 
 def test_the_first_walk_is_the_bench_walk_and_each_other_one_is_nudged_once_differently():
@@ -32,9 +33,7 @@ def test_a_nudge_is_physically_nothing_but_the_walk_takes_another_path():
     robot = load_robot("g1")
     style = load_style(styles_dir("g1") / "neutral.json", StyleContext.for_robot("g1"))
     schedule = parse_command("sweep", style.velocities)
-    t, fx, fy, fz, duration = nudge_push(1, 3)
-    walks = [run_walk(robot, style, schedule, 2.5, pushes, record=True)[1]
-             for pushes in ((), (PushSpec(t, (fx, fy, fz), duration),))]
+    walks = [run_walk(robot, style, schedule, 2.5, pushes, record=True)[1] for pushes in ((), (PushSpec.nudge(1, 3),))]
     com = [w["com"][-1] for w in walks]
     gap = float(np.linalg.norm(np.asarray(com[0]) - np.asarray(com[1])))
     assert 0.0 < gap < 0.005  # not the same walk, but within millimetres of it

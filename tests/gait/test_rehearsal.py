@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from engine.gait.rehearsal import DRIFT_M, SLIDE_M, describe, rehearse
+from engine.gait.rehearsal import DRIFT_M, SLIDE_M, combine, describe, rehearse
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from tests.conftest import REPO
 
@@ -107,6 +107,36 @@ def test_rehearsing_neutral_walks_and_reports_progress():
     assert result.max_stance_slip_mm >= 0.0 and "walks the 3 s sweep" in result.message
 
 
+def test_several_walks_count_their_falls_and_tell_the_first():
+    from dataclasses import replace
+
+    rec = _recording()
+    walk = describe(_summary(False, 1.6), rec, 60.0)
+    fall = describe(_summary(True, 1.6), rec, 60.0)
+    late = replace(fall, fall_time_s=30.0)
+    assert combine([walk]) == walk and combine([fall]).falls == 1
+    one = combine([walk, late, fall])
+    assert one.fell and one.walks == 3 and one.falls == 2 and one.fall_time_s == 30.0  # the first fall in walk order
+    assert one.message.startswith("falls in 2 of 3 walks") and late.message in one.message
+    none = combine([walk, walk, walk])
+    assert not none.fell and none.falls == 0 and none.message.startswith(walk.message) and "each of 3 walks" in none.message
+
+
+def test_rehearsing_two_walks_nudges_the_second_and_counts_progress_over_both():
+    from engine.gait.style import StyleContext, load_style
+    from engine.robot.model import load_robot
+
+    style = load_style(REPO / "styles/g1/neutral.json", StyleContext.for_robot("g1"))
+    seen: list[float] = []
+    verdicts = []
+    result = rehearse(load_robot("g1"), style, 1.5, progress=seen.append, walks=2, on_walk=verdicts.append)
+    assert seen == sorted(seen) and seen[0] == 0.0 and 1.5 <= seen[-1] < 3.0  # the second walk counts on from 1.5 s
+    assert len(verdicts) == 1 and verdicts[0].walks == 1  # after the first walk only
+    assert result.walks == 2 and result.falls == 0 and "each of 2 walks" in result.message
+    with pytest.raises(ValueError, match="walks"):
+        rehearse(load_robot("g1"), style, 1.5, walks=0)
+
+
 def test_a_raising_progress_callback_stops_the_rehearsal():
     from engine.gait.style import StyleContext, load_style
     from engine.robot.model import load_robot
@@ -130,7 +160,8 @@ def test_the_rehearsal_command_refuses_bad_input_in_one_line(tmp_path):
     for args, needle in (([ "--style", str(bad)], "bad.json"),
                          (["--style", str(tmp_path / "missing.json")], "missing.json"),
                          (["--style", str(REPO / "styles/g1/neutral.json"), "--duration", "-1"], "--duration"),
-                         (["--style", str(REPO / "styles/g1/neutral.json"), "--nice", "40"], "--nice")):
+                         (["--style", str(REPO / "styles/g1/neutral.json"), "--nice", "40"], "--nice"),
+                         (["--style", str(REPO / "styles/g1/neutral.json"), "--walks", "0"], "--walks")):
         out = subprocess.run([sys.executable, "-m", "engine.gait.rehearsal", "--robot", "g1", *args],
                              capture_output=True, text=True, cwd=REPO, timeout=300)
         assert out.returncode == 2, out.stderr

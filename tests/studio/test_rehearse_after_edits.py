@@ -43,6 +43,11 @@ class Notices(list):
         self.append((level, text))
 
 
+def kept(panel: RehearsalPanel, digest: str, walks: int = 1) -> dict | None:
+    """The verdict the panel keeps for the style content ``digest`` rehearsed with ``walks`` walks."""
+    return panel.verdicts.get(f"{digest}×{walks}")
+
+
 def wait_until(predicate, timeout_s: float = 120.0) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -92,16 +97,16 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
             assert session.undo().ok and session.redo().ok
         assert "once the style rests" in panel.status.content
         edited = style_digest(session.style)
-        wait_until(lambda: edited in panel.verdicts)
+        wait_until(lambda: kept(panel, edited) is not None)
         assert started == [edited]
-        result = panel.verdicts[edited]
+        result = kept(panel, edited)
         assert result["fell"] is False and result["duration_s"] == pytest.approx(SHORT_SWEEP_S)
         assert "Rehearsal:" in panel.status.content and "walks" in panel.status.content
         # Undo to neutral: a version never rehearsed, so it walks; redo: the verdict is remembered, no walk.
         for _ in range(3):
             assert session.undo().ok
         assert style_digest(session.style) == neutral
-        wait_until(lambda: neutral in panel.verdicts)
+        wait_until(lambda: kept(panel, neutral) is not None)
         assert started == [edited, neutral]
         for _ in range(3):
             assert session.redo().ok
@@ -119,14 +124,14 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
         assert speeds.set_speed("x_max_mps", 0.48)
         wait_until(lambda: not panel.running or panel._running_digest != running, 30)
         latest = style_digest(session.style)
-        wait_until(lambda: latest in panel.verdicts)
-        assert running not in panel.verdicts
+        wait_until(lambda: kept(panel, latest) is not None)
+        assert kept(panel, running) is None
         assert "cancelled" not in panel.status.content
         # Off: edits are not rehearsed.
         panel.auto.value = False
         assert speeds.set_speed("x_max_mps", 0.49)
         time.sleep(1.5)
-        assert not panel.running and style_digest(session.style) not in panel.verdicts
+        assert not panel.running and kept(panel, style_digest(session.style)) is None
     finally:
         panel.stop()
 
@@ -146,13 +151,19 @@ def test_a_style_that_falls_says_where_before_test_is_pressed(server, tmp_path, 
     speeds = StyleSpeeds(server, session, Notices())
     try:
         assert session.open("stumbly").ok
-        wait_until(lambda: style_digest(session.style) in panel.verdicts)
-        fell = panel.verdicts[style_digest(session.style)]
+        wait_until(lambda: kept(panel, style_digest(session.style)) is not None)
+        fell = kept(panel, style_digest(session.style))
         assert fell["fell"] and fell["sample"] and fell["phase_pct"] is not None
         assert "falls at" in panel.status.content and "% of its cycle" in panel.status.content
         assert speeds.set_speed("x_max_mps", 0.30)
-        wait_until(lambda: style_digest(session.style) in panel.verdicts)
-        assert not panel.verdicts[style_digest(session.style)]["fell"]
+        wait_until(lambda: kept(panel, style_digest(session.style)) is not None)
+        assert not kept(panel, style_digest(session.style))["fell"]
         assert "walks the 4 s sweep" in panel.status.content
+        # Three walks (the first the benchmark's, two nudged while standing): rehearsed again, kept apart.
+        panel.walks.value = "3"
+        wait_until(lambda: kept(panel, style_digest(session.style), 3) is not None, 240)
+        three = kept(panel, style_digest(session.style), 3)
+        assert three["walks"] == 3 and 0 <= three["falls"] <= 3 and three["fell"] == (three["falls"] > 0)
+        assert "of 3 walks" in panel.status.content or "each of 3 walks" in panel.status.content
     finally:
         panel.stop()
