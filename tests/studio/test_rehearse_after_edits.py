@@ -7,40 +7,18 @@ import shutil
 import time
 
 import pytest
-import viser
 
 from engine.gait.style import style_digest
 from studio.panels import rehearsal_panel
 from studio.panels.rehearsal_panel import RehearsalPanel
 from studio.panels.style_speeds import StyleSpeeds
 from studio.style_session import StyleSession
-from tests.conftest import REPO, free_port
+from tests.conftest import REPO
+from tests.studio.test_app import wait
+from tests.studio.test_panels import Notes, server, session  # noqa: F401  (the fixtures: a viser server, neutral open)
 
 STUMBLY = REPO / "tests" / "data" / "stumbly_g1.json"
 SHORT_SWEEP_S = 3.0  # stand 1 s and the start of the forward leg: enough to walk, quick to rehearse
-
-
-@pytest.fixture(scope="module")
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    yield srv
-    srv.stop()
-
-
-@pytest.fixture
-def session(tmp_path):
-    folder = tmp_path / "g1"
-    folder.mkdir()
-    for p in (REPO / "styles" / "g1").glob("*.json"):
-        shutil.copy(p, folder / p.name)
-    s = StyleSession("g1", folder=folder)
-    assert s.open("neutral").ok
-    return s
-
-
-class Notices(list):
-    def __call__(self, level, text):
-        self.append((level, text))
 
 
 def kept(panel: RehearsalPanel, digest: str, walks: int = 1) -> dict | None:
@@ -48,17 +26,8 @@ def kept(panel: RehearsalPanel, digest: str, walks: int = 1) -> dict | None:
     return panel.verdicts.get(f"{digest}×{walks}")
 
 
-def wait_until(predicate, timeout_s: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.05)
-    raise AssertionError("timed out")
-
-
 def test_a_speed_edit_is_an_undoable_validated_edit_of_the_style(server, session):
-    notices = Notices()
+    notices = Notes()
     speeds = StyleSpeeds(server, session, notices)
     assert speeds.inputs["x_max_mps"].value == pytest.approx(session.style.velocities.x_max_mps)
     assert speeds.set_speed("x_max_mps", 0.42)
@@ -87,7 +56,7 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
 
     monkeypatch.setattr(RehearsalPanel, "start", counting_start)
     panel = RehearsalPanel(server, session, SHORT_SWEEP_S, auto=True)
-    speeds = StyleSpeeds(server, session, Notices())
+    speeds = StyleSpeeds(server, session, Notes())
     try:
         neutral = style_digest(session.style)
         assert not started  # opening the studio does not rehearse: only a change does
@@ -97,7 +66,7 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
             assert session.undo().ok and session.redo().ok
         assert "once the style rests" in panel.status.content
         edited = style_digest(session.style)
-        wait_until(lambda: kept(panel, edited) is not None)
+        wait(lambda: kept(panel, edited) is not None, 180)
         assert started == [edited]
         result = kept(panel, edited)
         assert result["fell"] is False and result["duration_s"] == pytest.approx(SHORT_SWEEP_S)
@@ -106,7 +75,7 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
         for _ in range(3):
             assert session.undo().ok
         assert style_digest(session.style) == neutral
-        wait_until(lambda: kept(panel, neutral) is not None)
+        wait(lambda: kept(panel, neutral) is not None, 180)
         assert started == [edited, neutral]
         for _ in range(3):
             assert session.redo().ok
@@ -115,16 +84,16 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
         assert started == [edited, neutral] and not panel.running
         # A new edit while a rehearsal runs cancels it (its verdict would describe an older version).
         assert speeds.set_speed("x_max_mps", 0.47)
-        wait_until(lambda: panel.running)
+        wait(lambda: panel.running, 180)
         running = style_digest(session.style)
         process = panel._process
         assert session.apply(session.style, "an edit that changes nothing").ok
         time.sleep(0.8)
         assert panel._process is process and panel.running  # the same version: its walk goes on
         assert speeds.set_speed("x_max_mps", 0.48)
-        wait_until(lambda: not panel.running or panel._running_digest != running, 30)
+        wait(lambda: not panel.running or panel._running_digest != f"{running}×1", 30)
         latest = style_digest(session.style)
-        wait_until(lambda: kept(panel, latest) is not None)
+        wait(lambda: kept(panel, latest) is not None, 180)
         assert kept(panel, running) is None
         assert "cancelled" not in panel.status.content
         # Off: edits are not rehearsed.
@@ -148,20 +117,20 @@ def test_a_style_that_falls_says_where_before_test_is_pressed(server, tmp_path, 
     session = StyleSession("g1", folder=folder)
     assert session.open("neutral").ok
     panel = RehearsalPanel(server, session, 4.0, auto=True)
-    speeds = StyleSpeeds(server, session, Notices())
+    speeds = StyleSpeeds(server, session, Notes())
     try:
         assert session.open("stumbly").ok
-        wait_until(lambda: kept(panel, style_digest(session.style)) is not None)
+        wait(lambda: kept(panel, style_digest(session.style)) is not None, 180)
         fell = kept(panel, style_digest(session.style))
         assert fell["fell"] and fell["sample"] and fell["phase_pct"] is not None
         assert "falls at" in panel.status.content and "% of its cycle" in panel.status.content
         assert speeds.set_speed("x_max_mps", 0.30)
-        wait_until(lambda: kept(panel, style_digest(session.style)) is not None)
+        wait(lambda: kept(panel, style_digest(session.style)) is not None, 180)
         assert not kept(panel, style_digest(session.style))["fell"]
         assert "walks the 4 s sweep" in panel.status.content
         # Three walks (the first the benchmark's, two nudged while standing): rehearsed again, kept apart.
         panel.walks.value = "3"
-        wait_until(lambda: kept(panel, style_digest(session.style), 3) is not None, 240)
+        wait(lambda: kept(panel, style_digest(session.style), 3) is not None, 240)
         three = kept(panel, style_digest(session.style), 3)
         assert three["walks"] == 3 and 0 <= three["falls"] <= 3 and three["fell"] == (three["falls"] > 0)
         assert "of 3 walks" in panel.status.content or "each of 3 walks" in panel.status.content
