@@ -231,12 +231,11 @@ class RehearsalPanel:
             cancelled, by_animator = self._cancelled if mine else (True, False)  # (not mine: a newer one took over)
             if mine:
                 self._process, self._running_digest = None, None
-        if mine:
-            self.button.label, self.button.icon = START_LABEL, viser.Icon.PLAYER_PLAY
         if result is not None and process.returncode == 0:
             self._remember(style, walks, result)
-        if not mine:
+        if not mine or self._stopped:  # (superseded, or the panel is gone: nothing to show)
             return
+        self.button.label, self.button.icon = START_LABEL, viser.Icon.PLAYER_PLAY
         if cancelled:
             if by_animator:
                 self.status.content = "<small>rehearsal cancelled</small>"

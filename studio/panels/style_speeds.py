@@ -23,12 +23,13 @@ if TYPE_CHECKING:
     from studio.style_session import StyleSession
 
 TYPING_PAUSE_S = 0.4  # a typed speed applies once the keys pause this long (typing "0.35" passes through "0")
-#: (field of SampleVelocities, label, the samples walking at it, step)
+#: (field of SampleVelocities, label, the samples walking at it, step: the field shows as many decimals, 3: a
+#: style's 0.279 m/s is not shown as 0.28)
 SPEED_FIELDS = (
-    ("x_max_mps", "Fast (m/s)", "forward_fast and reverse_fast, and the joystick's full forward", 0.01),
-    ("x_slow_mps", "Slow (m/s)", "forward_slow and reverse_slow", 0.01),
-    ("y_max_mps", "Sideways (m/s)", "left_strafe and right_strafe", 0.01),
-    ("yaw_max_radps", "Turning (rad/s)", "left_turn and right_turn", 0.05),
+    ("x_max_mps", "Fast (m/s)", "forward_fast and reverse_fast, and the joystick's full forward", 0.001),
+    ("x_slow_mps", "Slow (m/s)", "forward_slow and reverse_slow", 0.001),
+    ("y_max_mps", "Sideways (m/s)", "left_strafe and right_strafe", 0.001),
+    ("yaw_max_radps", "Turning (rad/s)", "left_turn and right_turn", 0.001),
 )
 
 
