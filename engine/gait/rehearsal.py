@@ -65,7 +65,9 @@ class RehearsalResult:
     cop_inside_fraction: float | None
     message: str  # what the animator reads
     walks: int = 1  # walks rehearsed (the first the benchmark's, the others nudged)
-    falls: int = 0  # of them, how many fell (the fields above describe the first that fell, else the first walk)
+    falls: int = 0  # of them, how many fell (the fields above describe the first that fell, else the worst walk)
+    recovery_time_s: float = 0.0  # how long the walk fell back toward the neutral gait to keep its balance
+    recovery_mean_share: float = 0.0  # how far toward neutral, on average over that time
 
     @property
     def clean(self) -> bool:
@@ -113,9 +115,31 @@ def combine(results: list[RehearsalResult]) -> RehearsalResult:
     if fallen:
         message = (f"falls in {len(fallen)} of {n} walks (each after a nudge of nothing while standing)"
                    + (": the first " if len(fallen) > 1 else ": it ") + first.message)
-    else:
-        message = f"{first.message} (in each of {n} walks, each after a nudge of nothing while standing)"
-    return replace(first, message=message, walks=n, falls=len(fallen))
+        return replace(first, message=message, walks=n, falls=len(fallen))
+    # None fell: the worst figures over the walks (one walk that slid is enough to say so).
+    slip = max(r.max_stance_slip_mm for r in results)
+    cops = [r.cop_inside_fraction for r in results if r.cop_inside_fraction is not None]
+    cop = min(cops) if cops else None
+    longest = max(results, key=lambda r: r.recovery_time_s)
+    text = _walk_text(slip, cop, first.duration_s, longest.recovery_time_s, longest.recovery_mean_share)
+    message = f"{text} (the worst of {n} walks, each after a nudge of nothing while standing)"
+    return replace(first, max_stance_slip_mm=slip, cop_inside_fraction=cop, message=message, walks=n, falls=0,
+                   recovery_time_s=longest.recovery_time_s, recovery_mean_share=longest.recovery_mean_share)
+
+
+def _walk_text(slip_mm: float, cop: float | None, duration_s: float, recovery_s: float, recovery_share: float) -> str:
+    """A walk that did not fall, in an animator's words: clean, or what was not."""
+    problems = []
+    if slip_mm >= CLEAN_SLIP_MM:
+        problems.append(f"a foot on the ground slides up to {slip_mm:.1f} mm")
+    if cop is not None and cop < CLEAN_COP_INSIDE:
+        problems.append(f"the feet roll onto their edges {100 * (1 - cop):.1f} % of the time")
+    text = f"walks the {duration_s:.0f} s sweep without falling"
+    text += (": " + " and ".join(problems) + " (a real robot may slip or stumble)") if problems else ", cleanly"
+    if recovery_s > 0.0:  # engine/control/recovery_blend.py: part of the walk was not the style as authored
+        text += (f"; to keep its balance it fell back toward the neutral gait for {recovery_s:.1f} s "
+                 f"({100 * recovery_share:.0f} % neutral on average)")
+    return text
 
 
 def walks_problem(walks: int, name: str = "--walks") -> str | None:
@@ -136,19 +160,12 @@ def describe(summary: dict, rec: dict[str, np.ndarray], duration_s: float) -> Re
     """The walk's verdict in an animator's words (``summary`` and ``rec`` as :func:`run_walk` returns them)."""
     slip = float(summary["max_stance_slip_mm"])
     cop = summary["cop_inside_fraction"]
+    recovery_s = float(summary.get("recovery_time_s") or 0.0)
+    recovery_share = float(summary.get("recovery_mean_share") or 0.0)
     if not summary["fell"]:
-        problems = []
-        if slip >= CLEAN_SLIP_MM:
-            problems.append(f"a foot on the ground slides up to {slip:.1f} mm")
-        if cop is not None and cop < CLEAN_COP_INSIDE:
-            problems.append(f"the feet roll onto their edges {100 * (1 - cop):.1f} % of the time")
-        text = f"walks the {duration_s:.0f} s sweep without falling"
-        text += (": " + " and ".join(problems) + " (a real robot may slip or stumble)") if problems else ", cleanly"
-        recovery_s = float(summary.get("recovery_time_s") or 0.0)
-        if recovery_s > 0.0:  # engine/control/recovery_blend.py: part of the walk was not the style as authored
-            text += (f"; to keep its balance it fell back toward the neutral gait for {recovery_s:.1f} s "
-                     f"({100 * float(summary.get('recovery_mean_share') or 0.0):.0f} % neutral on average)")
-        return RehearsalResult(False, None, duration_s, None, None, None, None, slip, cop, text)
+        return RehearsalResult(False, None, duration_s, None, None, None, None, slip, cop,
+                               _walk_text(slip, cop, duration_s, recovery_s, recovery_share),
+                               recovery_time_s=recovery_s, recovery_mean_share=recovery_share)
     fall_t = float(summary["fall_time_s"])
     t = np.asarray(rec["t"])
     if len(t) == 0:  # fell before the first recorded instant

@@ -11,25 +11,24 @@ The panel computes nothing.
 from __future__ import annotations
 
 import functools
-import threading
 from dataclasses import replace
 from typing import TYPE_CHECKING, Callable
 
 import viser
 
+from studio.panels.typing_pause import after_typing_pause
 from studio.style_session import EditResult
 
 if TYPE_CHECKING:
     from studio.style_session import StyleSession
 
-TYPING_PAUSE_S = 0.4  # a typed speed applies once the keys pause this long (typing "0.35" passes through "0")
-#: (field of SampleVelocities, label, the samples walking at it, step: the field shows as many decimals, 3: a
-#: style's 0.279 m/s is not shown as 0.28)
+SPEED_DECIMALS = 3  # the fields show (and step by) a thousandth: a style's 0.279 m/s is not shown as 0.28
+#: (field of SampleVelocities, label, the samples walking at it)
 SPEED_FIELDS = (
-    ("x_max_mps", "Fast (m/s)", "forward_fast and reverse_fast, and the joystick's full forward", 0.001),
-    ("x_slow_mps", "Slow (m/s)", "forward_slow and reverse_slow", 0.001),
-    ("y_max_mps", "Sideways (m/s)", "left_strafe and right_strafe", 0.001),
-    ("yaw_max_radps", "Turning (rad/s)", "left_turn and right_turn", 0.001),
+    ("x_max_mps", "Fast (m/s)", "forward_fast and reverse_fast, and the joystick's full forward"),
+    ("x_slow_mps", "Slow (m/s)", "forward_slow and reverse_slow"),
+    ("y_max_mps", "Sideways (m/s)", "left_strafe and right_strafe"),
+    ("yaw_max_radps", "Turning (rad/s)", "left_turn and right_turn"),
 )
 
 
@@ -39,30 +38,19 @@ class StyleSpeeds:
         self.notify = notify
         self._syncing = False
         self.inputs: dict[str, viser.GuiNumberHandle] = {}
-        self._timers: dict[str, threading.Timer] = {}
         style = session.style
-        for field, label, samples, step in SPEED_FIELDS:
+        for field, label, samples in SPEED_FIELDS:
             value = float(getattr(style.velocities, field)) if style is not None else 0.0
-            handle = server.gui.add_number(label, initial_value=round(value, 3), min=0.0, step=step,
-                                           hint=f"the speed of {samples}")
-            handle.on_update(functools.partial(self._on_event, field))
+            handle = server.gui.add_number(label, initial_value=round(value, SPEED_DECIMALS), min=0.0,
+                                           step=10.0 ** -SPEED_DECIMALS, hint=f"the speed of {samples}")
+            handle.on_update(after_typing_pause(functools.partial(self._on_typed, field),
+                                                ignore=lambda: self._syncing))
             self.inputs[field] = handle
         self.message = server.gui.add_markdown("")
         session.subscribe(lambda style, reason: self.refresh())
 
-    def _on_event(self, field: str, _event: object) -> None:
-        self._on_input(field)
-
-    def _on_input(self, field: str) -> None:
-        if self._syncing:
-            return
-        pending = self._timers.pop(field, None)
-        if pending is not None:
-            pending.cancel()
-        timer = threading.Timer(TYPING_PAUSE_S, lambda: self.set_speed(field, float(self.inputs[field].value)))
-        timer.daemon = True
-        self._timers[field] = timer
-        timer.start()
+    def _on_typed(self, field: str, _event: object) -> None:
+        self.set_speed(field, float(self.inputs[field].value))
 
     def set_speed(self, field: str, value: float) -> bool:
         """Set one of the style's speeds (an edit of the session: validated, undoable)."""
@@ -92,7 +80,7 @@ class StyleSpeeds:
         self._syncing = True
         try:
             for field, handle in self.inputs.items():
-                value = round(float(getattr(style.velocities, field)), 3)
+                value = round(float(getattr(style.velocities, field)), SPEED_DECIMALS)
                 if abs(float(handle.value) - value) > 1e-9:
                     handle.value = value  # type: ignore[misc]  # viser 1.1.1's stub types .value read-only
         finally:

@@ -119,7 +119,17 @@ def test_several_walks_count_their_falls_and_tell_the_first():
     assert one.fell and one.walks == 3 and one.falls == 2 and one.fall_time_s == 30.0  # the first fall in walk order
     assert one.message.startswith("falls in 2 of 3 walks") and late.message in one.message
     none = combine([walk, walk, walk])
-    assert not none.fell and none.falls == 0 and none.message.startswith(walk.message) and "each of 3 walks" in none.message
+    assert not none.fell and none.falls == 0 and none.message.startswith(walk.message) and "worst of 3 walks" in none.message
+    # None fell: the verdict is the worst walk's figures, though they come from different walks.
+    clean = replace(walk, max_stance_slip_mm=0.8, cop_inside_fraction=0.999)
+    slid = replace(walk, max_stance_slip_mm=3.4, cop_inside_fraction=0.998)
+    rolled = replace(walk, max_stance_slip_mm=1.0, cop_inside_fraction=0.99, recovery_time_s=2.5,
+                     recovery_mean_share=0.2)
+    assert combine([clean, clean]).clean and "cleanly" in combine([clean, clean]).message
+    worst = combine([clean, slid, rolled])
+    assert not worst.clean and worst.max_stance_slip_mm == 3.4 and worst.cop_inside_fraction == 0.99
+    assert "slides up to 3.4 mm" in worst.message and "edges 1.0 %" in worst.message
+    assert "for 2.5 s (20 % neutral" in worst.message and worst.message.startswith("walks the 60 s sweep")
 
 
 def test_rehearsing_two_walks_nudges_the_second_and_counts_progress_over_both():
@@ -132,7 +142,7 @@ def test_rehearsing_two_walks_nudges_the_second_and_counts_progress_over_both():
     result = rehearse(load_robot("g1"), style, 1.5, progress=seen.append, walks=2, on_walk=verdicts.append)
     assert seen == sorted(seen) and seen[0] == 0.0 and 1.5 <= seen[-1] < 3.0  # the second walk counts on from 1.5 s
     assert len(verdicts) == 1 and verdicts[0].walks == 1  # after the first walk only
-    assert result.walks == 2 and result.falls == 0 and "each of 2 walks" in result.message
+    assert result.walks == 2 and result.falls == 0 and "worst of 2 walks" in result.message
     with pytest.raises(ValueError, match="walks"):
         rehearse(load_robot("g1"), style, 1.5, walks=0)
 

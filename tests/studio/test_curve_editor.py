@@ -15,7 +15,8 @@ from engine.gait.curves import TangentMode
 from engine.gait.style import StyleContext, validate_style
 from engine.gait import curve_editing as rules
 from studio.panels.curve_editor import appearance as look
-from studio.panels.curve_editor import interaction, widgets
+from studio.panels import typing_pause
+from studio.panels.curve_editor import interaction
 from studio.panels.curve_editor.interaction import SerialWorker
 from studio.panels.curve_editor import CurveEditor, KnotRef
 from studio.style_session import StyleSession
@@ -53,7 +54,7 @@ def session(g1_ctx, tmp_path) -> StyleSession:
 @pytest.fixture
 def editor(server, session, monkeypatch):
     monkeypatch.setattr(interaction, "PREVIEW_PERIOD_S", 0.0)  # every drag update also applies a preview
-    monkeypatch.setattr(widgets, "TYPING_PAUSE_S", 0.0)  # typed values apply at once
+    monkeypatch.setattr(typing_pause, "TYPING_PAUSE_S", 0.0)  # typed values apply at once
     ed = CurveEditor(server, session)
     yield ed
     ed.close()
@@ -580,7 +581,7 @@ def test_switching_to_an_empty_channel_clears_the_knot_fields(editor, session):
 
 def test_typed_values_apply_once_when_the_keys_pause(server, session, monkeypatch):
     # a pause long enough that three assignments in a row never span it, even on a loaded machine
-    monkeypatch.setattr(widgets, "TYPING_PAUSE_S", 1.5)
+    monkeypatch.setattr(typing_pause, "TYPING_PAUSE_S", 1.5)
     ed = CurveEditor(server, session)
     try:
         ed.handle_knot_click(KnotRef(SWING, 1))

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from engine.gait.style import style_digest
-from studio.panels import rehearsal_panel
+from studio.panels import rehearsal_panel, typing_pause
 from studio.panels.rehearsal_panel import RehearsalPanel
 from studio.panels.style_speeds import StyleSpeeds
 from studio.style_session import StyleSession
@@ -43,6 +43,23 @@ def test_a_speed_edit_is_an_undoable_validated_edit_of_the_style(server, session
     assert session.style.velocities.x_max_mps == pytest.approx(0.42)
     assert session.undo().ok
     assert speeds.inputs["x_max_mps"].value == pytest.approx(0.5)  # the field follows undo
+
+
+def test_typed_speeds_apply_once_when_the_keys_pause(server, session, monkeypatch):
+    # The shared typing pause (studio/panels/typing_pause.py), long enough that three assignments never span it.
+    monkeypatch.setattr(typing_pause, "TYPING_PAUSE_S", 1.5)
+    speeds = StyleSpeeds(server, session, Notes())
+    field = speeds.inputs["x_max_mps"]
+    for typed in (0.0, 0.4, 0.45):  # keystrokes "0", ".4", "5"
+        field.value = typed
+    assert session.undo_labels() == []  # nothing applied while typing ("0" would have been refused)
+    wait(lambda: session.undo_labels() != [], 10)
+    assert session.undo_labels() == ["speed x_max_mps"]  # one edit, the last value
+    assert session.style.velocities.x_max_mps == pytest.approx(0.45)
+    assert speeds.message.content == ""
+    session.undo()  # the panel writes the field back: not a keystroke, so no edit follows
+    time.sleep(2.0)
+    assert field.value == pytest.approx(0.5) and session.undo_labels() == []
 
 
 def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_the_verdict(server, session, monkeypatch):

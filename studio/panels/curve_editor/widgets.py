@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import threading
 from typing import Any, Callable
 
 import viser
@@ -15,9 +14,9 @@ from engine.gait.style import PELVIS_CURVES, swing_channels
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from studio.panels.curve_editor.appearance import channel_color
 from studio.panels.curve_editor.state import EditorBase
+from studio.panels.typing_pause import after_typing_pause
 
 
-TYPING_PAUSE_S = 0.4  # a typed knot time/value applies once the keys pause this long
 TANGENT_LABELS = {
     "auto-clamped": TangentMode.AUTO_CLAMPED,
     "flat": TangentMode.FLAT,
@@ -58,24 +57,8 @@ class EditorWidgets(EditorBase):
         return callback
 
     def _typed(self, fn: Callable[[Any], Any]) -> Callable[[Any], None]:
-        """A GUI callback for a typed field: runs :data:`TYPING_PAUSE_S` after the last keystroke."""
-        callback = self._gui_cb(fn)
-        timer: list[threading.Timer | None] = [None]
-
-        def on_update(event: Any) -> None:
-            if self._syncing:
-                return
-            if timer[0] is not None:
-                timer[0].cancel()
-            if TYPING_PAUSE_S <= 0:
-                callback(event)
-                return
-            pending = threading.Timer(TYPING_PAUSE_S, callback, args=(event,))
-            pending.daemon = True
-            timer[0] = pending
-            pending.start()
-
-        return on_update
+        """A GUI callback for a typed field: runs once its keys pause (:mod:`studio.panels.typing_pause`)."""
+        return after_typing_pause(self._gui_cb(fn), ignore=lambda: self._syncing)
 
     def _sync(self, handle: Any, value: Any) -> None:
         """Set a widget value from the editor without running its edit callback."""
