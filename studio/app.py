@@ -219,7 +219,8 @@ class Studio:
             folder = self.server.gui.add_folder("Rehearsal")
             with folder:
                 self.rehearsal = RehearsalPanel(self.server, session, self.rehearsal_duration_s or SWEEP_DURATION_S,
-                                                auto=self.rehearse_after_edits, walks=self.rehearsal_walks)
+                                                auto=self.rehearse_after_edits, walks=self.rehearsal_walks,
+                                                on_show_sample=self.select_sample)
             self._style_folders.append(folder)
         with self.tab_curves:
             folder = self.server.gui.add_folder("Function curves")

@@ -61,6 +61,11 @@ MAX_FOOT_OFFSET_M = 0.3  # swing x/y offsets from the nominal path
 MAX_FOOT_ANGLE_RAD = 1.0  # swing yaw/roll
 MAX_PELVIS_ANGLE_RAD = 0.6
 MAX_PELVIS_Z_OFFSET_M = 0.15
+#: The validator's bounds of the stance attributes that do not depend on the robot (width and pelvis height come
+#: from its StyleContext). A transition longer than the double support it falls in is shortened to it by the planner.
+MAX_SPLAY_RAD = 0.6
+MAX_X_BIAS_M = 0.2
+MAX_TRANSITION_S = 1.0
 
 
 class StyleError(ValueError):
@@ -565,11 +570,13 @@ def validate_sample(sample: GaitSample, path: str, ctx: StyleContext | None) -> 
         _expect(lo <= a.stance_width_m <= hi, f"{ap}.stance_width_m", f"expected {lo}..{hi} m, got {a.stance_width_m}")
         lo, hi = ctx.pelvis_height_range_m
         _expect(lo <= a.pelvis_height_m <= hi, f"{ap}.pelvis_height_m", f"expected {lo}..{hi} m, got {a.pelvis_height_m}")
-    _expect(abs(a.stance_splay_rad) <= 0.6, f"{ap}.stance_splay_rad", f"expected -0.6..0.6 rad, got {a.stance_splay_rad}")
-    _expect(abs(a.stance_x_bias_m) <= 0.2, f"{ap}.stance_x_bias_m", f"expected -0.2..0.2 m, got {a.stance_x_bias_m}")
+    _expect(abs(a.stance_splay_rad) <= MAX_SPLAY_RAD, f"{ap}.stance_splay_rad",
+            f"expected -{MAX_SPLAY_RAD:g}..{MAX_SPLAY_RAD:g} rad, got {a.stance_splay_rad}")
+    _expect(abs(a.stance_x_bias_m) <= MAX_X_BIAS_M, f"{ap}.stance_x_bias_m",
+            f"expected -{MAX_X_BIAS_M:g}..{MAX_X_BIAS_M:g} m, got {a.stance_x_bias_m}")
     for key in ("liftoff_transition_s", "touchdown_transition_s"):
         value = getattr(a, key)
-        _expect(0.0 <= value <= 1.0, f"{ap}.{key}", f"expected 0..1 s, got {value}")
+        _expect(0.0 <= value <= MAX_TRANSITION_S, f"{ap}.{key}", f"expected 0..{MAX_TRANSITION_S:g} s, got {value}")
 
     cp = f"{path}.curves"
     for side in SIDES:

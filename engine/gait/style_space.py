@@ -38,6 +38,9 @@ import numpy as np
 from engine.gait.curve_rates import RateBound, over_bound, rate_bound
 from engine.gait.curves import HermiteCurve, Knot, TangentMode
 from engine.gait.style import (
+    MAX_SPLAY_RAD,
+    MAX_TRANSITION_S,
+    MAX_X_BIAS_M,
     MAX_FOOT_ANGLE_RAD,
     MAX_FOOT_OFFSET_M,
     MAX_PELVIS_ANGLE_RAD,
@@ -56,9 +59,6 @@ from engine.gait.style import (
 from engine.gait.leg_reach import max_reachable_speed
 from engine.gait.velocity_sampler import SAMPLE_NAMES, SampleVelocities
 
-MAX_SPLAY_RAD = 0.6  # the validator's bounds (engine/gait/style.py validate_sample)
-MAX_X_BIAS_M = 0.2
-MAX_TRANSITION_S = 1.0
 EDGE = 1e-6  # stay this far inside closed bounds (rounding in the JSON round trip)
 # What an animator authors: knots at least this share of their interval apart (swing or cycle),
 # and curves that change no faster than their channel follows (engine/gait/curve_rates.py; drawn

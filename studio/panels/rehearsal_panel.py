@@ -15,6 +15,9 @@ walks: undoing back to a version already rehearsed shows its verdict at once, wi
 *Walks* (1, 3 or 5; 3 in ``studio serve``): the first walk is the benchmark's, each other one is nudged once while
 the robot stands (physically nothing). Many styles sit where that turns a fall into a walk or back, so the verdict
 says in how many walks the style fell; it is shown after the first walk and refined as the others end.
+
+When a verdict is a fall, *Show <sample>* selects the sample the walk was following when it fell, in the Sample
+and Curves tabs (and the walk of Edit mode), so the edit-time check and the curves shown are that sample's.
 """
 
 from __future__ import annotations
@@ -27,12 +30,13 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import viser
 
 from engine.gait.rehearsal import SWEEP_DURATION_S
 from engine.gait.style import Style, style_digest, style_to_json_dict
+from engine.gait.velocity_sampler import SAMPLE_NAMES
 from engine.process import REPO_ROOT
 
 if TYPE_CHECKING:
@@ -63,8 +67,9 @@ def rehearsal_markdown(result: dict, stale: bool, wall_s: float | None = None, r
 
 class RehearsalPanel:
     def __init__(self, server: viser.ViserServer, session: "StyleSession", duration_s: float = SWEEP_DURATION_S,
-                 auto: bool = False, walks: int = 1):
+                 auto: bool = False, walks: int = 1, on_show_sample: Callable[[str], None] = lambda name: None):
         self.session = session
+        self.on_show_sample = on_show_sample  # select a sample in the Sample and Curves tabs
         self.duration_s = duration_s
         self.auto = server.gui.add_checkbox(
             "Rehearse after each edit", initial_value=auto,
@@ -79,6 +84,10 @@ class RehearsalPanel:
             hint=f"walk this style through the {duration_s:.0f} s sweep (stand, forward, back, sideways, turns) in "
                  "physics, in the background, as `studio bench styles` does: does it fall, where, and why")
         self.status = server.gui.add_markdown("")
+        self.show_fall = server.gui.add_button(
+            "Show the sample it fell in", icon=viser.Icon.ARROW_RIGHT, visible=False,
+            hint="select the sample the walk was following when it fell, in the Sample and Curves tabs")
+        self._fall_sample: str | None = None
         self._lock = threading.Lock()
         self._process: subprocess.Popen | None = None
         self._running_digest: str | None = None  # the content being rehearsed
@@ -88,6 +97,7 @@ class RehearsalPanel:
         self._wake = threading.Condition()
         self._stopped = False
         self.button.on_click(lambda _: self.toggle())
+        self.show_fall.on_click(self._on_show_fall)
         self.auto.on_update(lambda _: self._on_auto())
         self.walks.on_update(lambda _: self._on_auto())
         session.subscribe(self._on_style_change)
@@ -121,6 +131,7 @@ class RehearsalPanel:
         with self._lock:
             self._process, self._cancelled, self._running_digest = process, (False, False), self._key(style, walks)
         self.button.label, self.button.icon = CANCEL_LABEL, viser.Icon.PLAYER_STOP
+        self._show_verdict(None)
         self.status.content = "<small>rehearsing the sweep in physics…</small>"
         threading.Thread(target=self._follow, args=(process, style, walks, folder, time.monotonic()),
                          name="rehearsal", daemon=True).start()
@@ -170,8 +181,9 @@ class RehearsalPanel:
             self._due = None if known is not None else (time.monotonic() + AUTO_DELAY_S, style)
             self._wake.notify_all()
         if known is not None:
-            self.status.content = rehearsal_markdown(known, stale=False, remembered=True)
+            self._show_verdict(known, stale=False, remembered=True)
         else:
+            self._show_verdict(None)
             self.status.content = (f"<small>changed: rehearsing the sweep by itself once the style rests "
                                    f"{AUTO_DELAY_S:.0f} s…</small>")
 
@@ -213,13 +225,12 @@ class RehearsalPanel:
                         self.status.content = (f"<small>rehearsing the sweep in physics: {event['progress_s']:.0f} of "
                                                f"{total_s:.0f} s simulated</small>")
                     else:
-                        self.status.content = rehearsal_markdown(
+                        self._show_verdict(
                             so_far, stale=False, walking=f"walk {int(event['progress_s'] // self.duration_s) + 1} of "
                                                          f"{walks} under way")
                 elif "walk" in event:
                     so_far = event["walk"]
-                    self.status.content = rehearsal_markdown(so_far, stale=False,
-                                                             walking=f"{so_far.get('walks', 1)} of {walks} walks so far")
+                    self._show_verdict(so_far, stale=False, walking=f"{so_far.get('walks', 1)} of {walks} walks so far")
                 elif "result" in event:
                     result = event["result"]
             error = process.stderr.read().strip().splitlines()
@@ -238,13 +249,34 @@ class RehearsalPanel:
         self.button.label, self.button.icon = START_LABEL, viser.Icon.PLAYER_PLAY
         if cancelled:
             if by_animator:
+                self._show_verdict(None)
                 self.status.content = "<small>rehearsal cancelled</small>"
         elif result is not None:
-            self.status.content = rehearsal_markdown(result, stale=self.session.style is not style,
-                                                     wall_s=time.monotonic() - started_s)
+            self._show_verdict(result, stale=self.session.style is not style, wall_s=time.monotonic() - started_s)
         else:
             reason = error[-1] if error else f"exit status {process.returncode}"
+            self._show_verdict(None)
             self.status.content = f"<small>the rehearsal failed: {reason}</small>"
+
+    def _show_verdict(self, result: dict | None, **how) -> None:
+        """Show a verdict (None: none), and the button to its fall's sample when it fell in one."""
+        sample = result.get("sample") if result is not None and result.get("fell") else None
+        self._fall_sample = sample if sample in SAMPLE_NAMES else None
+        if self._fall_sample is not None:
+            self.show_fall.label = f"Show {self._fall_sample}"
+        self.show_fall.visible = self._fall_sample is not None
+        if result is not None:
+            self.status.content = rehearsal_markdown(result, **how)
+
+    def _on_show_fall(self, _event: object) -> None:
+        self.show_fall_sample()
+
+    def show_fall_sample(self) -> str | None:
+        """Select the sample the shown verdict fell in (the button); returns it, or None when there is none."""
+        sample = self._fall_sample
+        if sample is not None:
+            self.on_show_sample(sample)
+        return sample
 
     def _remember(self, style: Style, walks: int, result: dict) -> None:
         digest = self._key(style, walks)

@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING, Callable
 
 import viser
 
-from engine.gait.style import ATTRIBUTE_NAMES, GaitSample, Intervals, Style
+from engine.gait.style import (ATTRIBUTE_NAMES, MAX_SPLAY_RAD, MAX_TRANSITION_S, MAX_X_BIAS_M, GaitSample, Intervals,
+                               Style)
 from engine.gait.velocity_sampler import SAMPLE_DISPLAY_NAMES, SAMPLE_NAMES
 
 if TYPE_CHECKING:
@@ -91,8 +92,9 @@ class SampleEditor:
         self._check_event = threading.Event()
         threading.Thread(target=self._check_loop, name="feasibility-check", daemon=True).start()
         ranges = {
-            "stance_width_m": ctx.stance_width_range_m, "stance_splay_rad": (-0.6, 0.6), "stance_x_bias_m": (-0.2, 0.2),
-            "liftoff_transition_s": (0.0, 0.5), "touchdown_transition_s": (0.0, 0.5),
+            "stance_width_m": ctx.stance_width_range_m, "stance_splay_rad": (-MAX_SPLAY_RAD, MAX_SPLAY_RAD),
+            "stance_x_bias_m": (-MAX_X_BIAS_M, MAX_X_BIAS_M),  # the validator's ranges: a slider shows every valid value
+            "liftoff_transition_s": (0.0, MAX_TRANSITION_S), "touchdown_transition_s": (0.0, MAX_TRANSITION_S),
             "pelvis_height_m": ctx.pelvis_height_range_m,
         }
         self.attributes: dict[str, viser.GuiSliderHandle] = {}

@@ -8,7 +8,7 @@ import shutil
 
 import pytest
 
-from tests.e2e.browser import copy_styles, engine_page, open_style, started_studio, wait_for_text
+from tests.e2e.browser import copy_styles, engine_page, open_style, started_studio, wait_for_text, wait_until
 from tests.studio.test_rehearse_after_edits import STUMBLY
 
 pytestmark = pytest.mark.e2e
@@ -26,6 +26,13 @@ def test_a_style_that_falls_is_rehearsed_by_itself_and_a_slower_speed_walks(tmp_
             wait_for_text(page, "falls at", timeout_ms=120_000)
             text = page.inner_text("body")
             assert "forward" in text and "% of its cycle" in text
+            # The fall's sample, one click away: the Sample tab (its check, its timings) shows that sample.
+            fell_in = studio.rehearsal.verdict(studio.session.style)["sample"]
+            assert studio.sample_editor.sample_name != fell_in
+            page.get_by_role("button", name=f"Show {fell_in}").click()
+            wait_until(lambda: studio.sample_editor.sample_name == fell_in, 30, f"the Sample tab showing {fell_in}")
+            wait_until(lambda: f"**{fell_in}**" in studio.sample_editor.feasibility.content, 60,
+                       f"the edit-time check of {fell_in}")
             page.screenshot(path=str(artifacts / "studio_rehearsal_falls.png"))
             page.get_by_role("tab", name="Style").click(force=True)
             box = page.get_by_label("Fast (m/s)", exact=True)

@@ -133,23 +133,31 @@ def test_a_style_that_falls_says_where_before_test_is_pressed(server, tmp_path, 
     shutil.copy(STUMBLY, folder / "stumbly.json")
     session = StyleSession("g1", folder=folder)
     assert session.open("neutral").ok
-    panel = RehearsalPanel(server, session, 4.0, auto=True)
+    shown: list[str] = []
+    panel = RehearsalPanel(server, session, 4.0, auto=True, on_show_sample=shown.append)
     speeds = StyleSpeeds(server, session, Notes())
     try:
+        assert not panel.show_fall.visible and panel.show_fall_sample() is None and shown == []
         assert session.open("stumbly").ok
         wait(lambda: kept(panel, style_digest(session.style)) is not None, 180)
         fell = kept(panel, style_digest(session.style))
         assert fell["fell"] and fell["sample"] and fell["phase_pct"] is not None
+        wait(lambda: panel.show_fall.visible, 10)
         assert "falls at" in panel.status.content and "% of its cycle" in panel.status.content
+        # The button selects the sample the walk fell in (the app selects it in the Sample and Curves tabs).
+        assert panel.show_fall.label == f"Show {fell['sample']}" and panel.show_fall_sample() == fell["sample"]
+        assert shown == [fell["sample"]]
         assert speeds.set_speed("x_max_mps", 0.30)
+        assert not panel.show_fall.visible  # a new version: the old fall is not shown any more
         wait(lambda: kept(panel, style_digest(session.style)) is not None, 180)
         assert not kept(panel, style_digest(session.style))["fell"]
-        assert "walks the 4 s sweep" in panel.status.content
+        wait(lambda: "walks the 4 s sweep" in panel.status.content, 10)
+        assert not panel.show_fall.visible
         # Three walks (the first the benchmark's, two nudged while standing): rehearsed again, kept apart.
         panel.walks.value = "3"
         wait(lambda: kept(panel, style_digest(session.style), 3) is not None, 240)
         three = kept(panel, style_digest(session.style), 3)
         assert three["walks"] == 3 and 0 <= three["falls"] <= 3 and three["fell"] == (three["falls"] > 0)
-        assert "of 3 walks" in panel.status.content or "each of 3 walks" in panel.status.content
+        assert "of 3 walks" in panel.status.content or "worst of 3 walks" in panel.status.content
     finally:
         panel.stop()
