@@ -102,6 +102,12 @@ def run_job(job: dict[str, Any]) -> dict[str, Any]:
                                                       "recovery_time_s", "recovery_mean_share")}
     result["wall_s"] = round(time.perf_counter() - t_wall, 2)
     result.update(tracking_errors(rec, None))
+    if summary["fell"]:  # the fall's anatomy, as the rehearsal tells it (engine/gait/rehearsal.py)
+        from engine.gait.rehearsal import describe
+
+        verdict = describe(summary, rec, float(job["duration_s"]))
+        result.update({"fall_sample": verdict.sample, "fall_phase_pct": verdict.phase_pct,
+                       "fall_onset_s": verdict.onset_time_s, "fall_onset": verdict.onset_kind})
     for name, (t0, t1) in job.get("velocity_windows", {}).items():
         v = window_velocity(rec, t0, t1)
         result[f"velocity_{name}"] = None if v is None else [round(float(x), 4) for x in v]

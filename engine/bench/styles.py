@@ -18,6 +18,11 @@ Results are keyed by the style's hash in the output folder: a second call resume
 changes by 0.3 mm/s). Physically nothing, it is enough to send the closed loop down another path: at the margin where these
 styles sit, a fall and a walk are that close (README "Falls at a margin"). Per style the column ``falls`` says how
 many of its walks fell; the totals how many styles walked every time, never, or sometimes.
+
+Each fall's anatomy (``began``; ``began_runs`` per walk with ``--repeat``): the sample and phase it fell in and
+how it began — a foot in support sliding, the body behind or ahead of its plan along the walk or across it, or
+drifting while standing (engine/gait/rehearsal.py ``ONSET_KINDS``, the rehearsal's own words); the totals count
+the kinds over all the falls.
 """
 
 from __future__ import annotations
@@ -125,11 +130,15 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
             "over_rating": bool(rating),
             "unreached": ",".join(sorted({f.sample for f in unreached})),
             "finding": f"{first.sample} {first.phase_pct:.0f}%: {first.message}"[:90] if first else "",
+            "began": fall_anatomy(r),
+            "onset": (r.get("fall_onset") or "unseen") if r["fell"] and "fall_onset" in r else "",
         })
         if repeat > 1:
             done = [x for x in repeats if "error" not in x]
             row["falls"] = f"{sum(bool(x['fell']) for x in done)}/{len(done)}"
             row["fall_s_runs"] = ",".join("-" if not x["fell"] else f"{x['fall_time_s']:.1f}" for x in done)
+            row["began_runs"] = ",".join("-" if not x["fell"] else (x.get("fall_onset") or "unseen") if "fall_onset" in x
+                                         else "?" for x in done)
         rows.append(row)
     rows.append(totals(rows, robot, seed))
     return rows
@@ -149,6 +158,24 @@ def reached_samples(style: Any, command: str, duration_s: float, min_weight: flo
     return {name for name, w in zip(SAMPLE_NAMES, peak) if w >= min_weight}
 
 
+def fall_anatomy(result: dict) -> str:
+    """How a walk's fall began, for the table: the sample and phase it fell in and the onset's kind
+    (engine/gait/rehearsal.py ``ONSET_KINDS``), e.g. ``left_strafe 54% slide@17.4s``; "" for a walk."""
+    if not result.get("fell") or "fall_onset" not in result:  # (walked, or a result stored before this field)
+        return ""
+    where = f"{result['fall_sample']} {result['fall_phase_pct']:.0f}%" if result.get("fall_sample") else "at once"
+    onset_s = result.get("fall_onset_s")
+    return f"{where} {result['fall_onset'] or 'unseen'}" + (f"@{onset_s:.1f}s" if onset_s is not None else "")
+
+
+def onset_counts(kinds: list[str]) -> str:
+    """``slide 11, behind 4`` over the falls' onset kinds, most frequent first."""
+    counts: dict[str, int] = {}
+    for kind in kinds:
+        counts[kind] = counts.get(kind, 0) + 1
+    return ", ".join(f"{k} {n}" for k, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
 def totals(rows: list[dict], robot: str, seed: int) -> dict:
     done = [r for r in rows if r.get("fell") in (True, False)]
     walked = [r for r in done if not r["fell"]]
@@ -160,12 +187,16 @@ def totals(rows: list[dict], robot: str, seed: int) -> dict:
     repeats = [tuple(int(x) for x in r["falls"].split("/")) for r in done if "falls" in r]
     recovered = [r for r in walked if (r.get("recovery_share") or 0.0) > 0.0]
     mean_share = float(np.mean([r.get("recovery_share") or 0.0 for r in walked])) if walked else 0.0
+    # how the falls began: every fallen walk's onset kind (with --repeat, over all the walks)
+    kinds = ([k for r in done for k in r.get("began_runs", "").split(",") if k not in ("", "-")]
+             if any("began_runs" in r for r in done) else [r["onset"] for r in fell if r.get("onset")])
     return {"section": "styles", "robot": robot, "seed": seed, "i": "total", "key": f"{len(done)} run",
             "fell": f"walked {len(walked)}/{len(done)}", "fall_s": "",
             "slip_mm": f"<2mm&CoP≥99.5%: {len(good)}/{len(walked)}", "cop_in": "",
             "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}",
             "over_rating": f"walked above a rated joint speed {len(rated)}/{len(walked)}",
             "recovery_share": f"recovered toward neutral {len(recovered)}/{len(walked)}, mean share {mean_share:.3f}",
+            "began": f"falls began: {onset_counts(kinds)}" if kinds else "",
             **({"falls": f"walks: {sum(k - f for f, k in repeats)}/{sum(k for _, k in repeats)}; styles that walk every "
                          f"time {sum(f == 0 for f, _ in repeats)}, never {sum(f == k for f, k in repeats)}, sometimes "
                          f"{sum(0 < f < k for f, k in repeats)}"} if repeats else {})}

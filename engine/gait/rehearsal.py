@@ -50,6 +50,9 @@ PROGRESS_PERIOD_S = 0.5  # simulated seconds between progress reports
 MAX_DURATION_S = 600.0  # the longest rehearsal the command line and the studio accept
 MOVING_MPS = 0.05  # a command at least this fast: drift is told along / across the direction of travel
 MAX_WALKS = 10
+#: How a fall began (:func:`_onset`), for tables: a foot in support slid, the body fell behind / ran ahead of its
+#: plan along the walk or drifted across it, or (standing or turning in place) it drifted front to back / sideways.
+ONSET_KINDS = ("slide", "behind", "ahead", "across", "front-back", "sideways")
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,7 @@ class RehearsalResult:
     falls: int = 0  # of them, how many fell (the fields above describe the first that fell, else the worst walk)
     recovery_time_s: float = 0.0  # how long the walk fell back toward the neutral gait to keep its balance
     recovery_mean_share: float = 0.0  # how far toward neutral, on average over that time
+    onset_kind: str | None = None  # how the fall began: one of ONSET_KINDS (None: no fall, or not seen)
 
     @property
     def clean(self) -> bool:
@@ -177,17 +181,18 @@ def describe(summary: dict, rec: dict[str, np.ndarray], duration_s: float) -> Re
     phase_pct = float(100.0 * (np.asarray(rec["gait_phase"])[i] % 1.0))
     vx, vy, wz = (float(x) for x in np.asarray(rec["command"])[i])
     command = (vx, vy, wz)
-    onset, how = _onset(rec, fall_t)
+    onset, kind, how = _onset(rec, fall_t)
     text = (f"falls at {fall_t:.1f} s of the {duration_s:.0f} s sweep, walking **{sample}** "
             f"({_command_words(command)}), around {phase_pct:.0f} % of its cycle")
     if onset is not None:
         text += f"; it began at {onset:.1f} s: {how}"
-    return RehearsalResult(True, fall_t, duration_s, sample, phase_pct, command, onset, slip, cop, text)
+    return RehearsalResult(True, fall_t, duration_s, sample, phase_pct, command, onset, slip, cop, text,
+                           recovery_time_s=recovery_s, recovery_mean_share=recovery_share, onset_kind=kind)
 
 
-def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str]:
+def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str | None, str]:
     """The first instant in the last :data:`LOOKBACK_S` before the fall where the body left the plan or a
-    foot on the ground slid, and what happened, in words."""
+    foot on the ground slid: (its time, its kind of :data:`ONSET_KINDS`, what happened in words)."""
     t = np.asarray(rec["t"])
     window = t >= fall_t - LOOKBACK_S
     com = np.asarray(rec["com"])[:, :2]
@@ -201,9 +206,9 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
     slide_t, slide_side = _first_slide(rec, window)
     drift_t = float(t[np.argmax(far)]) if far.any() else None
     if slide_t is not None and (drift_t is None or slide_t < drift_t):
-        return slide_t, f"the {slide_side} foot started sliding on the ground (less friction than the step needs)"
+        return slide_t, "slide", f"the {slide_side} foot started sliding on the ground (less friction than the step needs)"
     if drift_t is None:
-        return None, ""
+        return None, None, ""
     k = int(np.argmax(far))
     vx, vy = (float(v) for v in np.asarray(rec["command"])[k, :2])
     speed = math.hypot(vx, vy)
@@ -211,19 +216,19 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
         along, across = (ahead[k] * vx + left[k] * vy) / speed, (left[k] * vx - ahead[k] * vy) / speed
         if abs(along) >= abs(across):
             if along < 0:
-                return drift_t, (f"the body fell {100 * DRIFT_M:.0f} cm behind its plan along the walk (the steps "
-                                 "could not carry it: a shorter stride or a longer cycle gives them time)")
-            return drift_t, (f"the body ran {100 * DRIFT_M:.0f} cm ahead of its plan along the walk (it overran its "
-                             "steps: a longer stride or a shorter cycle)")
-        return drift_t, (f"the body drifted {100 * DRIFT_M:.0f} cm sideways off its path (its sideways balance did "
-                         "not hold: a wider stance or less pelvis sway)")
+                return drift_t, "behind", (f"the body fell {100 * DRIFT_M:.0f} cm behind its plan along the walk (the "
+                                           "steps could not carry it: a shorter stride or a longer cycle gives them time)")
+            return drift_t, "ahead", (f"the body ran {100 * DRIFT_M:.0f} cm ahead of its plan along the walk (it overran "
+                                      "its steps: a longer stride or a shorter cycle)")
+        return drift_t, "across", (f"the body drifted {100 * DRIFT_M:.0f} cm sideways off its path (its sideways "
+                                   "balance did not hold: a wider stance or less pelvis sway)")
     if abs(ahead[k]) >= abs(left[k]):
         where = "behind" if ahead[k] < 0 else "in front of"
-        advice = "its balance front to back did not hold: a lower pelvis or shorter steps"
+        kind, advice = "front-back", "its balance front to back did not hold: a lower pelvis or shorter steps"
     else:
         where = "left of" if left[k] > 0 else "right of"
-        advice = "its sideways balance did not hold: a wider stance or less pelvis sway"
-    return drift_t, f"the body drifted {100 * DRIFT_M:.0f} cm {where} where it should stand ({advice})"
+        kind, advice = "sideways", "its sideways balance did not hold: a wider stance or less pelvis sway"
+    return drift_t, kind, f"the body drifted {100 * DRIFT_M:.0f} cm {where} where it should stand ({advice})"
 
 
 def _first_slide(rec: dict[str, np.ndarray], window: np.ndarray) -> tuple[float | None, str]:

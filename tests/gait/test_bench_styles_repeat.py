@@ -47,3 +47,38 @@ def test_the_totals_count_the_styles_that_walk_every_time_never_and_sometimes():
     assert row["fell"] == "walked 2/3"
     assert row["falls"] == "walks: 5/9; styles that walk every time 1, never 1, sometimes 1"
     assert "falls" not in totals([{k: v for k, v in r.items() if k != "falls"} for r in rows], "g1", 0)
+
+
+def test_the_totals_count_how_the_falls_began():
+    from engine.bench.styles import fall_anatomy, onset_counts
+
+    fell = {"fell": True, "fall_sample": "left_strafe", "fall_phase_pct": 54.3, "fall_onset_s": 17.39,
+            "fall_onset": "slide"}
+    assert fall_anatomy(fell) == "left_strafe 54% slide@17.4s"
+    assert fall_anatomy({**fell, "fall_onset": None, "fall_onset_s": None}) == "left_strafe 54% unseen"
+    assert fall_anatomy({"fell": False}) == "" and fall_anatomy({"fell": True}) == ""  # (a result stored before)
+    assert onset_counts(["behind", "slide", "slide", "across"]) == "slide 2, across 1, behind 1"
+    rows = [{"fell": True, "slip_mm": 3.0, "cop_in": 1.0, "flagged": False, "onset": "slide"},
+            {"fell": True, "slip_mm": 3.0, "cop_in": 1.0, "flagged": False, "onset": "behind"},
+            {"fell": False, "slip_mm": 1.0, "cop_in": 1.0, "flagged": False, "onset": ""}]
+    assert totals(rows, "g1", 0)["began"] == "falls began: behind 1, slide 1"
+    # With --repeat: every fallen walk of every style.
+    rows[0]["began_runs"], rows[1]["began_runs"], rows[2]["began_runs"] = "slide,-,slide", "behind,behind,-", "-,-,-"
+    assert totals(rows, "g1", 0)["began"] == "falls began: behind 2, slide 2"  # (ties alphabetical)
+
+
+def test_a_falling_walk_of_the_batch_says_where_and_how_it_began():
+    """tests/data/stumbly_g1.json falls 2.0 s into the sweep (tests/studio/test_rehearse_after_edits.py)."""
+    import json
+
+    from engine.gait.rehearsal import ONSET_KINDS
+    from engine.walk_batch import run_job
+    from tests.conftest import REPO
+
+    style = json.loads((REPO / "tests" / "data" / "stumbly_g1.json").read_text())
+    result = run_job({"robot": "g1", "style": style, "command": "sweep", "duration_s": 2.5})
+    assert result["fell"] and result["fall_time_s"] < 2.5
+    assert result["fall_sample"] == "forward_slow" and 0.0 <= result["fall_phase_pct"] < 100.0
+    assert result["fall_onset"] in ONSET_KINDS and result["fall_onset_s"] <= result["fall_time_s"]
+    walked = run_job({"robot": "g1", "style": style, "command": "sweep", "duration_s": 1.0})
+    assert not walked["fell"] and "fall_onset" not in walked

@@ -56,17 +56,17 @@ def test_a_clean_walk_says_so_and_an_unclean_one_names_what_is_wrong():
     assert "fell back toward the neutral gait for 12.5 s (8 % neutral on average)" in recovered.message
 
 
-@pytest.mark.parametrize(("command", "direction", "words"), [
-    ((0.4, 0.0, 0.0), (-1.0, 0.0), "fell 3 cm behind its plan along the walk"),
-    ((0.4, 0.0, 0.0), (1.0, 0.0), "ran 3 cm ahead of its plan along the walk"),
-    ((-0.3, 0.0, 0.0), (-1.0, 0.0), "ran 3 cm ahead of its plan along the walk"),  # walking backward
-    ((0.0, 0.2, 0.0), (0.0, -1.0), "fell 3 cm behind its plan along the walk"),  # strafing left
-    ((0.4, 0.0, 0.0), (0.0, 1.0), "drifted 3 cm sideways off its path"),
-    ((0.0, 0.0, 0.5), (-1.0, 0.0), "drifted 3 cm behind where it should stand"),  # turning on the spot
-    ((0.0, 0.0, 0.0), (0.0, -1.0), "drifted 3 cm right of where it should stand"),
+@pytest.mark.parametrize(("command", "direction", "words", "kind"), [
+    ((0.4, 0.0, 0.0), (-1.0, 0.0), "fell 3 cm behind its plan along the walk", "behind"),
+    ((0.4, 0.0, 0.0), (1.0, 0.0), "ran 3 cm ahead of its plan along the walk", "ahead"),
+    ((-0.3, 0.0, 0.0), (-1.0, 0.0), "ran 3 cm ahead of its plan along the walk", "ahead"),  # walking backward
+    ((0.0, 0.2, 0.0), (0.0, -1.0), "fell 3 cm behind its plan along the walk", "behind"),  # strafing left
+    ((0.4, 0.0, 0.0), (0.0, 1.0), "drifted 3 cm sideways off its path", "across"),
+    ((0.0, 0.0, 0.5), (-1.0, 0.0), "drifted 3 cm behind where it should stand", "front-back"),  # turning on the spot
+    ((0.0, 0.0, 0.0), (0.0, -1.0), "drifted 3 cm right of where it should stand", "sideways"),
 ])
 @pytest.mark.parametrize("yaw", [0.0, 2.0])
-def test_a_fall_names_the_sample_phase_and_how_the_body_left_its_plan(command, direction, words, yaw):
+def test_a_fall_names_the_sample_phase_and_how_the_body_left_its_plan(command, direction, words, kind, yaw):
     rec = _recording(drift_from=120, drift_dir=direction, yaw=yaw)
     rec["command"] = np.tile(command, (len(rec["t"]), 1))
     result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
@@ -74,7 +74,7 @@ def test_a_fall_names_the_sample_phase_and_how_the_body_left_its_plan(command, d
     assert result.phase_pct == pytest.approx(40.0, abs=0.5)
     # the drift grows 2 mm a frame from frame 120: it reaches DRIFT_M at frame 120 + 15
     assert result.onset_time_s == pytest.approx(rec["t"][120 + int(round(DRIFT_M / 0.002))], abs=0.009)
-    assert words in result.message
+    assert words in result.message and result.onset_kind == kind
     assert "forward_fast" in result.message and "40 % of its cycle" in result.message
 
 
@@ -83,13 +83,13 @@ def test_a_foot_that_slides_before_the_body_drifts_is_named_first():
     result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
     # the left foot moves 1 mm a frame from frame 100: SLIDE_M away at frame 100 + 10
     assert result.onset_time_s == pytest.approx(rec["t"][100 + int(round(SLIDE_M / 0.001))], abs=0.009)
-    assert "left foot started sliding" in result.message
+    assert "left foot started sliding" in result.message and result.onset_kind == "slide"
 
 
 def test_a_fall_without_a_visible_beginning_still_gives_sample_and_phase():
     rec = _recording()
     result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
-    assert result.fell and result.onset_time_s is None and "it began" not in result.message
+    assert result.fell and result.onset_time_s is None and result.onset_kind is None and "it began" not in result.message
     assert result.sample == "forward_fast" and "0.40 m/s forward" in result.message
 
 
