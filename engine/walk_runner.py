@@ -128,7 +128,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
                                             "sample_weights", "base_vel_body", "external_force",
                                             "pelvis_height_ref", "pelvis_height_achieved", "pelvis_yaw_ref",
                                             "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved",
-                                            "gait_phase", "reference_qpos")}
+                                            "gait_phase", "stance_drift_m", "reference_qpos")}
     preview = None
     if record and record_reference:
         from engine.gait.kinematic_preview import KinematicPreview
@@ -197,7 +197,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
         cop, fz = meter.cop(data)
         # Stance slip: sole centre drift while the plan holds the foot flat and the floor carries it.
         flat = ref.contact & ~ref.sole_corners[:, :, 2].any(axis=1)
-        slip.update(flat, data.site_xpos[site_ids][:, :2], meter.foot_load_n)
+        stance_drift = slip.update(flat, data.site_xpos[site_ids][:, :2], meter.foot_load_n)
         if cop is not None and fz > 0.2 * robot.mass_kg * GRAVITY_MPS2:
             support = np.asarray(controller.wbc_contact.any(axis=1))  # the feet the controller stands on
             corners = [data.geom_xpos[g][:2] for i in range(2) if support[i] for g in corner_geoms[i]]
@@ -231,6 +231,7 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["elbow_ref"].append(float(ref.upper_q[elbow_ref_index]) if elbow_ref_index is not None else math.nan)
             rec["elbow_achieved"].append(float(data.qpos[elbow_qpos]) if elbow_qpos is not None else math.nan)
             rec["gait_phase"].append(ref.phase)
+            rec["stance_drift_m"].append(stance_drift)  # (2,) each sole's drift in stance (engine/stance_slip.py)
             if preview is not None:
                 com_xy = controller.plan.com_at(ref.t_s)[0] if controller.plan is not None else data.subtree_com[root][:2]
                 rec["reference_qpos"].append(robot.mj_qpos_from_pin(preview.solve(ref, np.asarray(com_xy))))

@@ -232,25 +232,17 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
 
 
 def _first_slide(rec: dict[str, np.ndarray], window: np.ndarray) -> tuple[float | None, str]:
-    """First instant in ``window`` where a foot in its support phase is :data:`SLIDE_M` from where that support
-    phase found it."""
+    """First instant in ``window`` where a sole in stance has drifted :data:`SLIDE_M` from where its stance
+    found it: the stance slip meter's drift (engine/stance_slip.py, recorded as ``stance_drift_m``: the plan holds
+    the foot flat and the floor carries it). A foot rolling onto its toe to lift off, or still pitched from a heel
+    strike, moves its sole centre without sliding: not counted."""
     t = np.asarray(rec["t"])
-    contact = np.asarray(rec["contact"]).astype(bool)
-    feet = np.asarray(rec["foot_pos"])[:, :, :2]
+    drift = np.asarray(rec["stance_drift_m"]).reshape(len(t), 2)
     best: tuple[float | None, str] = (None, "")
     for side, name in enumerate(("left", "right")):
-        anchor = None
-        for k in range(len(t)):
-            if not contact[k, side]:
-                anchor = None
-                continue
-            if anchor is None:
-                anchor = feet[k, side]
-                continue
-            if window[k] and np.linalg.norm(feet[k, side] - anchor) >= SLIDE_M:
-                if best[0] is None or t[k] < best[0]:
-                    best = (float(t[k]), name)
-                break
+        hits = np.flatnonzero(window & (drift[:, side] >= SLIDE_M))
+        if hits.size and (best[0] is None or t[hits[0]] < best[0]):
+            best = (float(t[hits[0]]), name)
     return best
 
 

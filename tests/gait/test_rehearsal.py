@@ -29,13 +29,15 @@ def _recording(n: int = 200, dt: float = 0.008, drift_from: int | None = None, d
         com[:, :2] += grow * np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
     feet = np.zeros((n, 2, 3))
     feet[:, 1, 1] = -0.2
+    stance_drift = np.zeros((n, 2))  # what the stance slip meter records: the sole's drift since its stance began
     if slide_from is not None:
         feet[slide_from:, 0, 0] = np.arange(n - slide_from) * 0.001
+        stance_drift[slide_from:, 0] = np.arange(n - slide_from) * 0.001
     weights = np.zeros((n, len(SAMPLE_NAMES)))
     weights[:, SAMPLE_NAMES.index("forward_fast")] = 0.8
     weights[:, SAMPLE_NAMES.index("in_place")] = 0.2
     return {"t": t, "com": com, "com_ref": com_ref, "pelvis_yaw_achieved": np.full(n, yaw),
-            "contact": np.ones((n, 2), bool), "foot_pos": feet, "sample_weights": weights,
+            "contact": np.ones((n, 2), bool), "foot_pos": feet, "stance_drift_m": stance_drift, "sample_weights": weights,
             "gait_phase": 7.0 + np.linspace(0.0, 0.4, n), "command": np.tile([0.4, 0.0, 0.0], (n, 1))}
 
 
@@ -84,6 +86,15 @@ def test_a_foot_that_slides_before_the_body_drifts_is_named_first():
     # the left foot moves 1 mm a frame from frame 100: SLIDE_M away at frame 100 + 10
     assert result.onset_time_s == pytest.approx(rec["t"][100 + int(round(SLIDE_M / 0.001))], abs=0.009)
     assert "left foot started sliding" in result.message and result.onset_kind == "slide"
+
+
+def test_a_foot_rolling_to_lift_off_is_not_sliding():
+    """The plan's contact still holds a foot that rolls onto its toe (its sole centre travels a centimetre or more
+    without sliding); only a sole in stance (flat in the plan, carried by the floor) counts, as the slip meter's."""
+    rec = _recording(drift_from=150)
+    rec["foot_pos"][100:, 0, 0] = np.arange(100) * 0.001  # the sole centre moves 10 cm: a toe-off, not in stance
+    result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
+    assert result.onset_kind == "behind" and "sliding" not in result.message
 
 
 def test_a_fall_without_a_visible_beginning_still_gives_sample_and_phase():
