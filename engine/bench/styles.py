@@ -19,10 +19,10 @@ changes by 0.3 mm/s). Physically nothing, it is enough to send the closed loop d
 styles sit, a fall and a walk are that close (README "Falls at a margin"). Per style the column ``falls`` says how
 many of its walks fell; the totals how many styles walked every time, never, or sometimes.
 
-Each fall's anatomy (``began``; ``began_runs`` per walk with ``--repeat``): the sample and phase it fell in and
-how it began — a foot in support sliding, the body behind or ahead of its plan along the walk or across it, or
-drifting while standing (engine/gait/rehearsal.py ``ONSET_KINDS``, the rehearsal's own words); the totals count
-the kinds over all the falls.
+Each fall's anatomy (the rehearsal's own analysis): ``fell_in``, the sample and phase it fell in; ``onset`` and
+``onset_s``, how and when it began — a sole in stance sliding, the body behind or ahead of its plan along the walk
+or across it, or drifting while standing (engine/gait/rehearsal.py ``ONSET_KINDS``; "unseen": none of these before
+the fall); ``onset_runs`` per walk with ``--repeat``. The totals count the kinds over all the falls.
 """
 
 from __future__ import annotations
@@ -130,15 +130,13 @@ def bench_styles(robot: str = "g1", n: int = 40, seed: int = 0, duration_s: floa
             "over_rating": bool(rating),
             "unreached": ",".join(sorted({f.sample for f in unreached})),
             "finding": f"{first.sample} {first.phase_pct:.0f}%: {first.message}"[:90] if first else "",
-            "began": fall_anatomy(r),
-            "onset": (r.get("fall_onset") or "unseen") if r["fell"] and "fall_onset" in r else "",
+            **fall_anatomy(r),
         })
         if repeat > 1:
             done = [x for x in repeats if "error" not in x]
             row["falls"] = f"{sum(bool(x['fell']) for x in done)}/{len(done)}"
             row["fall_s_runs"] = ",".join("-" if not x["fell"] else f"{x['fall_time_s']:.1f}" for x in done)
-            row["began_runs"] = ",".join("-" if not x["fell"] else (x.get("fall_onset") or "unseen") if "fall_onset" in x
-                                         else "?" for x in done)
+            row["onset_runs"] = ",".join(fall_anatomy(x)["onset"] or ("-" if not x["fell"] else "?") for x in done)
         rows.append(row)
     rows.append(totals(rows, robot, seed))
     return rows
@@ -158,14 +156,16 @@ def reached_samples(style: Any, command: str, duration_s: float, min_weight: flo
     return {name for name, w in zip(SAMPLE_NAMES, peak) if w >= min_weight}
 
 
-def fall_anatomy(result: dict) -> str:
-    """How a walk's fall began, for the table: the sample and phase it fell in and the onset's kind
-    (engine/gait/rehearsal.py ``ONSET_KINDS``), e.g. ``left_strafe 54% slide@17.4s``; "" for a walk."""
-    if not result.get("fell") or "fall_onset" not in result:  # (walked, or a result stored before this field)
-        return ""
-    where = f"{result['fall_sample']} {result['fall_phase_pct']:.0f}%" if result.get("fall_sample") else "at once"
+def fall_anatomy(result: dict) -> dict[str, Any]:
+    """Where and how a walk's fall began, as table columns: ``fell_in`` (the sample and phase it fell in),
+    ``onset`` (engine/gait/rehearsal.py ``ONSET_KINDS``, or "unseen") and ``onset_s``; empty for a walk, or for a
+    result stored before these fields."""
+    if not result.get("fell") or "fall_onset" not in result:
+        return {"fell_in": "", "onset": "", "onset_s": None}
+    sample = result.get("fall_sample")
     onset_s = result.get("fall_onset_s")
-    return f"{where} {result['fall_onset'] or 'unseen'}" + (f"@{onset_s:.1f}s" if onset_s is not None else "")
+    return {"fell_in": f"{sample} {result['fall_phase_pct']:.0f}%" if sample else "at once",
+            "onset": result["fall_onset"] or "unseen", "onset_s": None if onset_s is None else round(onset_s, 1)}
 
 
 def onset_counts(kinds: list[str]) -> str:
@@ -188,15 +188,15 @@ def totals(rows: list[dict], robot: str, seed: int) -> dict:
     recovered = [r for r in walked if (r.get("recovery_share") or 0.0) > 0.0]
     mean_share = float(np.mean([r.get("recovery_share") or 0.0 for r in walked])) if walked else 0.0
     # how the falls began: every fallen walk's onset kind (with --repeat, over all the walks)
-    kinds = ([k for r in done for k in r.get("began_runs", "").split(",") if k not in ("", "-")]
-             if any("began_runs" in r for r in done) else [r["onset"] for r in fell if r.get("onset")])
+    kinds = ([k for r in done for k in r.get("onset_runs", "").split(",") if k not in ("", "-", "?")]
+             if any("onset_runs" in r for r in done) else [r["onset"] for r in fell if r.get("onset")])
     return {"section": "styles", "robot": robot, "seed": seed, "i": "total", "key": f"{len(done)} run",
             "fell": f"walked {len(walked)}/{len(done)}", "fall_s": "",
             "slip_mm": f"<2mm&CoP≥99.5%: {len(good)}/{len(walked)}", "cop_in": "",
             "flagged": f"silent falls {len(silent)}/{len(fell)}, false alarms {len(alarms)}/{len(walked)}",
             "over_rating": f"walked above a rated joint speed {len(rated)}/{len(walked)}",
             "recovery_share": f"recovered toward neutral {len(recovered)}/{len(walked)}, mean share {mean_share:.3f}",
-            "began": f"falls began: {onset_counts(kinds)}" if kinds else "",
+            "onset": f"falls began: {onset_counts(kinds)}" if kinds else "",
             **({"falls": f"walks: {sum(k - f for f, k in repeats)}/{sum(k for _, k in repeats)}; styles that walk every "
                          f"time {sum(f == 0 for f, _ in repeats)}, never {sum(f == k for f, k in repeats)}, sometimes "
                          f"{sum(0 < f < k for f, k in repeats)}"} if repeats else {})}
