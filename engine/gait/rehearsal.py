@@ -206,7 +206,8 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
     slide_t, slide_side = _first_slide(rec, window)
     drift_t = float(t[np.argmax(far)]) if far.any() else None
     if slide_t is not None and (drift_t is None or slide_t < drift_t):
-        return slide_t, "slide", f"the {slide_side} foot started sliding on the ground (less friction than the step needs)"
+        return slide_t, "slide", (f"the {slide_side} foot started sliding on the ground (less friction than the step "
+                                  "needs)")
     if drift_t is None:
         return None, None, ""
     k = int(np.argmax(far))
@@ -216,10 +217,11 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
         along, across = (ahead[k] * vx + left[k] * vy) / speed, (left[k] * vx - ahead[k] * vy) / speed
         if abs(along) >= abs(across):
             if along < 0:
-                return drift_t, "behind", (f"the body fell {100 * DRIFT_M:.0f} cm behind its plan along the walk (the "
-                                           "steps could not carry it: a shorter stride or a longer cycle gives them time)")
-            return drift_t, "ahead", (f"the body ran {100 * DRIFT_M:.0f} cm ahead of its plan along the walk (it overran "
-                                      "its steps: a longer stride or a shorter cycle)")
+                return drift_t, "behind", (f"the body fell {100 * DRIFT_M:.0f} cm behind its plan along the walk "
+                                           "(the steps could not carry it: a shorter stride or a longer cycle gives "
+                                           "them time)")
+            return drift_t, "ahead", (f"the body ran {100 * DRIFT_M:.0f} cm ahead of its plan along the walk "
+                                      "(it overran its steps: a longer stride or a shorter cycle)")
         return drift_t, "across", (f"the body drifted {100 * DRIFT_M:.0f} cm sideways off its path (its sideways "
                                    "balance did not hold: a wider stance or less pelvis sway)")
     if abs(ahead[k]) >= abs(left[k]):

@@ -91,9 +91,9 @@ class SampleEditor:
         self._check_wanted: tuple | None = None  # (style, sample) the check should look at next
         self._check_event = threading.Event()
         threading.Thread(target=self._check_loop, name="feasibility-check", daemon=True).start()
-        ranges = {
+        ranges = {  # the validator's ranges: a slider shows every valid value
             "stance_width_m": ctx.stance_width_range_m, "stance_splay_rad": (-MAX_SPLAY_RAD, MAX_SPLAY_RAD),
-            "stance_x_bias_m": (-MAX_X_BIAS_M, MAX_X_BIAS_M),  # the validator's ranges: a slider shows every valid value
+            "stance_x_bias_m": (-MAX_X_BIAS_M, MAX_X_BIAS_M),
             "liftoff_transition_s": (0.0, MAX_TRANSITION_S), "touchdown_transition_s": (0.0, MAX_TRANSITION_S),
             "pelvis_height_m": ctx.pelvis_height_range_m,
         }
@@ -237,7 +237,9 @@ class SampleEditor:
 def feasibility_markdown(sample: str, findings: list, limit: int = 3) -> str:
     """The check's findings for one sample as the panel shows them."""
     if not findings:
-        return f"✓ **{sample}**: nothing in the way of walking it"
+        # (the check reads the reference: falls that begin in the closed loop only the rehearsal below can show)
+        return (f"✓ **{sample}**: the reference check finds nothing in the way of walking it "
+                "<small>(the rehearsal walks it)</small>")
     lines = [f"⚠️ **{f.sample}**, around {f.phase_pct:.0f} % of the cycle: {f.message}" for f in findings[:limit]]
     more = len(findings) - limit
     if more > 0:
