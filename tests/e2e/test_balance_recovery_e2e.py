@@ -41,10 +41,15 @@ def test_a_pushed_style_recovers_toward_neutral_and_the_studio_says_so(tmp_path,
             wait_until(lambda: studio.last_telemetry is not None and studio.last_telemetry.sim_time_s > start + 1.5,
                        300, "1.5 s of Test mode")
             assert "balance recovery" not in page.inner_text("body")  # in balance: the style as authored
-            studio.robot_panel.push_direction.value = "right"  # 1.5 N/kg (the panel's default) from the right
+            # 1 N/kg for 1 s from the right: enough to send this style toward neutral whatever the phase it lands in
+            # (a probe walked it at 12 phases from each side: recovery in 24/24, at 1.5 N/kg too); the panel's 1.5
+            # N/kg default once made the live robot fall after recovering (a fall resets the plots' window).
+            studio.robot_panel.push_force.value = 1.0
+            studio.robot_panel.push_direction.value = "right"
             page.get_by_role("button", name="Push (1 s)").click()
             wait_for_text(page, "balance recovery: walking", timeout_ms=300_000)
             page.screenshot(path=str(artifacts / "studio_balance_recovery_status.png"))
+            assert "fell at" not in page.inner_text("body"), "the pushed robot fell instead of recovering"
             shares = [float(s["recovery_share"][0]) for _, s in list(studio.plots.buffer) if "recovery_share" in s]
             assert max(shares) > 0.0  # what the Gait feedback plot draws as "neutral share"
             page.get_by_text("Plots", exact=True).first.click()
