@@ -239,7 +239,7 @@ def feasibility_markdown(sample: str, findings: list, limit: int = 3) -> str:
     if not findings:
         # (the check reads the reference: falls that begin in the closed loop only the rehearsal below can show)
         return (f"✓ **{sample}**: the reference check finds nothing in the way of walking it "
-                "<small>(the rehearsal walks it)</small>")
+                "<small>(it reads the reference; the rehearsal below walks it in physics)</small>")
     lines = [f"⚠️ **{f.sample}**, around {f.phase_pct:.0f} % of the cycle: {f.message}" for f in findings[:limit]]
     more = len(findings) - limit
     if more > 0:
