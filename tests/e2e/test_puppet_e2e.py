@@ -98,12 +98,34 @@ class EngineTap:
         with self.lock:
             return np.array([r for r in self.tracked if t0 <= r[0] <= t1]).reshape(-1, 4)
 
-    def window(self, t0: float, t1: float, sample, cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(cycle times, simulated arm angles) of the frames in [t0, t1]: each frame's gait time from the
+    def as_authored(self, t0: float) -> tuple[list[float], float]:
+        """Times of the Edit-mode frames from ``t0`` on that come after SETTLE_S of walking the sample as authored
+        (in_place's whole share of the blend in every telemetry sample of that span), and how much walking they
+        cover (s; gaps over 0.1 s between them do not count).
+
+        Balance recovery blends the neutral gait into the reference while ξ is off the plan, and the arms then
+        follow the blend, not the curves (the reference check in :func:`_walk_follows` allows for it). A CI run
+        walked the gesture with in_place's share down to 0.45 for part of its window (fast arm curves drift ξ), and
+        the arms were 0.16 rad off the pure curves; offline, a walk pushed into 55 % neutral is 0.11 rad off them,
+        0.06 off the blend — and the arms trail each change of the share."""
+        with self.lock:
+            tracked = np.array([(r[0], r[3]) for r in self.tracked if r[0] >= t0 - SETTLE_S]).reshape(-1, 2)
+            times = [t for t, _, _ in self.frames if t >= t0]
+        kept = []
+        for t in times:
+            span = tracked[(tracked[:, 0] >= t - SETTLE_S) & (tracked[:, 0] <= t)]
+            if len(span) >= 3 and span[0, 0] <= t - 0.8 * SETTLE_S and np.all(span[:, 1] > AS_AUTHORED_SHARE):
+                kept.append(t)
+        return kept, float(sum(min(b - a, 0.1) for a, b in zip(kept, kept[1:])))
+
+    def window(self, keep: list[float], sample, cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(cycle times, simulated arm angles) of the frames at the times ``keep``: each frame's gait time from the
         nearest telemetry phase (gait time advances with simulated time)."""
         pm = sample.intervals.phase_map()
+        wanted = set(keep)
+        t0, t1 = (min(keep), max(keep)) if keep else (0.0, -1.0)
         with self.lock:
-            frames = [(t, q) for t, _, q in self.frames if t0 <= t <= t1]
+            frames = [(t, q) for t, _, q in self.frames if t in wanted]
             tel = np.array([p for p in self.phases if t0 - 0.1 <= p[0] <= t1 + 0.1])
         times, angles = [], []
         for t, q in frames:
@@ -116,6 +138,7 @@ class EngineTap:
 
 
 PHASE_SKEW_S = 2 / 125.0  # two planner ticks
+AS_AUTHORED_SHARE = 0.999  # in_place's share of the blend above which the walk is the sample as authored
 IN_PLACE = SAMPLE_NAMES.index("in_place")
 
 
@@ -135,20 +158,25 @@ def _lagged_rms(q: np.ndarray, sample, joints, standing, times: np.ndarray, cycl
 
 
 def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, joints) -> tuple[float, float]:
-    """Wait (simulated time) until the walk has run the edit ``revision`` for SETTLE_S + WINDOW_S; the engine's
-    reference of the tracked arm joint is the curve's value at the walk's phase; returns the RMS (rad) of the
-    simulated arm angles against the sample it should follow and against the other one."""
+    """Wait (simulated time) until the walk has run the edit ``revision`` as authored (no balance recovery blend)
+    for SETTLE_S, then WINDOW_S more; the engine's reference of the tracked arm joint is the curve's value at the
+    walk's phase; returns the RMS (rad) of the simulated arm angles against the sample it should follow and
+    against the other one, over those WINDOW_S."""
     shown = _wait(lambda: tap.shown_at(revision), 300, f"style revision {revision} in the engine's frames", page)
-    _wait(lambda: tap.latest_time() >= shown + SETTLE_S + WINDOW_S, 600,
-          f"{SETTLE_S + WINDOW_S} s of simulated walking with revision {revision}", page)
+    _wait(lambda: tap.as_authored(shown + SETTLE_S)[1] >= WINDOW_S, 600,
+          f"{WINDOW_S} s of simulated walking as authored with revision {revision}", page)
+    keep, _ = tap.as_authored(shown + SETTLE_S)
+    covered = np.cumsum([0.0] + [min(b - a, 0.1) for a, b in zip(keep, keep[1:])])
+    keep = keep[:int(np.searchsorted(covered, WINDOW_S)) + 1]  # the first WINDOW_S of it
+    print(f"compared: {len(keep)} frames over {keep[0] - shown:.2f}–{keep[-1] - shown:.2f} s after the edit showed")
     cycle_s = follows.intervals.cycle_s
-    times, q = tap.window(shown + SETTLE_S, shown + SETTLE_S + WINDOW_S, follows, cycle_s)
+    times, q = tap.window(keep, follows, cycle_s)
     assert len(times) >= 10, f"only {len(times)} frames with a gait phase in the window"
     ctx = studio.session.ctx
     standing = ctx.standing_angles
     # the walk's reference is the curve: the tracked joint's reference (telemetry) at the phase it was planned for
     tracked = next(j for j in ctx.upper_joints if "elbow" in j)
-    refs = tap.references(shown + SETTLE_S, shown + SETTLE_S + WINDOW_S)
+    refs = tap.references(shown + SETTLE_S, keep[-1])
     assert len(refs) >= 5, f"only {len(refs)} telemetry samples of the tracked arm joint"
     pm = follows.intervals.phase_map()
     # the telemetry's phase and the reference it carries may come from planner ticks up to two periods apart
