@@ -18,6 +18,7 @@ import numpy as np
 from engine.control.walking_controller import WalkingController
 from engine.gait.command_schedule import CommandSchedule
 from engine.gait.style import SIDES, Style
+from engine.gait.support_edges import outside_support_m, support_edges
 from engine.constants import GRAVITY_MPS2
 from engine.geometry.polygon import convex_hull_2d, point_in_polygon
 from engine.robot.model import RobotModel
@@ -128,7 +129,8 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
                                             "sample_weights", "base_vel_body", "external_force",
                                             "pelvis_height_ref", "pelvis_height_achieved", "pelvis_yaw_ref",
                                             "pelvis_yaw_achieved", "elbow_ref", "elbow_achieved",
-                                            "gait_phase", "stance_drift_m", "reference_qpos")}
+                                            "gait_phase", "stance_drift_m", "support_edge", "com_outside_support_m",
+                                            "reference_qpos")}
     preview = None
     if record and record_reference:
         from engine.gait.kinematic_preview import KinematicPreview
@@ -232,6 +234,12 @@ def run_walk(robot: RobotModel, style: Style, schedule: CommandSchedule, duratio
             rec["elbow_achieved"].append(float(data.qpos[elbow_qpos]) if elbow_qpos is not None else math.nan)
             rec["gait_phase"].append(ref.phase)
             rec["stance_drift_m"].append(stance_drift)  # (2,) each sole's drift in stance (engine/stance_slip.py)
+            # the edge each grounded sole of the reference rolls on, and the measured CoM outside the support its
+            # grounded corners span (engine/gait/support_edges.py: the rehearsal's "edges" onset)
+            rec["support_edge"].append(support_edges(ref.contact, ref.corner_contact, ref.sole_corners, ref.foot_pos,
+                                                     ref.foot_rot))
+            rec["com_outside_support_m"].append(outside_support_m(com[:2], ref.contact, ref.corner_contact,
+                                                                  ref.sole_corners))
             if preview is not None:
                 com_xy = controller.plan.com_at(ref.t_s)[0] if controller.plan is not None else data.subtree_com[root][:2]
                 rec["reference_qpos"].append(robot.mj_qpos_from_pin(preview.solve(ref, np.asarray(com_xy))))

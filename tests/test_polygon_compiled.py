@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -36,3 +37,22 @@ def test_sole_rectangles() -> None:
             corners.append(c + np.array([[-0.1, -0.04], [0.1, -0.04], [0.1, 0.04], [-0.1, 0.04]]) @ rot.T)
         pts = np.vstack(corners)
         np.testing.assert_array_equal(convex_hull_2d(pts), convex_hull_2d_numpy(pts))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-np.pi, np.pi), st.floats(0.05, 0.4), st.floats(0.1, 0.3), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0))
+def test_two_soles_side_by_side_give_their_rectangle_at_any_heading(yaw, gap_m, length_m, x, y):
+    """Two soles side by side (a robot standing): the hull is the rectangle they span, whatever the heading. Turned by
+    ±π, the corners on one edge differ in x by rounding alone (−0.09999999999999999 against −0.10000000000000002),
+    and a hull sorted by raw x dropped an end of that edge (a CI-found hexagon inside the rectangle)."""
+    from scipy.spatial import ConvexHull
+
+    from engine.geometry.polygon import polygon_area
+
+    rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+    sole = np.array([[length_m / 2, 0.04], [length_m / 2, -0.04], [-length_m / 2, -0.04], [-length_m / 2, 0.04]])
+    pts = np.vstack([(sole + [0.0, side * (gap_m / 2 + 0.04)]) @ rot.T + [x, y] for side in (1.0, -1.0)])
+    expected = ConvexHull(pts).volume  # (qhull: a 2-D hull's "volume" is its area)
+    for hull in (convex_hull_2d(pts), convex_hull_2d_numpy(pts)):
+        assert abs(polygon_area(hull)) == pytest.approx(expected, rel=1e-9)
+        assert len(hull) == 4

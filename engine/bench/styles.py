@@ -20,8 +20,8 @@ styles sit, a fall and a walk are that close (README "Falls at a margin"). Per s
 many of its walks fell; the totals how many styles walked every time, never, or sometimes.
 
 Each fall's anatomy (the rehearsal's own analysis): ``fell_in``, the sample and phase it fell in; ``onset`` and
-``onset_s``, how and when it began — a sole in stance sliding, the body behind or ahead of its plan along the walk
-or across it, or drifting while standing (engine/gait/rehearsal.py ``ONSET_KINDS``; "unseen": none of these before
+``onset_s``, how and when it began — both feet on their heel or toe edges with the body outside them, a sole in
+stance sliding, the body behind or ahead of its plan along the walk or across it, or drifting while standing (engine/gait/rehearsal.py ``ONSET_KINDS``; "unseen": none of these before
 the fall); ``onset_runs`` per walk with ``--repeat``. The totals count the kinds over all the falls.
 """
 

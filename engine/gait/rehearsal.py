@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from engine.gait.style import Style
+from engine.gait.style import SIDES, Style
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from engine.robot.model import RobotModel
 
@@ -50,9 +50,15 @@ PROGRESS_PERIOD_S = 0.5  # simulated seconds between progress reports
 MAX_DURATION_S = 600.0  # the longest rehearsal the command line and the studio accept
 MOVING_MPS = 0.05  # a command at least this fast: drift is told along / across the direction of travel
 MAX_WALKS = 10
-#: How a fall began (:func:`_onset`), for tables: a foot in support slid, the body fell behind / ran ahead of its
-#: plan along the walk or drifted across it, or (standing or turning in place) it drifted front to back / sideways.
-ONSET_KINDS = ("slide", "behind", "ahead", "across", "front-back", "sideways")
+#: Both feet on the ground, at least one rolled on its heel or toe, and the body this far outside the support their
+#: grounded corners span for at least EDGES_S: the style stands the robot where nothing under it can hold it.
+#: (Walkers pass through such supports for a few hundredths of a second; stumbly, reachable-0-17, stood 0.33 s on
+#: both toes with its body behind them before it fell backward.)
+EDGES_S = 0.15
+#: How a fall began (:func:`_onset`), for tables: the feet stood on their edges with the body outside them, a foot in
+#: support slid, the body fell behind / ran ahead of its plan along the walk or drifted across it, or (standing or
+#: turning in place) it drifted front to back / sideways.
+ONSET_KINDS = ("edges", "slide", "behind", "ahead", "across", "front-back", "sideways")
 
 
 @dataclass(frozen=True)
@@ -191,8 +197,9 @@ def describe(summary: dict, rec: dict[str, np.ndarray], duration_s: float) -> Re
 
 
 def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str | None, str]:
-    """The first instant in the last :data:`LOOKBACK_S` before the fall where the body left the plan or a
-    foot on the ground slid: (its time, its kind of :data:`ONSET_KINDS`, what happened in words)."""
+    """The first instant in the last :data:`LOOKBACK_S` before the fall where the feet stood on their edges with the
+    body outside them, the body left the plan or a foot on the ground slid: (its time, its kind of
+    :data:`ONSET_KINDS`, what happened in words)."""
     t = np.asarray(rec["t"])
     window = t >= fall_t - LOOKBACK_S
     com = np.asarray(rec["com"])[:, :2]
@@ -205,6 +212,9 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
     far = window & (np.hypot(ahead, left) >= DRIFT_M) & np.all(np.isfinite(com_ref), axis=1)
     slide_t, slide_side = _first_slide(rec, window)
     drift_t = float(t[np.argmax(far)]) if far.any() else None
+    edges_t, edges_text = _first_edges(rec, window)
+    if edges_t is not None and all(other is None or edges_t <= other for other in (slide_t, drift_t)):
+        return edges_t, "edges", edges_text
     if slide_t is not None and (drift_t is None or slide_t < drift_t):
         return slide_t, "slide", (f"the {slide_side} foot started sliding on the ground (less friction than the step "
                                   "needs)")
@@ -231,6 +241,39 @@ def _onset(rec: dict[str, np.ndarray], fall_t: float) -> tuple[float | None, str
         where = "left of" if left[k] > 0 else "right of"
         kind, advice = "sideways", "its sideways balance did not hold: a wider stance or less pelvis sway"
     return drift_t, kind, f"the body drifted {100 * DRIFT_M:.0f} cm {where} where it should stand ({advice})"
+
+
+def _first_edges(rec: dict[str, np.ndarray], window: np.ndarray) -> tuple[float | None, str]:
+    """Start of the first stretch in ``window`` of at least :data:`EDGES_S` where both feet are on the ground, at
+    least one rolled on its heel or toe, and the body :data:`DRIFT_M` outside the support of their grounded corners
+    (engine/gait/support_edges.py, recorded as ``support_edge`` and ``com_outside_support_m``), and what it was."""
+    from engine.gait.support_edges import EDGE_WORDS
+
+    if "support_edge" not in rec or "com_outside_support_m" not in rec:
+        return None, ""  # (a recording made before these were)
+    t = np.asarray(rec["t"])
+    edge = np.asarray(rec["support_edge"]).reshape(len(t), 2)
+    outside = np.asarray(rec["com_outside_support_m"], dtype=float)
+    both = np.asarray(rec["contact"]).reshape(len(t), 2).all(axis=1)
+    hit = window & both & (edge > 0).any(axis=1) & (np.nan_to_num(outside, nan=0.0) >= DRIFT_M)
+    idx = np.flatnonzero(hit)
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    stretches = zip(np.r_[idx[:1], idx[breaks + 1]].tolist(), np.r_[idx[breaks], idx[-1:]].tolist())
+    start = next((a for a, b in stretches if t[b] - t[a] >= EDGES_S), None)
+    if start is None:
+        return None, ""
+    codes = edge[start].tolist()
+    words = [EDGE_WORDS.get(c) for c in codes]
+    if words[0] is not None and words[0] == words[1]:
+        feet = f"both feet stood on their {words[0]}s"
+    else:
+        i = 0 if words[0] is not None else 1
+        other = words[1 - i]
+        feet = (f"the {SIDES[i]} foot stood on its {words[i]} and the {SIDES[1 - i]} foot "
+                + (f"on its {other}" if other else "flat"))
+    return float(t[start]), (f"{feet} with the body {100 * DRIFT_M:.0f} cm outside them for {EDGES_S:g} s or more "
+                             "(nothing under it could hold it: land and lift the feet flatter, with less heel or toe "
+                             "pitch at touchdown and liftoff, or shorter heel/toe transitions)")
 
 
 def _first_slide(rec: dict[str, np.ndarray], window: np.ndarray) -> tuple[float | None, str]:

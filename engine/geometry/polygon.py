@@ -21,9 +21,20 @@ def convex_hull_2d(points: np.ndarray) -> np.ndarray:
     return _hull_compiled(pts)
 
 
+#: The monotone chain sorts by x on this grid (m), then by y. Sorted by raw x, points on one vertical line whose x
+#: differ by rounding alone (soles side by side: −0.09999999999999999 and −0.10000000000000002) come in an order
+#: along the line that is not theirs, and the collinear test then drops an end of the line: two feet side by side
+#: gave a hexagon inside their rectangle (tests/test_polygon_compiled.py).
+SORT_GRID_M = 1e-12
+
+
+def _sort_key(p: tuple[float, float]) -> tuple[float, float]:
+    return (math.floor(p[0] / SORT_GRID_M + 0.5), p[1])
+
+
 def convex_hull_2d_numpy(points: np.ndarray) -> np.ndarray:
     """The reference (plain Python) of :func:`convex_hull_2d`."""
-    pts = sorted(map(tuple, np.asarray(points, dtype=float).tolist()))
+    pts = sorted(map(tuple, np.asarray(points, dtype=float).tolist()), key=_sort_key)
     if len(pts) <= 2:
         return np.array(pts, dtype=float)
     lower: list = []
@@ -43,13 +54,18 @@ def convex_hull_2d_numpy(points: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _hull_compiled(points):  # noqa: ANN001, ANN201
-    """:func:`convex_hull_2d_numpy` for N ≥ 3 points: the same lexicographic order, turn test and tolerance."""
+    """:func:`convex_hull_2d_numpy` for N ≥ 3 points: the same order (x on :data:`SORT_GRID_M`, then y), turn test
+    and tolerance."""
     n = points.shape[0]
     pts = points.copy()
-    for i in range(1, n):  # insertion sort by (x, y): the order of Python's sorted() on tuples
+    for i in range(1, n):  # insertion sort by (grid x, y): the order of Python's sorted() with _sort_key (stable)
         x, y = pts[i, 0], pts[i, 1]
+        gx = math.floor(x / SORT_GRID_M + 0.5)
         j = i - 1
-        while j >= 0 and (pts[j, 0] > x or (pts[j, 0] == x and pts[j, 1] > y)):
+        while j >= 0:
+            gj = math.floor(pts[j, 0] / SORT_GRID_M + 0.5)
+            if not (gj > gx or (gj == gx and pts[j, 1] > y)):
+                break
             pts[j + 1, 0], pts[j + 1, 1] = pts[j, 0], pts[j, 1]
             j -= 1
         pts[j + 1, 0], pts[j + 1, 1] = x, y

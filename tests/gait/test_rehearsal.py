@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from engine.gait.rehearsal import DRIFT_M, SLIDE_M, combine, describe, rehearse
+from engine.gait.rehearsal import DRIFT_M, EDGES_S, SLIDE_M, combine, describe, rehearse
 from engine.gait.velocity_sampler import SAMPLE_NAMES
 from tests.conftest import REPO
 
@@ -95,6 +95,39 @@ def test_a_foot_rolling_to_lift_off_is_not_sliding():
     rec["foot_pos"][100:, 0, 0] = np.arange(100) * 0.001  # the sole centre moves 10 cm: a toe-off, not in stance
     result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
     assert result.onset_kind == "behind" and "sliding" not in result.message
+
+
+def _on_toes(rec: dict[str, np.ndarray], frames: slice, outside_m: float = 0.05) -> None:
+    """Both feet on their toes over ``frames`` with the body ``outside_m`` behind the toe edges."""
+    n = len(rec["t"])
+    rec.setdefault("support_edge", np.zeros((n, 2), dtype=np.int64))
+    rec.setdefault("com_outside_support_m", np.full(n, -0.05))
+    rec["support_edge"][frames] = 2
+    rec["com_outside_support_m"][frames] = outside_m
+
+
+def test_both_feet_on_their_toes_with_the_body_behind_them_is_named_before_the_drift_it_causes():
+    """stumbly (reachable-0-17) stood 0.33 s on both toes, its body behind them, before it fell backward: the onset is
+    that stance, said with what to change."""
+    rec = _recording(drift_from=150)
+    _on_toes(rec, slice(100, 140))  # 0.32 s
+    result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
+    assert result.onset_kind == "edges" and result.onset_time_s == pytest.approx(rec["t"][100])
+    assert "both feet stood on their toes with the body 3 cm outside them" in result.message
+    assert "less heel or toe pitch at touchdown and liftoff" in result.message
+
+
+@pytest.mark.parametrize(("frames", "outside_m", "contact_right"), [
+    (slice(100, 100 + int(EDGES_S / 0.008) - 2), 0.05, True),  # walkers pass through it briefly
+    (slice(100, 140), DRIFT_M - 0.005, True),  # the body not far enough outside
+    (slice(100, 140), 0.05, False),  # one foot in the air: a single support on the toe is walking
+])
+def test_a_brief_or_near_or_single_support_on_the_edges_is_no_onset(frames, outside_m, contact_right):
+    rec = _recording(drift_from=150)
+    _on_toes(rec, frames, outside_m)
+    rec["contact"][frames, 1] = contact_right
+    result = describe(_summary(True, float(rec["t"][-1])), rec, 60.0)
+    assert result.onset_kind == "behind"
 
 
 def test_a_fall_without_a_visible_beginning_still_gives_sample_and_phase():
