@@ -144,6 +144,8 @@ def test_a_style_that_falls_says_where_before_test_is_pressed(server, tmp_path, 
         assert fell["fell"] and fell["sample"] and fell["phase_pct"] is not None
         wait(lambda: panel.show_fall.visible, 10)
         assert "falls at" in panel.status.content and "% of its cycle" in panel.status.content
+        # and how it began, with what to change (engine/gait/rehearsal.py, the "edges" onset)
+        assert "both feet stood on their toes" in panel.status.content and "less heel or toe pitch" in panel.status.content
         # The button selects the sample the walk fell in (the app selects it in the Sample and Curves tabs).
         assert panel.show_fall.label == f"Show {fell['sample']}" and panel.show_fall_sample() == fell["sample"]
         assert shown == [fell["sample"]]
