@@ -21,8 +21,9 @@ many of its walks fell; the totals how many styles walked every time, never, or 
 
 Each fall's anatomy (the rehearsal's own analysis): ``fell_in``, the sample and phase it fell in; ``onset`` and
 ``onset_s``, how and when it began — both feet on their heel or toe edges with the body outside them, a sole in
-stance sliding, the body behind or ahead of its plan along the walk or across it, or drifting while standing (engine/gait/rehearsal.py ``ONSET_KINDS``; "unseen": none of these before
-the fall); ``onset_runs`` per walk with ``--repeat``. The totals count the kinds over all the falls.
+stance sliding, the body behind or ahead of its plan along the walk or across it, or drifting while standing
+(engine/gait/rehearsal.py ``ONSET_KINDS``; "unseen": none of these before the fall); ``onset_runs`` per walk with
+``--repeat``. The totals count the kinds over all the falls.
 """
 
 from __future__ import annotations

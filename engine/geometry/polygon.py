@@ -29,7 +29,7 @@ SORT_GRID_M = 1e-12
 
 
 def _sort_key(p: tuple[float, float]) -> tuple[float, float]:
-    return (math.floor(p[0] / SORT_GRID_M + 0.5), p[1])
+    return (float(np.floor(p[0] / SORT_GRID_M + 0.5)), p[1])  # (np.floor: a NaN stays a NaN, as before)
 
 
 def convex_hull_2d_numpy(points: np.ndarray) -> np.ndarray:
@@ -60,10 +60,10 @@ def _hull_compiled(points):  # noqa: ANN001, ANN201
     pts = points.copy()
     for i in range(1, n):  # insertion sort by (grid x, y): the order of Python's sorted() with _sort_key (stable)
         x, y = pts[i, 0], pts[i, 1]
-        gx = math.floor(x / SORT_GRID_M + 0.5)
+        gx = np.floor(x / SORT_GRID_M + 0.5)
         j = i - 1
         while j >= 0:
-            gj = math.floor(pts[j, 0] / SORT_GRID_M + 0.5)
+            gj = np.floor(pts[j, 0] / SORT_GRID_M + 0.5)
             if not (gj > gx or (gj == gx and pts[j, 1] > y)):
                 break
             pts[j + 1, 0], pts[j + 1, 1] = pts[j, 0], pts[j, 1]
