@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry.polygon import convex_hull_2d, polygon_halfplanes
+from engine.geometry.polygon import convex_hull_2d, outside_distance_m
 
 FloatArray = NDArray[np.float64]
 
@@ -57,8 +57,7 @@ def outside_support_m(point_xy: FloatArray, contact: NDArray[np.bool_], corner_c
         ab = b - a
         u = min(max(float((point - a) @ ab) / max(float(ab @ ab), 1e-18), 0.0), 1.0)
         return float(np.linalg.norm(point - (a + u * ab)))
-    normals, offsets = polygon_halfplanes(hull)
-    return float(np.max(normals @ point - offsets))
+    return outside_distance_m(point, hull)
 
 
 __all__ = ["support_edges", "outside_support_m", "EDGE_FLAT", "EDGE_HEEL", "EDGE_TOE", "EDGE_WORDS"]

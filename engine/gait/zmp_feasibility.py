@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from engine.constants import GRAVITY_MPS2
 from engine.control.mpc import ComMpc, ComMpcSolution, SupportPhase
-from engine.geometry.polygon import clip_into_polygon, polygon_halfplanes
+from engine.geometry.polygon import clip_into_polygon, outside_distance_m
 
 FloatArray = NDArray[np.float64]
 
@@ -50,14 +50,6 @@ def required_cop(com_xy_m: FloatArray, plan_cop_xy_m: FloatArray, com_height_m: 
     accel = (GRAVITY_MPS2 / lip_height_m) * (com - np.asarray(plan_cop_xy_m, dtype=float))
     load = max(GRAVITY_MPS2 + com_vertical_accel_mps2, 1e-6)
     return com - (com_height_m / load) * accel
-
-
-def outside_distance_m(point_xy: FloatArray, polygon: FloatArray) -> float:
-    """How far ``point_xy`` lies outside the convex ``polygon`` (the largest half-plane violation; ≤ 0 inside)."""
-    normals, offsets = polygon_halfplanes(polygon)
-    if len(offsets) == 0:
-        return float(np.linalg.norm(np.asarray(point_xy) - np.asarray(polygon).reshape(-1, 2).mean(axis=0)))
-    return float(np.max(normals @ np.asarray(point_xy, dtype=float) - offsets))
 
 
 def support_at(supports: Sequence[SupportPhase], t_s: float) -> FloatArray:

@@ -21,20 +21,28 @@ def convex_hull_2d(points: np.ndarray) -> np.ndarray:
     return _hull_compiled(pts)
 
 
-#: The monotone chain sorts by x on this grid (m), then by y. Sorted by raw x, points on one vertical line whose x
-#: differ by rounding alone (soles side by side: −0.09999999999999999 and −0.10000000000000002) come in an order
-#: along the line that is not theirs, and the collinear test then drops an end of the line: two feet side by side
-#: gave a hexagon inside their rectangle (tests/test_polygon_compiled.py).
-SORT_GRID_M = 1e-12
+#: The monotone chain sorts by x, then by y; points whose x lie within this (m) of the first of their run sort as
+#: one x, by y. Sorted by raw x, points on one vertical line whose x differ by rounding alone (soles side by side:
+#: −0.09999999999999999 and −0.10000000000000002) come in an order along the line that is not theirs, and the
+#: collinear test then drops an end of the line: two feet side by side gave a hexagon inside their rectangle
+#: (tests/test_polygon_compiled.py). Runs, not a grid: a grid splits such x wherever a grid line falls between them.
+SAME_X_M = 1e-12
 
 
-def _sort_key(p: tuple[float, float]) -> tuple[float, float]:
-    return (float(np.floor(p[0] / SORT_GRID_M + 0.5)), p[1])  # (np.floor: a NaN stays a NaN, as before)
+def _chain_order(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """``points`` in the monotone chain's order: by x (runs within :data:`SAME_X_M` as one x), then y."""
+    keyed = []
+    run, run_x = -1, math.nan
+    for p in sorted(points):
+        if not p[0] - run_x <= SAME_X_M:  # (a NaN starts a run of its own)
+            run, run_x = run + 1, p[0]
+        keyed.append((run, p))
+    return [p for _, p in sorted(keyed, key=lambda k: (k[0], k[1][1]))]
 
 
 def convex_hull_2d_numpy(points: np.ndarray) -> np.ndarray:
     """The reference (plain Python) of :func:`convex_hull_2d`."""
-    pts = sorted(map(tuple, np.asarray(points, dtype=float).tolist()), key=_sort_key)
+    pts = _chain_order(list(map(tuple, np.asarray(points, dtype=float).tolist())))
     if len(pts) <= 2:
         return np.array(pts, dtype=float)
     lower: list = []
@@ -54,21 +62,30 @@ def convex_hull_2d_numpy(points: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _hull_compiled(points):  # noqa: ANN001, ANN201
-    """:func:`convex_hull_2d_numpy` for N ≥ 3 points: the same order (x on :data:`SORT_GRID_M`, then y), turn test
-    and tolerance."""
+    """:func:`convex_hull_2d_numpy` for N ≥ 3 points: the same order (:func:`_chain_order`), turn test and
+    tolerance."""
     n = points.shape[0]
     pts = points.copy()
-    for i in range(1, n):  # insertion sort by (grid x, y): the order of Python's sorted() with _sort_key (stable)
+    for i in range(1, n):  # insertion sort by (x, y): the order of Python's sorted() on tuples
         x, y = pts[i, 0], pts[i, 1]
-        gx = np.floor(x / SORT_GRID_M + 0.5)
         j = i - 1
-        while j >= 0:
-            gj = np.floor(pts[j, 0] / SORT_GRID_M + 0.5)
-            if not (gj > gx or (gj == gx and pts[j, 1] > y)):
-                break
+        while j >= 0 and (pts[j, 0] > x or (pts[j, 0] == x and pts[j, 1] > y)):
             pts[j + 1, 0], pts[j + 1, 1] = pts[j, 0], pts[j, 1]
             j -= 1
         pts[j + 1, 0], pts[j + 1, 1] = x, y
+    runs = np.empty(n)  # each point's run of x within SAME_X_M of its first
+    run, run_x = -1.0, np.nan
+    for i in range(n):
+        if not pts[i, 0] - run_x <= SAME_X_M:
+            run, run_x = run + 1.0, pts[i, 0]
+        runs[i] = run
+    for i in range(1, n):  # stable insertion sort by (run, y)
+        x, y, r = pts[i, 0], pts[i, 1], runs[i]
+        j = i - 1
+        while j >= 0 and (runs[j] > r or (runs[j] == r and pts[j, 1] > y)):
+            pts[j + 1, 0], pts[j + 1, 1], runs[j + 1] = pts[j, 0], pts[j, 1], runs[j]
+            j -= 1
+        pts[j + 1, 0], pts[j + 1, 1], runs[j + 1] = x, y, r
     lower = np.empty((n, 2))
     k = 0
     for i in range(n):
@@ -162,6 +179,15 @@ def polygon_halfplanes(polygon: ArrayLike) -> tuple[FloatArray, FloatArray]:
     normals = np.stack([edges[keep, 1], -edges[keep, 0]], axis=1) / length[keep, None]
     offsets = np.einsum("ij,ij->i", normals, v[keep])
     return normals, offsets
+
+
+def outside_distance_m(point_xy: ArrayLike, polygon: ArrayLike) -> float:
+    """How far ``point_xy`` lies outside the convex ``polygon`` (the largest half-plane violation; ≤ 0 inside; a
+    polygon of fewer than three vertices: the distance to their mean)."""
+    normals, offsets = polygon_halfplanes(polygon)
+    if len(offsets) == 0:
+        return float(np.linalg.norm(np.asarray(point_xy) - np.asarray(polygon).reshape(-1, 2).mean(axis=0)))
+    return float(np.max(normals @ np.asarray(point_xy, dtype=float) - offsets))
 
 
 #: Half-planes of recently seen polygons, by value (support polygons recur tick after tick).

@@ -98,10 +98,9 @@ class EngineTap:
         with self.lock:
             return np.array([r for r in self.tracked if t0 <= r[0] <= t1]).reshape(-1, 4)
 
-    def as_authored(self, t0: float) -> tuple[list[float], float]:
+    def as_authored(self, t0: float) -> list[float]:
         """Times of the Edit-mode frames from ``t0`` on that come after SETTLE_S of walking the sample as authored
-        (in_place's whole share of the blend in every telemetry sample of that span), and how much walking they
-        cover (s; gaps over 0.1 s between them do not count).
+        (in_place's whole share of the blend in every telemetry sample of that span).
 
         Balance recovery blends the neutral gait into the reference while ξ is off the plan, and the arms then
         follow the blend, not the curves (the reference check in :func:`_walk_follows` allows for it). A CI run
@@ -116,7 +115,7 @@ class EngineTap:
             span = tracked[(tracked[:, 0] >= t - SETTLE_S) & (tracked[:, 0] <= t)]
             if len(span) >= 3 and span[0, 0] <= t - 0.8 * SETTLE_S and np.all(span[:, 1] > AS_AUTHORED_SHARE):
                 kept.append(t)
-        return kept, float(sum(min(b - a, 0.1) for a, b in zip(kept, kept[1:])))
+        return kept
 
     def window(self, keep: list[float], sample, cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
         """(cycle times, simulated arm angles) of the frames at the times ``keep``: each frame's gait time from the
@@ -157,17 +156,21 @@ def _lagged_rms(q: np.ndarray, sample, joints, standing, times: np.ndarray, cycl
                for lag in LAGS_S)
 
 
+def _covered_s(times: list[float]) -> np.ndarray:
+    """The walking that frames at ``times`` cover up to each of them (s; a gap over 0.1 s between two counts 0.1)."""
+    return np.cumsum([0.0] + [min(b - a, 0.1) for a, b in zip(times, times[1:])])
+
+
 def _walk_follows(studio, tap: EngineTap, page, revision: int, follows, other, joints) -> tuple[float, float]:
     """Wait (simulated time) until the walk has run the edit ``revision`` as authored (no balance recovery blend)
     for SETTLE_S, then WINDOW_S more; the engine's reference of the tracked arm joint is the curve's value at the
     walk's phase; returns the RMS (rad) of the simulated arm angles against the sample it should follow and
     against the other one, over those WINDOW_S."""
     shown = _wait(lambda: tap.shown_at(revision), 300, f"style revision {revision} in the engine's frames", page)
-    _wait(lambda: tap.as_authored(shown + SETTLE_S)[1] >= WINDOW_S, 600,
+    _wait(lambda: _covered_s(tap.as_authored(shown + SETTLE_S))[-1] >= WINDOW_S, 600,
           f"{WINDOW_S} s of simulated walking as authored with revision {revision}", page)
-    keep, _ = tap.as_authored(shown + SETTLE_S)
-    covered = np.cumsum([0.0] + [min(b - a, 0.1) for a, b in zip(keep, keep[1:])])
-    keep = keep[:int(np.searchsorted(covered, WINDOW_S)) + 1]  # the first WINDOW_S of it
+    keep = tap.as_authored(shown + SETTLE_S)
+    keep = keep[:int(np.searchsorted(_covered_s(keep), WINDOW_S)) + 1]  # the first WINDOW_S of it
     print(f"compared: {len(keep)} frames over {keep[0] - shown:.2f}–{keep[-1] - shown:.2f} s after the edit showed")
     cycle_s = follows.intervals.cycle_s
     times, q = tap.window(keep, follows, cycle_s)
