@@ -8,7 +8,13 @@ stays continuous. The style comes back once the error has stayed small for a whi
 
 ``RecoveryBlend.update`` maps the ξ error e to a target share ``clip((e − e₀) / (e₁ − e₀), 0, 1)`` of the
 neutral gait. Where the robot enables it, the step adjustment's size maps the same way (``recovery_step_adjust_m``
-→ ``recovery_full_step_adjust_m``) and the larger share wins. The MPC re-plans from the measured state every tick, so
+→ ``recovery_full_step_adjust_m``) and the larger share wins. So does the measured CoM's distance outside the double
+support the reference holds (``recovery_support_outside_m`` → ``recovery_full_support_outside_m``): a style that lands
+a foot on its toe while the other rolls onto its toe gives the MPC only the two toe strips to put the CoP on, and a
+body left behind them is pushed further back by a CoP ahead of it (engine/gait/support_edges.py); the ξ error stays
+small until the robot is already falling backward. That distance counts once it has stayed beyond its start for
+``recovery_support_outside_for_s`` without a break (a touchdown or a liftoff passes through a thin support for a few
+hundredths of a second). The MPC re-plans from the measured state every tick, so
 a robot that does not go where the gait steps (a strafe it cannot follow: the nominal footholds run away from it) can
 keep ξ near its plan while the step adjustment moves every swing foot far from its nominal foothold. That size is
 the controller's (engine/control/step_adjustment.py): measured from the nominal footholds of the gait being walked,
@@ -39,13 +45,16 @@ class RecoveryBlend:
 
     def __init__(self, params: WalkingParameters):
         self.params = params
-        self.enabled = math.isfinite(params.recovery_xi_error_m) or math.isfinite(params.recovery_step_adjust_m)
+        self.enabled = (math.isfinite(params.recovery_xi_error_m) or math.isfinite(params.recovery_step_adjust_m)
+                        or math.isfinite(params.recovery_support_outside_m))
         self.share = 0.0  # continuous
         self.blend_share = 0.0  # quantised: what the planner blends
-        # The walk's start, not a recovery: from ``reset`` until the share first reaches 0, or until the ξ error or the
-        # step adjustment asks for all of it (then it is a recovery). Recovery time and share do not count it.
+        # The walk's start, not a recovery: from ``reset`` until the share first reaches 0, or until a signal (ξ, the
+        # step adjustment, the body outside its support) asks for all of it (then it is a recovery). Recovery time and
+        # share do not count it.
         self.starting = False
         self._calm_s = math.inf  # time since the target last reached the share
+        self._outside_s = 0.0  # how long the CoM has stood beyond recovery_support_outside_m without a break
         self.time_in_recovery_s = 0.0
         self.share_time_s = 0.0  # ∫ blend_share dt (the walk's mean share = this ÷ its duration)
 
@@ -63,21 +72,28 @@ class RecoveryBlend:
         """No recovery blend this tick (the robot walks its neutral style itself): the share rests at 0."""
         self.share = self.blend_share = 0.0
         self._calm_s = math.inf
+        self._outside_s = 0.0
         self.starting = False
 
-    def target(self, xi_error_m: float, step_adjust_m: float = 0.0) -> float:
-        """The neutral share the ξ error and the step adjustment's size ask for (the larger)."""
+    def target(self, xi_error_m: float, step_adjust_m: float = 0.0, support_outside_m: float = 0.0) -> float:
+        """The neutral share the ξ error, the step adjustment's size and the CoM's distance outside the reference's
+        double support ask for (the largest)."""
         p = self.params
         return max(_ramp(xi_error_m, p.recovery_xi_error_m, p.recovery_full_xi_error_m),
-                   _ramp(step_adjust_m, p.recovery_step_adjust_m, p.recovery_full_step_adjust_m))
+                   _ramp(step_adjust_m, p.recovery_step_adjust_m, p.recovery_full_step_adjust_m),
+                   _ramp(support_outside_m, p.recovery_support_outside_m, p.recovery_full_support_outside_m))
 
-    def update(self, xi_error_m: float, dt_s: float, step_adjust_m: float = 0.0) -> float:
-        """Advance by ``dt_s`` with this tick's ξ error and step adjustment size (m); returns the quantised share
-        to blend."""
+    def update(self, xi_error_m: float, dt_s: float, step_adjust_m: float = 0.0, support_outside_m: float = 0.0) -> float:
+        """Advance by ``dt_s`` with this tick's ξ error, step adjustment size and CoM distance outside the double
+        support (m); returns the quantised share to blend."""
         if not self.enabled:
             return 0.0
         p = self.params
-        target = self.target(xi_error_m, step_adjust_m)
+        outside = not support_outside_m <= p.recovery_support_outside_m  # (a NaN reading counts as outside)
+        self._outside_s = self._outside_s + dt_s if outside else 0.0
+        if self._outside_s < p.recovery_support_outside_for_s - 1e-9:
+            support_outside_m = 0.0  # not for long enough yet
+        target = self.target(xi_error_m, step_adjust_m, support_outside_m)
         if target >= self.share:
             self.starting = False  # the error asks for the whole share: a recovery from here
             self._calm_s = 0.0

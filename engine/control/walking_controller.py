@@ -31,6 +31,7 @@ from engine.control.walking_parameters import WalkingParameters
 from engine.control.touchdown import TouchdownTracker
 from engine.control.walking_telemetry import WalkingTelemetry, update_telemetry
 from engine.gait.footsteps import Foothold
+from engine.gait.support_edges import outside_support_m
 from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
 from engine.geometry.vector import vector_norm
 from engine.gait.offline_plan import planner_for
@@ -223,6 +224,15 @@ class WalkingController:
         self.tick += 1
         return cmd
 
+    def _outside_support_m(self, com_xy: np.ndarray) -> float:
+        """How far the measured CoM stands outside the double support the reference holds (m; 0 inside, in single
+        support, or where the robot does not count it: ``recovery_support_outside_m`` inf)."""
+        ref = self.ref
+        if not math.isfinite(self.params.recovery_support_outside_m) or ref is None or not bool(ref.contact.all()):
+            return 0.0
+        distance_m = outside_support_m(com_xy, ref.contact, ref.corner_contact, ref.sole_corners)
+        return max(distance_m, 0.0) if math.isfinite(distance_m) else 0.0
+
     def _com_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Horizontal CoM position and velocity of this tick's state (computed once in compute())."""
         return self._com_now[0][:2].copy(), self._com_now[1][:2].copy()
@@ -269,7 +279,7 @@ class WalkingController:
             if planner.recovers_toward_other_gait:
                 ax, ay = fb.step_adjust_m.tolist()  # how far the swing feet land from the style's footholds
                 recovery_share = self.recovery.update(self.step_adjustment.xi_error_m, PLAN_DT_S,
-                                                      math.sqrt(ax * ax + ay * ay))
+                                                      math.sqrt(ax * ax + ay * ay), self._outside_support_m(com))
             else:  # walking the neutral style itself: nothing to blend toward, nothing to report
                 self.recovery.idle()
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(

@@ -113,6 +113,15 @@ class WalkingParameters:
     # plan), fully neutral at ``recovery_full_step_adjust_m``. inf: the step adjustment does not count.
     recovery_step_adjust_m: float = float("inf")
     recovery_full_step_adjust_m: float = 0.3
+    # ... and while the measured CoM stands this far outside the double support the reference holds (the convex hull
+    # of both feet's grounded sole corners; a style that lands a foot on its toe with the body behind it), fully
+    # neutral at ``recovery_full_support_outside_m``. Counted only while the reference holds both feet on the ground
+    # (in single support the CoM is outside the foot by design). inf: it does not count.
+    # It counts once the CoM has stood beyond ``recovery_support_outside_m`` for ``recovery_support_outside_for_s``
+    # without a break: touchdowns and liftoffs pass through thin supports for a few hundredths of a second.
+    recovery_support_outside_m: float = float("inf")
+    recovery_full_support_outside_m: float = 0.06
+    recovery_support_outside_for_s: float = 0.1
     recovery_rise_s: float = 0.1
     recovery_hold_s: float = 0.5
     recovery_decay_s: float = 1.5

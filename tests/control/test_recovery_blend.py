@@ -112,6 +112,60 @@ def test_the_step_adjustment_counts_only_when_enabled_and_the_larger_signal_wins
     assert shares[-1] == 1.0
 
 
+def test_the_body_outside_its_double_support_counts_only_when_enabled_and_the_largest_signal_wins():
+    assert RecoveryBlend(ON).target(0.0, 0.0, 0.5) == 0.0  # recovery_support_outside_m is off (inf) by default
+    alone = RecoveryBlend(dataclasses.replace(WalkingParameters(), recovery_support_outside_m=0.02,
+                                              recovery_full_support_outside_m=0.05))
+    assert alone.enabled  # the support signal alone switches recovery on
+    assert alone.target(0.0, 0.0, 0.02) == 0.0 and alone.target(0.0, 0.0, 0.05) == 1.0
+    assert alone.target(0.0, 0.0, 0.035) == pytest.approx(0.5)
+    assert alone.target(0.0, 0.0, math.nan) == 1.0  # on: a broken reading recovers
+    three = RecoveryBlend(dataclasses.replace(ON, recovery_step_adjust_m=0.1, recovery_full_step_adjust_m=0.3,
+                                              recovery_support_outside_m=0.02, recovery_full_support_outside_m=0.05))
+    assert three.target(0.055, 0.15, 0.026) == pytest.approx(0.5)  # ξ asks 0.5, the others 0.25 and 0.2
+    assert three.target(0.04, 0.15, 0.0425) == pytest.approx(0.75)  # the support asks 0.75
+    # In a walk it counts once the CoM has stayed beyond the start for recovery_support_outside_for_s (0.1 s):
+    # a touchdown passing through a thin support for a few ticks asks for nothing.
+    for_ticks = math.ceil(three.params.recovery_support_outside_for_s / DT - 1e-9)
+    assert [three.update(0.0, DT, 0.0, 0.06) for _ in range(for_ticks - 1)] == [0.0] * (for_ticks - 1)
+    assert three.update(0.0, DT, 0.0, 0.01) == 0.0  # back inside: the count starts again
+    assert [three.update(0.0, DT, 0.0, 0.06) for _ in range(for_ticks - 1)] == [0.0] * (for_ticks - 1)
+    shares = [three.update(0.0, DT, 0.0, 0.06) for _ in range(int(0.1 / DT) + 2)]  # the body stays behind both toes
+    assert shares[0] > 0.0 and shares[-1] == 1.0
+    three.idle()
+    assert three.update(0.0, DT, 0.0, 0.06) == 0.0  # a new count after the recovery was idled
+
+
+def test_the_controller_measures_the_body_outside_the_references_double_support_only():
+    """``WalkingController._outside_support_m``: 0 with the CoM between the feet, the distance past the toes with it
+    ahead of them, 0 in single support and where the robot does not count it."""
+    from engine.control.walking_controller import WalkingController
+    from engine.sim import Simulation
+
+    robot = load_robot("g1")
+    neutral = load_style(styles_dir("g1") / "neutral.json", StyleContext.for_robot("g1"))
+    controller = WalkingController(robot, neutral)
+    assert math.isfinite(controller.params.recovery_support_outside_m)  # on for G1 (robots/g1.toml)
+    sim = Simulation(robot, controller)
+    sim.reset()
+    for _ in range(8):  # two planner ticks: a reference standing on both flat feet
+        controller.set_command(np.zeros(3))
+        sim.step()
+    ref = controller.ref
+    assert ref is not None and ref.contact.all() and ref.corner_contact.all()
+    corners = ref.sole_corners[:, :, :2].reshape(-1, 2)
+    middle = corners.mean(axis=0)
+    assert controller._outside_support_m(middle) == 0.0
+    toe_x = float(corners[:, 0].max())
+    ahead = np.array([toe_x + 0.07, middle[1]])
+    assert controller._outside_support_m(ahead) == pytest.approx(0.07, abs=1e-3)  # the feet point along x standing
+    ref.contact = np.array([True, False])
+    assert controller._outside_support_m(ahead) == 0.0  # single support: the CoM is outside the foot by design
+    ref.contact = np.array([True, True])
+    controller.params = dataclasses.replace(controller.params, recovery_support_outside_m=math.inf)
+    assert controller._outside_support_m(ahead) == 0.0
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(0.0, 0.3), min_size=1, max_size=400))
 def test_share_stays_in_range_and_on_the_grid(errors):

@@ -90,6 +90,18 @@ def engine_page(studio, width: int, height: int, ready_text: str = "Engine runni
         yield page
 
 
+def text_input(page, label: str):
+    """viser's text and number inputs carry no accessible name: the text input in the row of ``label``."""
+    page.wait_for_function("l => [...document.querySelectorAll('label')].some(e => e.innerText.trim() === l)", arg=label)
+    page.evaluate("""l => {
+        const label = [...document.querySelectorAll('label')].find(e => e.innerText.trim() === l);
+        let n = label;
+        while (n && !n.querySelector('input:not([type=hidden]):not([type=checkbox])')) n = n.parentElement;
+        n.querySelector('input:not([type=hidden]):not([type=checkbox])').setAttribute('data-e2e', l);
+    }""", label)
+    return page.locator(f"input[data-e2e='{label}']")
+
+
 def wait_for_text(page, text: str, timeout_ms: int = 60_000) -> None:
     page.wait_for_function("t => document.body.innerText.includes(t)", arg=text, timeout=stall_ms(timeout_ms))
 

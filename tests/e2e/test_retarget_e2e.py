@@ -10,24 +10,12 @@ import pytest
 
 from engine.motion_files import shared_root
 from tests.conftest import ServedStudio
-from tests.e2e.browser import engine_page, open_page, stall_ms, started_studio, wait_for_text
+from tests.e2e.browser import engine_page, open_page, stall_ms, started_studio, text_input, wait_for_text
 
 pytestmark = pytest.mark.e2e
 
 TROT0 = "stmr_rl/datasets/trot0/trot0_keypoints.npz"
 LONG_CLIP = "motion_imitation/retarget_keypoints/dog_run04_joint_pos.txt"
-
-
-def text_input(page, label: str):
-    """viser's text and number inputs carry no accessible name: the text input in the row of ``label``."""
-    page.wait_for_function("l => [...document.querySelectorAll('label')].some(e => e.innerText.trim() === l)", arg=label)
-    page.evaluate("""l => {
-        const label = [...document.querySelectorAll('label')].find(e => e.innerText.trim() === l);
-        let n = label;
-        while (n && !n.querySelector('input:not([type=hidden]):not([type=checkbox])')) n = n.parentElement;
-        n.querySelector('input:not([type=hidden]):not([type=checkbox])').setAttribute('data-e2e', l);
-    }""", label)
-    return page.locator(f"input[data-e2e='{label}']")
 
 
 def clock(page) -> tuple[int, str]:

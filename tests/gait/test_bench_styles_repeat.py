@@ -68,15 +68,24 @@ def test_the_totals_count_how_the_falls_began():
     assert totals(rows, "g1", 0)["onset"] == "falls began: behind 2, slide 2"  # (ties alphabetical)
 
 
-def test_a_falling_walk_of_the_batch_says_where_and_how_it_began():
-    """tests/data/stumbly_g1.json falls 2.0 s into the sweep (tests/studio/test_rehearse_after_edits.py)."""
+def test_a_falling_walk_of_the_batch_says_where_and_how_it_began(monkeypatch):
+    """tests/data/stumbly_g1.json fell 2.0 s into the sweep before G1's recovery counted the body outside its double
+    support (robots/g1.toml ``recovery_support_outside_m``): with that signal off it still does, and the batch says
+    where and how the fall began; with it on (G1 as shipped) it walks."""
+    import dataclasses
     import json
 
+    from engine.control.walking_parameters import WalkingParameters
     from engine.gait.rehearsal import ONSET_KINDS
     from engine.walk_batch import run_job
     from tests.conftest import REPO
 
     style = json.loads((REPO / "tests" / "data" / "stumbly_g1.json").read_text())
+    shipped = run_job({"robot": "g1", "style": style, "command": "sweep", "duration_s": 4.0})
+    assert "error" not in shipped and not shipped["fell"] and shipped["recovery_mean_share"] > 0.0
+    for_robot = WalkingParameters.for_robot
+    monkeypatch.setattr(WalkingParameters, "for_robot", classmethod(
+        lambda cls, name: dataclasses.replace(for_robot(name), recovery_support_outside_m=float("inf"))))
     result = run_job({"robot": "g1", "style": style, "command": "sweep", "duration_s": 2.5})
     assert result["fell"] and result["fall_time_s"] < 2.5
     assert result["fall_sample"] == "forward_slow" and 0.0 <= result["fall_phase_pct"] < 100.0

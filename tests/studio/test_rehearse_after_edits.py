@@ -4,6 +4,7 @@ before Test is pressed). Real rehearsal processes over a short sweep; a viser se
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 import time
 
 import pytest
@@ -17,7 +18,7 @@ from tests.conftest import REPO
 from tests.studio.test_app import wait
 from tests.studio.test_panels import Notes, server, session  # noqa: F401  (the fixtures: a viser server, neutral open)
 
-STUMBLY = REPO / "tests" / "data" / "stumbly_g1.json"
+SPLAYED = REPO / "tests" / "data" / "splayed_g1.json"
 SHORT_SWEEP_S = 3.0  # stand 1 s and the start of the forward leg: enough to walk, quick to rehearse
 
 
@@ -123,33 +124,35 @@ def test_edits_are_rehearsed_by_themselves_once_the_style_rests_and_undo_reuses_
 
 
 def test_a_style_that_falls_says_where_before_test_is_pressed(server, tmp_path, monkeypatch):
-    """A random reachable G1 style that falls 2 s into the sweep (tests/data/stumbly_g1.json: reachable-0-17 of
-    `studio bench styles --robot g1 --seed 0 --space reachable`, saved by the studio's writer): opened, the panel
-    rehearses it by itself and names the sample and the phase; at a lower fast speed it walks."""
+    """A random G1 style of the validated space that falls 0.9 s into the sweep, stepping in place
+    (tests/data/splayed_g1.json: draw 14 of `studio bench styles --robot g1 --seed 5 --space validated`, saved by the
+    studio's writer; in place its feet splay 0.37 rad and stand 8 cm back, with a 0.68 s toe-off): opened, the panel
+    rehearses it by itself and names the sample and the phase; with in_place's splay at 0 it walks."""
     monkeypatch.setattr(rehearsal_panel, "AUTO_DELAY_S", 0.2)
     folder = tmp_path / "g1"
     folder.mkdir()
     shutil.copy(REPO / "styles" / "g1" / "neutral.json", folder / "neutral.json")
-    shutil.copy(STUMBLY, folder / "stumbly.json")
+    shutil.copy(SPLAYED, folder / "splayed.json")
     session = StyleSession("g1", folder=folder)
     assert session.open("neutral").ok
     shown: list[str] = []
     panel = RehearsalPanel(server, session, 4.0, auto=True, on_show_sample=shown.append)
-    speeds = StyleSpeeds(server, session, Notes())
     try:
         assert not panel.show_fall.visible and panel.show_fall_sample() is None and shown == []
-        assert session.open("stumbly").ok
+        assert session.open("splayed").ok
         wait(lambda: kept(panel, style_digest(session.style)) is not None, 180)
         fell = kept(panel, style_digest(session.style))
-        assert fell["fell"] and fell["sample"] and fell["phase_pct"] is not None
+        assert fell["fell"] and fell["sample"] == "in_place" and fell["phase_pct"] is not None
         wait(lambda: panel.show_fall.visible, 10)
         assert "falls at" in panel.status.content and "% of its cycle" in panel.status.content
-        # and how it began, with what to change (engine/gait/rehearsal.py, the "edges" onset)
-        assert "both feet stood on their toes" in panel.status.content and "less heel or toe pitch" in panel.status.content
+        assert "**in_place**" in panel.status.content and "(standing)" in panel.status.content
         # The button selects the sample the walk fell in (the app selects it in the Sample and Curves tabs).
         assert panel.show_fall.label == f"Show {fell['sample']}" and panel.show_fall_sample() == fell["sample"]
         assert shown == [fell["sample"]]
-        assert speeds.set_speed("x_max_mps", 0.30)
+        style = session.style
+        in_place = style.samples["in_place"]
+        unsplayed = replace(in_place, attributes=replace(in_place.attributes, stance_splay_rad=0.0))
+        assert session.apply(style.with_sample("in_place", unsplayed), "in_place stance_splay_rad").ok
         assert not panel.show_fall.visible  # a new version: the old fall is not shown any more
         wait(lambda: kept(panel, style_digest(session.style)) is not None, 180)
         assert not kept(panel, style_digest(session.style))["fell"]
