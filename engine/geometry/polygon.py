@@ -183,8 +183,9 @@ def polygon_halfplanes(polygon: ArrayLike) -> tuple[FloatArray, FloatArray]:
 
 def outside_distance_m(point_xy: ArrayLike, polygon: ArrayLike) -> float:
     """How far ``point_xy`` lies outside the convex ``polygon`` (the largest half-plane violation; ≤ 0 inside; a
-    polygon of fewer than three vertices: the distance to their mean)."""
-    normals, offsets = polygon_halfplanes(polygon)
+    polygon of fewer than three vertices: the distance to their mean). The half-planes come from
+    :func:`halfplanes_cached`: support polygons recur tick after tick."""
+    normals, offsets, _ = halfplanes_cached(polygon)
     if len(offsets) == 0:
         return float(np.linalg.norm(np.asarray(point_xy) - np.asarray(polygon).reshape(-1, 2).mean(axis=0)))
     return float(np.max(normals @ np.asarray(point_xy, dtype=float) - offsets))
