@@ -21,6 +21,7 @@ from engine.control.controller import JointCommand, RobotState
 from engine.control.reference_kernels import interpolate_reference, interpolate_references
 from engine.control.disturbance_observer import ExternalForceObserver
 from engine.control.estimation import StateEstimator
+from engine.control.estimation.quaternion import wxyz_from_xyzw
 from engine.control.gait_feedback import FeedbackOutput, GaitFeedback, GaitFeedbackGains
 from engine.control.wbc import TaskSpaceInverseDynamics, WbcReference, WholeBodyController
 from engine.control.wbc.reference import N_BASIS, N_CORNERS
@@ -31,8 +32,10 @@ from engine.control.walking_parameters import WalkingParameters
 from engine.control.touchdown import TouchdownTracker
 from engine.control.walking_telemetry import WalkingTelemetry, update_telemetry
 from engine.gait.footsteps import Foothold
+from engine.gait.start_settle import StartPose, StartSettle
 from engine.gait.support_edges import outside_support_m
 from engine.geometry.polygon import clip_into_polygon, halfplanes_cached
+from engine.geometry.rotation import matrix_from_quat
 from engine.geometry.vector import vector_norm
 from engine.gait.offline_plan import planner_for
 from engine.gait.planner import PLANNER_RATE_HZ, GaitReference, PlannerFeedback
@@ -120,6 +123,8 @@ class WalkingController:
         self.wbc_contact = np.ones((2, 4), dtype=bool)
         self.step_adjustment = StepAdjustment(robot, self.params, self.planner, self.feedback.gains,
                                               robot.q_standing[2] + self.com_offset_m)
+        self.start_settle = StartSettle(self.params.start_settle_s)
+        self._upper_q_index = np.array([7 + robot.joint_names.index(j) for j in self.ctx.upper_joints], dtype=np.intp)
         self.recovery = RecoveryBlend(self.params)
         if self.recovery.enabled:  # (without a neutral style that loads, the planner never recovers toward one)
             self.planner.set_recovery_style(self._neutral_style())
@@ -163,6 +168,8 @@ class WalkingController:
         self.wbc.reset(state)
         self.feedback.reset()
         self.recovery.reset()
+        pelvis_rot = matrix_from_quat(np.array(wxyz_from_xyzw(q[3:7])))  # (pinocchio's q: x, y, z, w)
+        self.start_settle.reset(StartPose.from_state(float(q[2]), pelvis_rot, q[self._upper_q_index]))
         self.mpc.reset()
         self.command_filtered = np.zeros(3)
         self.tick = 0
@@ -285,6 +292,11 @@ class WalkingController:
         ref = planner.step(PLAN_DT_S, command, PlannerFeedback(
             time_scaling=fb.kappa, step_adjustment_xy_m=fb.step_adjust_m, command_goal=goal,
             command_rate_limits=self._command_accel_limits, recovery_share=recovery_share))
+        if self.start_settle.active(planner.t_s):  # from a reset: the posture eases into the style's
+            (ref.pelvis_z, ref.pelvis_z_rate, ref.pelvis_rot, ref.pelvis_ang_vel, ref.upper_q,
+             ref.upper_qd) = self.start_settle.apply(planner.t_s, float(planner.path.yaw), ref.pelvis_z,
+                                                     ref.pelvis_z_rate, ref.pelvis_rot, ref.pelvis_ang_vel,
+                                                     ref.upper_q, ref.upper_qd)
         self._feet_feedforward(ref)
         self.ref = ref
         since_touchdown = self.touchdown.relatch_landed_feet(est, ref, contact_before, self.params, planner)

@@ -131,6 +131,10 @@ class WalkingParameters:
     # controller is tuned on, then eases into the style: the first forward steps of a style whose posture is far
     # from standing (the robot's standing pose) otherwise lag the CoM plan and walk backward (issue 13, stop 36).
     recovery_start_neutral_s: float = 0.0
+    # From a reset the reference's posture (pelvis height, roll and pitch, upper-body joints) eases from the pose the
+    # robot stands in into the style's over this time (engine/gait/start_settle.py; 0: the style's posture from the
+    # first tick, which the whole-body controller meets in one jump).
+    start_settle_s: float = 0.0
 
     @classmethod
     def for_robot(cls, name: str) -> WalkingParameters:
